@@ -1,0 +1,60 @@
+# parmpm — the README's quick start is `make run` and `make test`.
+#
+# Both create ./.venv on first use and install parmpm into it (editable) with the MPICH wheel
+# (which brings `mpirun`), the test tools and matplotlib. The install is redone only when
+# pyproject.toml is newer than the stamp file .venv/.installed.
+#
+#   make run                      the default scene (2D hanging bar, cpdi, l_cr = 2dx) on NP=2 ranks
+#   make run NP=4 RUN_ARGS='run vibrating_bar --quiet'
+#   make test                     the test suite; pass pytest options with PYTEST_ARGS='-k cli -x'
+#   make figures                  run_scripts/make_figures.py, where it exists
+#
+# PYTHON picks the interpreter that creates the venv (Python >= 3.11): make test PYTHON=python3.12
+
+PYTHON ?= python3
+VENV ?= .venv
+NP ?= 2
+RUN_ARGS ?=
+PYTEST_ARGS ?=
+
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+EXTRAS := mpich,test,plot
+
+.PHONY: help venv run test figures clean
+
+help:
+	@echo "make run      run the default scene on $(NP) MPI ranks (creates $(VENV) on first use)"
+	@echo "make test     run the test suite (PYTEST_ARGS='...' passes options to pytest)"
+	@echo "make figures  regenerate the README figures (run_scripts/make_figures.py)"
+	@echo "make venv     only create $(VENV) and install parmpm[$(EXTRAS)] into it"
+	@echo "make clean    remove outputs and caches (keeps $(VENV))"
+
+$(BIN)/python:
+	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
+	  { echo "parmpm needs Python >= 3.11; try: make $(MAKECMDGOALS) PYTHON=python3.11" >&2; exit 1; }
+	@$(PYTHON) -m venv $(VENV) || \
+	  { echo "'$(PYTHON) -m venv' failed (on Debian/Ubuntu: apt-get install python3-venv)" >&2; exit 1; }
+
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install -e '.[$(EXTRAS)]'
+	@touch $@
+
+venv: $(STAMP)
+
+run: $(STAMP)
+	$(BIN)/mpirun -n $(NP) $(BIN)/python -m parmpm $(RUN_ARGS)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
+
+figures: $(STAMP)
+	@if [ -f run_scripts/make_figures.py ]; then \
+	  $(BIN)/python run_scripts/make_figures.py; \
+	else \
+	  echo "run_scripts/make_figures.py does not exist yet (planned)"; \
+	fi
+
+clean:
+	rm -rf parmpm-out .pytest_cache build *.egg-info
+	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -exec rm -rf {} +

@@ -1,0 +1,204 @@
+"""The ``parmpm`` command line: ``python -m parmpm`` or the ``parmpm`` console script.
+
+    mpirun -n 2 python -m parmpm                                  # the default scene (hanging_bar)
+    mpirun -n 4 python -m parmpm run vibrating_bar --set method.interpolator=mpm
+    python -m parmpm run my_scene.toml --out results/ --quiet
+    python -m parmpm scenes                                       # the built-in scenes
+
+Exit codes: 0 success; 2 a user error (bad scene, bad ``--set``, a run that cannot go on:
+every ``ParmpmError``), printed as one line ``parmpm: error: <message>`` without a traceback;
+130 interrupted; 1 a bug (full traceback; under MPI the job is aborted so that no rank hangs).
+
+Under MPI a user error that every rank raises (a bad scene is read by every rank) is printed once,
+by rank 0, and every rank exits with 2. An error raised by some ranks only is printed by each of
+them, and the job is aborted, since the other ranks may be waiting on them in a collective.
+The two cases are told apart by a non-blocking barrier on a private communicator, given a few
+seconds to complete.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+import traceback
+from pathlib import Path
+
+from parmpm.errors import ParmpmError
+
+DEFAULT_SCENE = "hanging_bar"
+DEFAULT_OUT = Path("parmpm-out")
+#: seconds that ranks failing together get to reach the error handler before the job is aborted
+AGREE_TIMEOUT_S = 5.0
+
+_EPILOG = """\
+examples:
+  mpirun -n 2 python -m parmpm                       the default scene (2D hanging bar, cpdi, l_cr = 2dx)
+  python -m parmpm scenes                            list the built-in scenes
+  mpirun -n 4 python -m parmpm run hanging_bar --set method.interpolator=mpm --set time.end=0.1
+  python -m parmpm run path/to/scene.toml --out results/
+
+Without a command, parmpm runs the built-in scene 'hanging_bar'.
+"""
+
+_RUN_EPILOG = """\
+--set takes a dotted scene key and a TOML value (a bare word is read as a string), e.g.
+  --set method.interpolator=ugimp    --set method.lcr=1.5dx     --set grid.cells=[40,60]
+  --set time.end=0.1                 --set bodies.0.ppc=3       --set gravity.g=[0,-9.81]
+The scene keys are listed in the README (Scene reference) and in parmpm/scene.py.
+"""
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import PackageNotFoundError, version
+    except ImportError:  # pragma: no cover
+        return "unknown"
+    try:
+        return version("parmpm")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="parmpm",
+        description="MPI-parallel explicit Material Point Method solver (mpm, ugimp, cpgimp, cpdi "
+        "with CPDI domain scaling). Run it under mpirun for several ranks.",
+        epilog=_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
+    commands = parser.add_subparsers(dest="command", title="commands", metavar="COMMAND")
+
+    run = commands.add_parser(
+        "run",
+        help="run a scene (the default command)",
+        description="Run a scene on all MPI ranks; write snapshots, figures and summary.json to the "
+        "output folder and print a summary.",
+        epilog=_RUN_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    run.add_argument("scene", metavar="SCENE",
+                     help="a built-in scene name (see 'parmpm scenes') or the path to a TOML scene file")
+    run.add_argument("-s", "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a scene value (repeatable; applied after the scene file)")
+    run.add_argument("-o", "--out", type=Path, default=None, metavar="DIR",
+                     help=f"output folder (default: {DEFAULT_OUT}/<scene name>/)")
+    run.add_argument("-q", "--quiet", action="store_true",
+                     help="no progress bar, no info messages (warnings and errors still show)")
+
+    commands.add_parser("scenes", help="list the built-in scenes",
+                        description="List the built-in scenes: name and one-line description.")
+    return parser
+
+
+def _world():
+    """(rank, size, comm) of MPI_COMM_WORLD; (0, 1, None) when mpi4py cannot be imported."""
+    try:
+        from mpi4py import MPI
+    except ImportError:
+        return 0, 1, None
+    comm = MPI.COMM_WORLD
+    return comm.Get_rank(), comm.Get_size(), comm
+
+
+def _all_ranks_here(comm, timeout: float) -> bool:
+    """True when every rank of ``comm`` reaches this call within ``timeout`` seconds.
+
+    A non-blocking barrier, polled: ranks that fail together agree here; a rank that failed alone
+    gets False, because the others are elsewhere (possibly blocked waiting for it).
+    """
+    if comm is None or comm.Get_size() == 1:
+        return True
+    request = comm.Ibarrier()
+    deadline = time.monotonic() + timeout
+    while not request.Test():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.005)
+    return True
+
+
+def _one_line(message: str) -> str:
+    return " ".join(part.strip() for part in str(message).splitlines() if part.strip())
+
+
+def _cmd_scenes() -> int:
+    from parmpm.scene import builtin_scenes
+
+    scenes = builtin_scenes()
+    width = max((len(name) for name in scenes), default=0)
+    try:
+        for name, description in scenes.items():
+            print(f"{name:<{width}}  {description}".rstrip(), flush=True)
+    except BrokenPipeError:  # `parmpm scenes | head -1`: the reader left; say nothing more
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return 0
+
+
+def _cmd_run(args: argparse.Namespace, rank: int) -> int:
+    from parmpm.scene import load_scene
+
+    scene = load_scene(args.scene, overrides=args.overrides)  # before the heavy imports below
+
+    from parmpm.io.summary import format_summary
+    from parmpm.simulation import Simulation
+
+    out_dir = args.out if args.out is not None else DEFAULT_OUT / scene.name
+    summary = Simulation(scene, out_dir, quiet=args.quiet or rank != 0).run_on_world()
+    if rank == 0:
+        print(format_summary(summary), flush=True)
+    return 0
+
+
+def _run_guarded(args: argparse.Namespace) -> int:
+    """``run`` with MPI set up and the error policy of the module docstring applied."""
+    from parmpm.log import setup_logging
+
+    rank, size, comm = _world()
+    setup_logging(rank, size, quiet=args.quiet)
+    # A private communicator for the error handshake, so that it can never match a collective
+    # that other ranks are blocked in on COMM_WORLD. (Dup is collective: every rank is here.)
+    err_comm = comm.Dup() if comm is not None and size > 1 else None
+
+    def fail(message: str, code: int) -> int:
+        if _all_ranks_here(err_comm, AGREE_TIMEOUT_S):
+            if rank == 0:
+                print(message, file=sys.stderr, flush=True)
+            return code
+        print(message, file=sys.stderr, flush=True)
+        comm.Abort(code)
+        return code  # pragma: no cover (Abort does not return)
+
+    try:
+        return _cmd_run(args, rank)
+    except ParmpmError as exc:
+        return fail(f"parmpm: error: {_one_line(exc)}", 2)
+    except KeyboardInterrupt:
+        return fail("parmpm: interrupted", 130)
+    except Exception:
+        traceback.print_exc()
+        sys.stderr.flush()
+        if size > 1:
+            comm.Abort(1)
+        return 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Parse ``argv`` (default ``sys.argv[1:]``), run the command and return the exit code."""
+    args = build_parser().parse_args(argv)
+    if args.command is None:  # `python -m parmpm` = `python -m parmpm run hanging_bar`
+        args = argparse.Namespace(command="run", scene=DEFAULT_SCENE, overrides=[], out=None, quiet=False)
+    if args.command == "scenes":
+        try:
+            return _cmd_scenes()
+        except ParmpmError as exc:
+            print(f"parmpm: error: {_one_line(exc)}", file=sys.stderr)
+            return 2
+    return _run_guarded(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,157 @@
+"""``summary.json``: the machine-readable record of a run, and its short human form.
+
+``write_summary`` converts numpy scalars and arrays, paths, tuples and sets to plain JSON
+(non-finite floats become ``null``, so the file is strict JSON) and writes atomically: a temporary
+file in the same folder, flushed and fsynced, then ``os.replace`` — a crash never leaves a torn
+summary.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["to_jsonable", "write_summary", "format_summary"]
+
+SUMMARY_NAME = "summary.json"
+
+# metrics kept in summary.json but left out of the short human summary
+_DETAIL_METRICS = frozenset(
+    {"samples", "max_components", "exact_static_tip_displacement", "com_velocity_max_abs_error",
+     "wave_modulus", "length"}
+)
+
+
+def to_jsonable(obj):
+    """Recursively convert ``obj`` to plain JSON types (dict keys become strings)."""
+    if isinstance(obj, dict):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v) for v in obj]
+    if isinstance(obj, (set, frozenset)):
+        return [to_jsonable(v) for v in sorted(obj, key=repr)]
+    if isinstance(obj, np.ndarray):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        value = float(obj)
+        return value if math.isfinite(value) else None
+    if isinstance(obj, os.PathLike):
+        return os.fspath(obj)
+    if obj is None or isinstance(obj, str):
+        return obj
+    if hasattr(obj, "item"):  # other numpy scalars
+        return to_jsonable(obj.item())
+    return str(obj)
+
+
+def write_summary(out_dir, summary: dict) -> Path:
+    """Write ``<out_dir>/summary.json`` (indent 2) atomically and return its path."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / SUMMARY_NAME
+    text = json.dumps(to_jsonable(summary), indent=2, allow_nan=False) + "\n"
+    fd, tmp = tempfile.mkstemp(prefix=".summary.", suffix=".tmp", dir=out_dir)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _get(d: dict, *keys, default=None):
+    """First present, non-None value among ``keys``; a dotted key looks into nested dicts."""
+    for key in keys:
+        cur = d
+        for part in key.split("."):
+            if not isinstance(cur, dict) or part not in cur:
+                cur = None
+                break
+            cur = cur[part]
+        if cur is not None:
+            return cur
+    return default
+
+
+def _fmt(value) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, (int, np.integer)):
+        return f"{int(value):,}"
+    if isinstance(value, (float, np.floating)):
+        return f"{float(value):.4g}"
+    return str(value)
+
+
+def format_summary(summary: dict) -> str:
+    """A 5–8 line human summary of ``summary``.
+
+    Recognised keys (first found wins): scene name ``scene_name`` | ``scene`` (str) |
+    ``scene.name``; ``dim``/``scene.dim``; method ``method`` | ``interpolator`` |
+    ``scene.method.interpolator``; ``scheme`` (USL/MUSL); ``lcr`` | ``l_cr``; ``ranks``;
+    ``particles`` | ``n_particles``; ``steps`` | ``n_steps``; ``time`` | ``t_end`` |
+    ``simulated_time``; ``wall_time`` | ``wall_time_s`` | ``wall_s``; ``particle_steps_per_s``
+    (else particles·steps/wall); ``metrics`` (a dict: its scalar entries are listed).
+    """
+    scene = summary.get("scene")
+    name = _get(summary, "scene_name", "scene.name", "name")
+    if name is None and isinstance(scene, str):
+        name = scene
+    dim = _get(summary, "dim", "scene.dim")
+    method = _get(summary, "method", "interpolator", "scene.method.interpolator", "scene.method.name")
+    if isinstance(method, dict):
+        method = method.get("interpolator") or method.get("name")
+    scheme = _get(summary, "update", "scheme", "scene.method.update")
+    lcr = _get(summary, "lcr", "l_cr", "scene.method.lcr", "scene.method.l_cr")
+    ranks = _get(summary, "ranks", "n_ranks", "size")
+    particles = _get(summary, "particles", "n_particles")
+    steps = _get(summary, "steps", "n_steps", "step")
+    t_sim = _get(summary, "time", "t_end", "simulated_time", "t")
+    wall = _get(summary, "wall_seconds", "wall_time", "wall_time_s", "wall_s")
+    rate = _get(summary, "particle_steps_per_second", "particle_steps_per_s")
+    if rate is None and particles and steps and wall:
+        rate = float(particles) * float(steps) / float(wall)
+
+    head = f"scene       {_fmt(name)}" + (f" ({dim}D)" if dim is not None else "")
+    meth = f"method      {_fmt(method)}"
+    if scheme is not None:
+        meth += f" / {scheme}"
+    if lcr is not None:
+        meth += f", l_cr = {_fmt(lcr)}"
+    if ranks is not None:
+        meth += f", {_fmt(ranks)} rank(s)"
+    lines = [
+        head,
+        meth,
+        f"particles   {_fmt(particles)}    steps {_fmt(steps)}    simulated time {_fmt(t_sim)} s",
+        f"wall time   {_fmt(wall)} s    "
+        + (f"{float(rate):,.0f}" if rate is not None else "-")
+        + " particle-steps/s",
+    ]
+    metrics = summary.get("metrics")
+    if isinstance(metrics, dict) and metrics:
+        items = [
+            f"{k} = {_fmt(v)}"
+            for k, v in metrics.items()
+            if k not in _DETAIL_METRICS
+            and v is not None
+            and isinstance(v, (bool, int, float, str, np.generic))
+        ]
+        for i in range(0, min(len(items), 6), 3):
+            lines.append(("metrics     " if i == 0 else "            ") + ", ".join(items[i : i + 3]))
+    return "\n".join(lines)

@@ -1,0 +1,460 @@
+"""Scene metrics computed from particle arrays: numerical separation and error norms.
+
+* :func:`count_components` — numerical fracture detection: particles are connected when they
+  share a grid node with nonzero weight (they exchange momentum through it); the number of
+  connected components of that graph is the number of separated pieces (Sadeghirad, Brannon &
+  Burghardt 2011 describe separation as particles no longer sharing any node).
+* :class:`HangingBarMetrics`, :class:`VibratingBarMetrics` — per-scene histories and the
+  numbers the run's ``summary.json`` reports, against :mod:`parmpm.exact`.
+
+A metrics object is built once with the reference positions ``x0`` and masses, then sampled by the
+run loop every ``metrics.every_steps`` steps. The arrays it is given must hold *all* particles in
+global-id order (gathered on the rank that owns the metrics), the same order as ``x0``.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+
+from parmpm.errors import SceneError
+from parmpm.exact import (
+    hanging_bar_static,
+    hanging_bar_static_displacement,
+    lame_parameters,
+    mode_constants,
+    nominal_stress_1d,
+    vibrating_bar_com_velocity,
+)
+from parmpm.jit import kernel
+
+logger = logging.getLogger(__name__)
+
+__all__ = [
+    "count_components",
+    "HangingBarMetrics",
+    "VibratingBarMetrics",
+    "METRICS",
+    "register_metrics",
+    "make_metrics",
+]
+
+
+# --------------------------------------------------------------------------------------------
+# Numerical separation: connected components of the particle–node graph
+# --------------------------------------------------------------------------------------------
+@kernel
+def _find(parent, i):
+    """Root of ``i`` in a union-find forest, with path halving (Tarjan 1975)."""
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@kernel
+def _components(particle_nodes, particle_nnodes, n_nodes):
+    """Number of connected components of particles that share grid nodes.
+
+    Union-find over particles (union by size, path halving): the first particle seen at a node
+    becomes the node's representative, and every later particle touching that node is united
+    with it. ``particle_nodes[p, :particle_nnodes[p]]`` are the flat node ids (``0 <= id <
+    n_nodes``) that particle ``p`` touches with nonzero weight. A particle touching no node is a
+    component of its own. Cost O(N K α(N)) time, O(N + n_nodes) memory.
+    """
+    n = particle_nodes.shape[0]
+    parent = np.arange(n)
+    size = np.ones(n, dtype=np.int64)
+    owner = np.full(n_nodes, -1, dtype=np.int64)
+    components = n
+    for p in range(n):
+        for k in range(particle_nnodes[p]):
+            node = particle_nodes[p, k]
+            q = owner[node]
+            if q < 0:
+                owner[node] = p
+                continue
+            a = _find(parent, p)
+            b = _find(parent, q)
+            if a == b:
+                continue
+            if size[a] < size[b]:
+                a, b = b, a
+            parent[b] = a
+            size[a] += size[b]
+            components -= 1
+    return components
+
+
+def count_components(particle_nodes, particle_nnodes, n_nodes) -> int:
+    """Number of connected pieces of material (1 = intact, > 1 = numerically separated).
+
+    ``particle_nodes`` is an int array (N, K) of global flat node ids each particle touches with
+    nonzero weight, of which the first ``particle_nnodes[p]`` are valid; ``n_nodes`` bounds the
+    ids. When ``n_nodes`` is much larger than the number of entries (a big 3D grid), the ids are
+    first compressed with ``np.unique`` so memory follows the particles, not the grid.
+    """
+    particle_nodes = np.ascontiguousarray(particle_nodes, dtype=np.int64)
+    particle_nnodes = np.ascontiguousarray(particle_nnodes, dtype=np.int64)
+    if particle_nodes.ndim != 2 or particle_nnodes.shape != (particle_nodes.shape[0],):
+        raise ValueError("particle_nodes must be (N, K) and particle_nnodes (N,)")
+    n = particle_nodes.shape[0]
+    if n == 0:
+        return 0
+    if np.any(particle_nnodes > particle_nodes.shape[1]) or np.any(particle_nnodes < 0):
+        raise ValueError("particle_nnodes out of range [0, K]")
+    n_nodes = int(n_nodes)
+    if n_nodes > 4 * particle_nodes.size + 1024:
+        valid = np.arange(particle_nodes.shape[1])[None, :] < particle_nnodes[:, None]
+        uniq, inverse = np.unique(particle_nodes[valid], return_inverse=True)
+        compact = np.zeros_like(particle_nodes)
+        compact[valid] = inverse.ravel()
+        particle_nodes, n_nodes = compact, uniq.size
+    return int(_components(particle_nodes, particle_nnodes, max(n_nodes, 1)))
+
+
+# --------------------------------------------------------------------------------------------
+# Reading the resolved scene
+# --------------------------------------------------------------------------------------------
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def _axis_index(axis, dim: int, default: int) -> int:
+    """Axis as an index: an int, or ``"x"``, ``"y"``, ``"z"``; ``None`` gives ``default``."""
+    if axis is None:
+        return default
+    if isinstance(axis, str):
+        if axis.lower() not in _AXES:
+            raise SceneError(f"unknown axis {axis!r} (use x, y, z or 0, 1, 2)")
+        axis = _AXES[axis.lower()]
+    axis = int(axis)
+    if not 0 <= axis < dim:
+        raise SceneError(f"axis {axis} out of range for a {dim}D scene")
+    return axis
+
+
+def _first(d: dict, keys, default=None):
+    for k in keys:
+        if k in d and d[k] is not None:
+            return d[k]
+    return default
+
+
+def _bar_body(scene_data: dict) -> dict:
+    bodies = scene_data.get("bodies") or []
+    if not bodies:
+        raise SceneError("metrics need at least one body (body 0 is the bar)")
+    return bodies[0]
+
+
+def _bar_material(scene_data: dict, body: dict) -> dict:
+    """Material of ``body``: ``materials`` may be a list (body refers by index or name) or a
+    dict keyed by name; a body without a reference uses the first material."""
+    materials = scene_data.get("materials") or []
+    ref = body.get("material", 0)
+    if isinstance(materials, dict):
+        if isinstance(ref, str) and ref in materials:
+            return materials[ref]
+        values = list(materials.values())
+        if isinstance(ref, int) and 0 <= ref < len(values):
+            return values[ref]
+    else:
+        if isinstance(ref, int) and 0 <= ref < len(materials):
+            return materials[ref]
+        for m in materials:
+            if isinstance(m, dict) and m.get("name") == ref:
+                return m
+    raise SceneError(f"body 0 refers to an unknown material {ref!r}")
+
+
+def _material_constants(mat: dict) -> tuple[str, float, float, float]:
+    """``(model, E, nu, density)`` of a material table."""
+    model = str(_first(mat, ("model", "type", "kind"), ""))
+    E = _first(mat, ("E", "youngs_modulus", "young"))
+    nu = _first(mat, ("nu", "poisson", "poisson_ratio"), 0.0)
+    rho = _first(mat, ("density", "rho", "rho0"))
+    if E is None or rho is None:
+        raise SceneError("the bar's material needs E and density")
+    return model, float(E), float(nu), float(rho)
+
+
+def _body_box(body: dict):
+    """``(lo, hi)`` arrays of a box-shaped body, or None if its geometry is not a box."""
+    box = body.get("box")
+    lo = hi = None
+    if isinstance(box, dict):
+        lo, hi = _first(box, ("lo", "min", "lower")), _first(box, ("hi", "max", "upper"))
+    elif isinstance(box, (list, tuple)) and len(box) == 2:
+        lo, hi = box
+    if lo is None:
+        lo, hi = _first(body, ("lo", "min", "lower")), _first(body, ("hi", "max", "upper"))
+    if lo is None and "origin" in body and "size" in body:
+        lo = np.asarray(body["origin"], dtype=float)
+        hi = lo + np.asarray(body["size"], dtype=float)
+    if lo is None or hi is None:
+        return None
+    return np.atleast_1d(np.asarray(lo, dtype=float)), np.atleast_1d(np.asarray(hi, dtype=float))
+
+
+def _lattice_span(coord: np.ndarray) -> tuple[float, float]:
+    """Span of a uniform particle lattice along one axis: the particles' range widened by half
+    a particle spacing at each end (particles sit at the centres of their sub-cells)."""
+    u = np.unique(coord)
+    if u.size < 2:
+        return (float(u[0]), float(u[0])) if u.size else (0.0, 0.0)
+    gaps = np.diff(u)
+    spacing = gaps[gaps > 1e-9 * (u[-1] - u[0])].min()
+    return float(u[0] - 0.5 * spacing), float(u[-1] + 0.5 * spacing)
+
+
+def _bar_span(body: dict, x0: np.ndarray, axis: int) -> tuple[float, float]:
+    """``(lo, hi)`` of body 0 along ``axis``: its box, else the particle lattice."""
+    box = _body_box(body)
+    if box is not None and box[0].size > axis:
+        return float(box[0][axis]), float(box[1][axis])
+    span = _lattice_span(x0[:, axis])
+    logger.info("body 0 has no box geometry; bar span %s taken from the particle lattice", span)
+    return span
+
+
+def _bar_mask(scene_data: dict, body: dict, x0: np.ndarray) -> np.ndarray:
+    """Particles of body 0: all of them in a one-body scene, else those inside body 0's box."""
+    n = x0.shape[0]
+    if len(scene_data.get("bodies") or []) <= 1:
+        return np.ones(n, dtype=bool)
+    box = _body_box(body)
+    if box is None or box[0].size < x0.shape[1]:
+        logger.warning("several bodies and body 0 is not a box: metrics use all particles")
+        return np.ones(n, dtype=bool)
+    lo, hi = box[0][: x0.shape[1]], box[1][: x0.shape[1]]
+    tol = 1e-9 * max(float(np.max(hi - lo)), 1.0)
+    return np.all((x0 >= lo - tol) & (x0 <= hi + tol), axis=1)
+
+
+def _gravity(scene_data: dict, dim: int) -> np.ndarray:
+    """Gravity vector: ``gravity = {g = [...], ramp_time}`` (the resolved scene) or a bare list."""
+    g = scene_data.get("gravity")
+    if isinstance(g, dict):
+        g = g.get("g")
+    if g is None:
+        return np.zeros(dim)
+    g = np.atleast_1d(np.asarray(g, dtype=float))
+    out = np.zeros(dim)
+    out[: min(dim, g.size)] = g[:dim]
+    return out
+
+
+def _as_points(a, n: int, dim: int) -> np.ndarray:
+    return np.asarray(a, dtype=float).reshape(n, dim)
+
+
+def _to_plain(value):
+    """Python float/None for JSON (non-finite numbers become None)."""
+    if value is None:
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+# --------------------------------------------------------------------------------------------
+# Metrics registry
+# --------------------------------------------------------------------------------------------
+METRICS: dict[str, type] = {}
+
+
+def register_metrics(kind: str):
+    """Class decorator: make a metrics class available to ``make_metrics`` as ``kind``."""
+
+    def deco(cls):
+        METRICS[kind] = cls
+        cls.kind = kind
+        return cls
+
+    return deco
+
+
+@register_metrics("hanging_bar")
+class HangingBarMetrics:
+    """Separation, stretch and tip history of the self-weighted bar (body 0).
+
+    * axial stretch of particle p: ``|F_p e_a|`` (length of column ``a`` of F), ``a`` =
+      ``metrics.axis`` (default: the axis gravity points along);
+    * tip: the bar's particles with the extreme initial coordinate in the direction of gravity;
+      its displacement is the mean displacement of those particles projected on ``−ĝ`` along the
+      axis (so negative = downward);
+    * separation: ``components > 1`` at some sample (see :func:`count_components`);
+    * in 1D, the static elongation ``ΔL`` of :func:`parmpm.exact.hanging_bar_static` with the
+      material's 1D law (``exact_static_elongation``, at the very tip), the exact static
+      displacement ``u*`` at the tip particles' reference position (half a particle spacing
+      above the tip; ``exact_static_tip_displacement``), and
+      ``relative_error_static = |(−tip_displacement) − u*| / u*`` at the last sample. Comparing
+      with ``u*`` rather than ``ΔL`` removes an O(Δx²) offset that is not a solver error. It is
+      meaningful only for damped or slowly ramped runs: an undamped bar oscillates about the
+      static state, peaking at twice it in small strain.
+    """
+
+    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
+        self.dim = int(scene_data.get("dim", np.shape(x0)[1] if np.ndim(x0) == 2 else 1))
+        self.x0 = _as_points(x0, np.shape(mass)[0], self.dim)
+        self.mass = np.asarray(mass, dtype=float)
+        gravity = _gravity(scene_data, self.dim)
+        g_axis_default = int(np.argmax(np.abs(gravity))) if np.any(gravity) else self.dim - 1
+        cfg = scene_data.get("metrics") or {}
+        self.axis = _axis_index(cfg.get("axis"), self.dim, g_axis_default)
+        self.g = float(np.linalg.norm(gravity))
+        down = gravity[self.axis]
+        self.up_sign = -1.0 if down > 0 else 1.0  # displacement · up_sign < 0 means downward
+
+        body = _bar_body(scene_data)
+        self.bar = _bar_mask(scene_data, body, self.x0)
+        xa = self.x0[:, self.axis]
+        bar_coords = xa[self.bar]
+        extreme = bar_coords.max() if down > 0 else bar_coords.min()
+        tol = 1e-9 * max(float(np.ptp(bar_coords)), 1.0)
+        self.tip = np.flatnonzero(self.bar & (np.abs(xa - extreme) <= tol))
+        lo, hi = _bar_span(body, self.x0[self.bar], self.axis)
+        self.L = hi - lo
+        # reference distance of the tip particles from the support (the top of the bar)
+        self.X_tip = float(np.mean(hi - xa[self.tip])) if down <= 0 else float(np.mean(xa[self.tip] - lo))
+
+        self.exact_static_elongation = None
+        self.exact_static_tip_displacement = None
+        if self.dim == 1:
+            model, E, nu, rho = _material_constants(_bar_material(scene_data, body))
+            try:
+                law = nominal_stress_1d(model, E, nu)
+                exact = hanging_bar_static(self.L, rho, self.g, law)
+                self.exact_static_elongation = exact["elongation"]
+                self.exact_static_tip_displacement = float(
+                    hanging_bar_static_displacement(self.X_tip, self.L, rho, self.g, law)
+                )
+            except (SceneError, ValueError) as err:
+                logger.warning("no exact static elongation: %s", err)
+
+        self.times: list[float] = []
+        self.tip_history: list[float] = []
+        self.max_stretch_history: list[float] = []
+        self.components_history: list[int] = []
+        self.separation_time = None
+        self.stretch_at_separation = None
+
+    def sample(self, t, x, v, F, components) -> None:
+        """Record one sample (positions x (N,dim), F (N,dim,dim), components: int or None)."""
+        n = self.mass.shape[0]
+        x = _as_points(x, n, self.dim)
+        F = np.asarray(F, dtype=float).reshape(n, self.dim, self.dim)
+        stretch = np.sqrt(np.sum(F[self.bar, :, self.axis] ** 2, axis=1))
+        max_stretch = float(np.max(stretch)) if stretch.size else float("nan")
+        tip = float(np.mean(x[self.tip, self.axis] - self.x0[self.tip, self.axis])) * self.up_sign
+        self.times.append(float(t))
+        self.tip_history.append(tip)
+        self.max_stretch_history.append(max_stretch)
+        comps = -1 if components is None else int(components)
+        self.components_history.append(comps)
+        if comps > 1 and self.separation_time is None:
+            self.separation_time = float(t)
+            self.stretch_at_separation = max_stretch
+
+    def result(self) -> dict:
+        """JSON-ready dict (see the class docstring for the definitions)."""
+        stretches = np.asarray(self.max_stretch_history)
+        tips = np.asarray(self.tip_history)
+        tip_final = float(tips[-1]) if tips.size else None
+        exact = self.exact_static_tip_displacement
+        rel = None
+        if exact is not None and tip_final is not None and exact != 0.0:
+            rel = abs(-tip_final - exact) / abs(exact)
+        return {
+            "separated": self.separation_time is not None,
+            "separation_time": self.separation_time,
+            "max_stretch": _to_plain(np.nanmax(stretches)) if stretches.size else None,
+            "stretch_at_separation": _to_plain(self.stretch_at_separation),
+            "tip_displacement": _to_plain(tip_final),
+            "max_tip_displacement": _to_plain(np.nanmax(np.abs(tips))) if tips.size else None,
+            "exact_static_elongation": _to_plain(self.exact_static_elongation),
+            "exact_static_tip_displacement": _to_plain(exact),
+            "relative_error_static": _to_plain(rel),
+            "max_components": int(max(self.components_history)) if self.components_history else None,
+            "samples": len(self.times),
+        }
+
+
+@register_metrics("vibrating_bar")
+class VibratingBarMetrics:
+    """Centre-of-mass velocity of the axially vibrating bar (body 0) against the exact mode.
+
+    ``v̄_num = Σ m v_a / Σ m`` over the bar's particles, ``v̄_exact = v0/(β_n L) cos(ω_n t)``
+    (:func:`parmpm.exact.vibrating_bar_com_velocity`) with ``v0``, ``n``, ``a`` from body 0's
+    ``vibration`` table (amplitude, mode, axis) and ``L`` its extent along ``a``. The error is
+    ``sqrt(Σ (v̄_num − v̄_exact)² / Σ v̄_exact²)`` over the samples.
+
+    The wave modulus is that of the material's small-strain law in the bar's setting: ``λ_L + 2μ``
+    in 1D (uniaxial strain, the 1D law of :func:`parmpm.exact.nominal_stress_1d`), ``E/(1 − ν²)``
+    in 2D (plane strain, laterally free, long waves) and ``E`` in 3D; all equal ``E`` for ν = 0.
+    """
+
+    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
+        self.dim = int(scene_data.get("dim", np.shape(x0)[1] if np.ndim(x0) == 2 else 1))
+        n = np.shape(mass)[0]
+        self.x0 = _as_points(x0, n, self.dim)
+        self.mass = np.asarray(mass, dtype=float)
+        body = _bar_body(scene_data)
+        vib = body.get("vibration") or {}
+        if not vib:
+            raise SceneError("vibrating_bar metrics need body 0's 'vibration' table")
+        self.v0 = float(_first(vib, ("amplitude", "v0"), 0.0))
+        self.mode = int(vib.get("mode", 1))
+        cfg = scene_data.get("metrics") or {}
+        self.axis = _axis_index(_first(vib, ("axis",), cfg.get("axis")), self.dim, 0)
+        lo, hi = _bar_span(body, self.x0, self.axis)
+        self.L = hi - lo
+        _, E, nu, self.rho = _material_constants(_bar_material(scene_data, body))
+        lam, mu = lame_parameters(E, nu)
+        self.modulus = {1: lam + 2.0 * mu, 2: E / (1.0 - nu * nu)}.get(self.dim, E)
+        _, omega, _ = mode_constants(self.L, self.modulus, self.rho, self.mode)
+        self.period = 2.0 * math.pi / omega
+        self.bar = _bar_mask(scene_data, body, self.x0)
+        self.bar_mass = float(np.sum(self.mass[self.bar]))
+        self.times: list[float] = []
+        self.com_velocity: list[float] = []
+        self.com_velocity_exact: list[float] = []
+
+    def sample(self, t, x, v, F, components) -> None:
+        """Record ``v̄_num(t)`` and ``v̄_exact(t)``."""
+        n = self.mass.shape[0]
+        v = _as_points(v, n, self.dim)
+        vbar = float(np.sum(self.mass[self.bar] * v[self.bar, self.axis]) / self.bar_mass)
+        exact = float(
+            vibrating_bar_com_velocity(t, self.v0, self.L, self.modulus, self.rho, self.mode)
+        )
+        self.times.append(float(t))
+        self.com_velocity.append(vbar)
+        self.com_velocity_exact.append(exact)
+
+    def result(self) -> dict:
+        """JSON-ready dict: ``com_velocity_rel_l2_error``, ``samples``, ``period``, ..."""
+        num = np.asarray(self.com_velocity)
+        ex = np.asarray(self.com_velocity_exact)
+        den = float(np.sum(ex**2))
+        err = math.sqrt(float(np.sum((num - ex) ** 2)) / den) if den > 0 else None
+        return {
+            "com_velocity_rel_l2_error": _to_plain(err),
+            "com_velocity_max_abs_error": _to_plain(np.max(np.abs(num - ex))) if num.size else None,
+            "samples": len(self.times),
+            "period": _to_plain(self.period),
+            "wave_modulus": _to_plain(self.modulus),
+            "length": _to_plain(self.L),
+        }
+
+
+def make_metrics(scene_data: dict, x0: np.ndarray, mass: np.ndarray):
+    """The metrics object for ``scene_data['metrics']['kind']``, or None for ``"none"``/absent."""
+    cfg = scene_data.get("metrics") or {}
+    kind = cfg.get("kind", "none")
+    if kind in (None, "none", ""):
+        return None
+    if kind not in METRICS:
+        raise SceneError(f"unknown metrics kind {kind!r} (known: none, {', '.join(sorted(METRICS))})")
+    return METRICS[kind](scene_data, x0, mass)

@@ -1,0 +1,265 @@
+"""Scenes: load a TOML scene (built-in or file), apply ``--set`` overrides, validate, resolve.
+
+Configuration is layered: defaults in code (``parmpm.scene_schema``), then the scene TOML, then
+the command line (``--set a.b=c``); the result is validated once, at load time, and the resolved
+scene (``Scene.to_toml()``) is what checkpoints and summaries store. No MPI, no per-rank arrays.
+
+    scene = load_scene("hanging_bar", overrides=["method.interpolator=mpm", "time.end=0.1"])
+    scene.data["grid"]["cells"]     # [20, 30]
+    scene.lcr                       # resolved CPDI l_cr in metres, or None
+
+Scene reference (resolved form; "(default X)" marks optional keys; per-axis quantities take a
+scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors (``min``,
+``max``, ``center``, ``velocity``, ``g``) take a list of ``dim`` numbers, or a scalar in 1D):
+
+* top level: ``name`` (default: file stem / built-in name), ``description`` (default ""),
+  ``dim`` (1, 2 or 3; required).
+* ``[grid]``: ``origin`` (default 0), ``cell_size`` (> 0, required), ``cells`` (ints > 0,
+  required), ``patch_size`` (ints > 0, default 32 in 1D/2D, 16 in 3D; clipped to ``cells``),
+  ``ghost`` ("auto" or int >= 1, default "auto").
+* ``[materials.NAME]`` (at least one): ``model`` ("linear_elastic" | "neo_hookean"),
+  ``density`` (> 0), ``youngs_modulus`` (> 0), ``poisson_ratio`` (-1 < nu < 0.5); all required.
+* ``[[bodies]]`` (at least one): ``shape`` ("box", "disk" in 2D, "sphere" in 3D; default "box");
+  box: ``min``, ``max``; disk/sphere: ``center``, ``radius``; ``material`` (required);
+  ``ppc`` (particles per cell per axis, default 2); ``velocity`` (default 0); optional
+  ``[bodies.vibration]`` (box only): ``amplitude`` (required), ``mode`` (default 1), ``axis``
+  (default 0): initial velocity along ``axis`` is ``amplitude·sin(β_n (X − min[axis]))`` with
+  ``β_n = (2n − 1)π / (2L)``, ``L`` the box length along ``axis`` (the first mode of a bar fixed
+  at ``min[axis]`` and free at ``max[axis]``; Sulsky et al. 1995, Bardenhagen 2002). Every
+  body's bounding box lies inside the grid.
+* ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi", default "cpdi"), ``lcr``
+  (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none"; default "2dx" for cpdi,
+  "none" otherwise, and any other value is an error with another interpolator), ``update``
+  ("usl" | "musl", default "usl": with USL the CPDI domains keep tiling the body exactly, with MUSL they drift apart — see README), ``flip`` (0..1, default 1.0).
+* ``[gravity]``: ``g`` (default 0), ``ramp_time`` (>= 0 s, default 0: applied suddenly).
+* ``[damping]``: ``coefficient`` (>= 0 1/s, default 0).
+* ``[boundary]``: ``x_min`` ... ``z_max`` for the scene's axes only: "fixed" | "slip" | "free"
+  (default "free"); the resolved table has all ``2·dim`` keys.
+* ``[time]``: ``end`` (> 0 s) and/or ``steps`` (int > 0), at least one; the run stops at
+  whichever comes first (a missing one resolves to None). ``cfl`` (0 < cfl < 1, default 0.4),
+  ``dt_max`` (> 0 s, default None).
+* ``[output]``: ``every`` (simulated seconds) and/or ``every_steps``; a snapshot is due whenever
+  either schedule fires. If neither is given: ``every_steps = max(1, steps // 20)`` when
+  ``time.steps`` is set, else ``every = end / 20``. ``snapshots``, ``figure`` (bools, default true).
+* ``[metrics]``: ``kind`` ("hanging_bar" | "vibrating_bar" | "none", default "none"),
+  ``every_steps`` (default 1), ``axis`` (default: the first vibration axis for vibrating_bar,
+  else ``dim − 1``, the axis along which a hanging bar's gravity acts).
+
+Absent optional values (``time.end``, ``time.dt_max``, ``output.every``, ``bodies.N.vibration``,
+...) are ``None`` in ``Scene.data`` and omitted from ``Scene.to_toml()``.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from importlib import resources
+from pathlib import Path
+from typing import Any, Iterable
+
+from parmpm.errors import SceneError
+from parmpm.scene_schema import lcr_length, one_line, resolve, toml_key, toml_value
+
+__all__ = ["Scene", "load_scene", "scene_from_toml", "builtin_scenes", "parse_lcr"]
+
+_SECTION_ORDER = ("grid", "materials", "bodies", "method", "gravity", "damping", "boundary",
+                  "time", "output", "metrics")
+
+
+class Scene:
+    """A validated, fully resolved scene.
+
+    ``data`` is a plain nested dict (every default filled in); ``source`` is the path it was read
+    from or ``"builtin:NAME"``.
+    """
+
+    def __init__(self, data: dict, source: str):
+        self.data = data
+        self.source = source
+
+    @property
+    def name(self) -> str:
+        return self.data["name"]
+
+    @property
+    def dim(self) -> int:
+        return self.data["dim"]
+
+    @property
+    def min_dx(self) -> float:
+        """Smallest grid spacing, min_k Δx_k."""
+        return min(self.data["grid"]["cell_size"])
+
+    @property
+    def lcr(self) -> float | None:
+        """CPDI domain-scaling length l_cr in metres; None unless cpdi with scaling."""
+        method = self.data["method"]
+        if method["interpolator"] != "cpdi":
+            return None
+        return lcr_length(method["lcr"], self.min_dx)
+
+    def to_toml(self) -> str:
+        """The resolved scene as TOML text; ``scene_from_toml`` on it gives back ``data``."""
+        lines = [f"# parmpm scene, resolved from {one_line(self.source)}"]
+        _emit_table(lines, [], {k: v for k, v in self.data.items() if k not in _SECTION_ORDER})
+        for section in _SECTION_ORDER:
+            if section in self.data:
+                _emit_table(lines, [], {section: self.data[section]})
+        return "\n".join(lines).strip() + "\n"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Scene) and self.data == other.data
+
+    def __repr__(self) -> str:
+        return f"Scene(name={self.name!r}, dim={self.dim}, source={self.source!r})"
+
+
+# ---------------------------------------------------------------- TOML emitter
+
+
+def _is_table_array(value: Any) -> bool:
+    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+
+
+def _emit_table(lines: list[str], path: list[str], table: dict) -> None:
+    """Append ``table`` as TOML: plain keys first, then [sub.tables] and [[arrays.of.tables]].
+
+    ``None`` values are left out (TOML has no null; the schema resolves them back to None).
+    """
+    for key, value in table.items():
+        if value is None or isinstance(value, dict) or _is_table_array(value):
+            continue
+        lines.append(f"{toml_key(str(key))} = {toml_value(value)}")
+    for key, value in table.items():
+        sub = path + [toml_key(str(key))]
+        if isinstance(value, dict):
+            only_tables = value and all(isinstance(v, dict) or _is_table_array(v) or v is None
+                                        for v in value.values())
+            if not only_tables:  # [materials] needs no header of its own before [materials.bar]
+                lines.extend(["", f"[{'.'.join(sub)}]"])
+            _emit_table(lines, sub, value)
+        elif _is_table_array(value):
+            for item in value:
+                lines.extend(["", f"[[{'.'.join(sub)}]]"])
+                _emit_table(lines, sub, item)
+
+
+# ---------------------------------------------------------------- loading
+
+
+def _scenes_dir():
+    return resources.files("parmpm") / "scenes"
+
+
+def builtin_scenes() -> dict[str, str]:
+    """Built-in scene name -> its one-line description, sorted by name."""
+    out = {}
+    for entry in _scenes_dir().iterdir():
+        if entry.name.endswith(".toml"):
+            name = entry.name[: -len(".toml")]
+            try:
+                description = tomllib.loads(entry.read_text(encoding="utf-8")).get("description")
+            except tomllib.TOMLDecodeError:
+                description = None
+            out[name] = one_line(str(description or ""))
+    return dict(sorted(out.items()))
+
+
+def load_scene(source: str | Path, overrides: Iterable[str] = ()) -> Scene:
+    """Load a scene: a built-in name (``"hanging_bar"``) or a path to a ``.toml`` file.
+
+    ``overrides`` are ``"dotted.key=value"`` strings (the CLI's ``--set``) applied on top of the
+    file before validation. Any problem raises a one-line ``SceneError``.
+    """
+    text = str(source)
+    is_path = isinstance(source, Path) or text.endswith(".toml") or "/" in text or "\\" in text
+    if not is_path and text in builtin_scenes():
+        body = (_scenes_dir() / f"{text}.toml").read_text(encoding="utf-8")
+        return scene_from_toml(body, f"builtin:{text}", overrides, default_name=text)
+    path = Path(text)
+    if not is_path and not path.is_file():
+        raise SceneError(one_line(
+            f"scene '{text}': not a file and not a built-in scene (built-ins: "
+            + ", ".join(builtin_scenes()) + ")"))
+    try:
+        body = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise SceneError(one_line(f"scene '{text}': cannot read file: {reason}")) from None
+    return scene_from_toml(body, text, overrides, default_name=path.stem)
+
+
+def scene_from_toml(text: str, source: str = "<string>", overrides: Iterable[str] = (),
+                    default_name: str | None = None) -> Scene:
+    """Build a scene from TOML text (e.g. the scene stored in a checkpoint).
+
+    ``source`` names it in error messages and in ``Scene.source``.
+    """
+    where = f"scene '{source}'"
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(one_line(f"{where}: TOML syntax error: {exc}")) from None
+    origins = apply_overrides(raw, overrides, where)
+    if default_name is None:
+        default_name = source.removeprefix("builtin:")
+    data = resolve(raw, where, default_name, origins)
+    return Scene(data, source)
+
+
+# ---------------------------------------------------------------- --set overrides
+
+
+def parse_override_value(text: str) -> Any:
+    """A ``--set`` value: a TOML value (``3``, ``0.1``, ``[0, -9.81]``, ``true``, ``"s"``) or,
+    if it does not parse as one, the plain string (``mpm``, ``2dx``)."""
+    try:
+        parsed = tomllib.loads("v = " + text)
+    except tomllib.TOMLDecodeError:
+        return text.strip()
+    return parsed["v"] if set(parsed) == {"v"} else text.strip()
+
+
+def apply_overrides(raw: dict, overrides: Iterable[str], where: str) -> dict[str, str]:
+    """Apply ``"a.b.c=value"`` strings to ``raw`` in place; integer parts index arrays
+    (``bodies.0.ppc=3``). Returns {normalised dotted key: override text} for error messages."""
+    if isinstance(overrides, str):
+        overrides = [overrides]
+    origins = {}
+    for item in overrides:
+        text = str(item)
+        key, sep, value = text.partition("=")
+        parts = [p.strip() for p in key.strip().split(".")]
+        if not sep or not all(parts):
+            raise SceneError(one_line(
+                f"{where}: --set {text!r}: expected KEY=VALUE with a dotted KEY "
+                "(e.g. method.interpolator=mpm)"))
+        node: Any = raw
+        for depth, part in enumerate(parts):
+            last = depth == len(parts) - 1
+            here = ".".join(parts[:depth]) or "the scene"
+            if isinstance(node, list):
+                if not part.isdigit() or int(part) >= len(node):
+                    raise SceneError(one_line(
+                        f"{where}: --set {text}: {here} has {len(node)} entries, expected an "
+                        f"index 0..{len(node) - 1}, got {part!r}"))
+                part = int(part)
+            elif not isinstance(node, dict):
+                raise SceneError(one_line(
+                    f"{where}: --set {text}: {here} is {toml_value(node)}, not a table"))
+            if last:
+                node[part] = parse_override_value(value)
+            else:
+                if isinstance(node, dict) and node.get(part) is None:
+                    node[part] = {}
+                node = node[part]
+        origins[".".join(parts)] = text.strip()
+    return origins
+
+
+def parse_lcr(spec: Any, min_dx: float) -> float | None:
+    """CPDI critical length l_cr in metres from a spec: ``"2dx"`` -> 2·min_dx,
+    ``"1.8dx/3"`` -> 0.6·min_dx, ``"dx"`` -> min_dx, ``0.25`` -> 0.25, ``"none"`` -> None."""
+    try:
+        return lcr_length(spec, min_dx)
+    except ValueError as exc:
+        raise SceneError(one_line(f"method.lcr: expected {exc}, got {toml_value(spec)}")) from None

@@ -1,0 +1,510 @@
+"""Scene schema: defaults, validation and resolution of a raw (parsed TOML) scene.
+
+``resolve(raw, where)`` turns the nested dict read from a scene file (after ``--set`` overrides)
+into the *resolved* scene: every optional key present (``None`` where the schema says "no value"),
+per-axis quantities broadcast to lists of length ``dim``, ints kept as ints and every other number
+a float. Every problem is a ``SceneError`` with a one-line message of the form
+
+    scene 'foo.toml': grid.cells: expected 2 positive integers, got [10, -1]
+
+naming the scene, the dotted key, the bad value and what was expected. The schema itself (keys,
+defaults, allowed values) is documented in ``parmpm.scene``; the tuples below are its vocabulary.
+Pure Python: no numpy, no MPI.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from typing import Any, Callable, NoReturn
+
+from parmpm.errors import SceneError
+
+DIMS = (1, 2, 3)
+AXIS_NAMES = "xyz"
+INTERPOLATORS = ("mpm", "ugimp", "cpgimp", "cpdi")
+UPDATES = ("usl", "musl")
+MODELS = ("linear_elastic", "neo_hookean")
+SHAPE_DIMS = {"box": (1, 2, 3), "disk": (2,), "sphere": (3,)}
+BOUNDARY_KINDS = ("fixed", "slip", "free")
+METRICS = ("hanging_bar", "vibrating_bar", "none")
+
+TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method", "gravity",
+            "damping", "boundary", "time", "output", "metrics")
+GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost")
+MATERIAL_KEYS = ("model", "density", "youngs_modulus", "poisson_ratio")
+BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration")
+SHAPE_KEYS = {"box": ("min", "max"), "disk": ("center", "radius"), "sphere": ("center", "radius")}
+_SHAPE_ONLY_KEYS = ("min", "max", "center", "radius")
+VIBRATION_KEYS = ("amplitude", "mode", "axis")
+METHOD_KEYS = ("interpolator", "lcr", "update", "flip")
+GRAVITY_KEYS = ("g", "ramp_time")
+DAMPING_KEYS = ("coefficient",)
+TIME_KEYS = ("end", "steps", "cfl", "dt_max")
+OUTPUT_KEYS = ("every", "every_steps", "snapshots", "figure")
+METRICS_KEYS = ("kind", "every_steps", "axis", "stop_on_separation")
+
+DEFAULT_PATCH_SIZE = {1: 32, 2: 32, 3: 16}
+DEFAULT_LCR = "2dx"
+LCR_EXPECTED = 'a positive length in metres, "<k>dx", "<k>dx/<n>" (k, n > 0) or "none"'
+_LCR_RE = re.compile(r"^\s*(?P<k>[0-9.eE+-]*)\s*dx\s*(?:/\s*(?P<n>[0-9.eE+-]+)\s*)?$",
+                     re.IGNORECASE)
+
+_MISSING = object()
+
+
+# ---------------------------------------------------------------- value formatting (one line)
+
+def _escape(text: str) -> str:
+    """A TOML basic string: quotes, backslash and control characters (incl. DEL) escaped."""
+    out = []
+    for ch in text:
+        if ch == '"':
+            out.append('\\"')
+        elif ch == "\\":
+            out.append("\\\\")
+        elif ch in "\n\t\r":
+            out.append({"\n": "\\n", "\t": "\\t", "\r": "\\r"}[ch])
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04x}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+_BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
+
+
+def toml_key(key: str) -> str:
+    """A TOML key: bare if it can be, else a quoted basic string."""
+    return key if _BARE_KEY.match(key) else _escape(key)
+
+
+def toml_value(value: Any) -> str:
+    """An inline TOML value (bool, int, float, str, list, dict) on one line."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)  # shortest round-tripping form; '1e-06', '1e+16' are valid TOML
+    if isinstance(value, str):
+        return _escape(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        inner = ", ".join(f"{toml_key(str(k))} = {toml_value(v)}" for k, v in value.items()
+                          if v is not None)
+        return "{ " + inner + " }" if inner else "{}"
+    return _escape(repr(value))
+
+
+def show(value: Any, limit: int = 80) -> str:
+    """A value as it would be written in TOML, shortened for an error message."""
+    text = toml_value(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+# ---------------------------------------------------------------- l_cr
+
+
+def lcr_length(spec: Any, min_dx: float) -> float | None:
+    """Critical CPDI length l_cr in metres from a scene spec; raises ``ValueError`` if bad.
+
+    ``0.25`` -> 0.25 m; ``"2dx"`` -> 2·min_dx; ``"1.8dx/3"`` -> 0.6·min_dx; ``"dx"`` -> min_dx;
+    ``"none"`` -> None (no domain scaling).
+    """
+    if isinstance(spec, bool):
+        raise ValueError(LCR_EXPECTED)
+    if isinstance(spec, (int, float)):
+        if math.isfinite(spec) and spec > 0:
+            return float(spec)
+        raise ValueError(LCR_EXPECTED)
+    if not isinstance(spec, str):
+        raise ValueError(LCR_EXPECTED)
+    if spec.strip().lower() == "none":
+        return None
+    match = _LCR_RE.match(spec)
+    if not match:
+        raise ValueError(LCR_EXPECTED)
+    try:
+        k = float(match["k"]) if match["k"] else 1.0
+        n = float(match["n"]) if match["n"] else 1.0
+    except ValueError:
+        raise ValueError(LCR_EXPECTED) from None
+    if not (math.isfinite(k) and math.isfinite(n) and k > 0 and n > 0):
+        raise ValueError(LCR_EXPECTED)
+    return k * min_dx / n
+
+
+# ---------------------------------------------------------------- checker
+
+
+class _Checker:
+    """Type/range checks that raise one-line ``SceneError``s naming scene, key and value."""
+
+    def __init__(self, where: str, origins: dict[str, str]):
+        self.where = where
+        self.origins = origins  # dotted key -> the --set text that produced it
+
+    def _origin(self, key: str) -> str:
+        for okey, text in self.origins.items():
+            if key == okey or key.startswith(okey + ".") or okey.startswith(key + "."):
+                return f" (from --set {text})"
+        return ""
+
+    def fail(self, key: str, message: str) -> NoReturn:
+        prefix = f"{key}: " if key else ""
+        raise SceneError(one_line(f"{self.where}: {prefix}{message}{self._origin(key)}"))
+
+    def expected(self, key: str, what: str, value: Any) -> NoReturn:
+        self.fail(key, f"expected {what}, got {show(value)}")
+
+    def table(self, key: str, value: Any, allowed: tuple[str, ...]) -> dict:
+        """Check ``value`` is a table whose keys are all in ``allowed``."""
+        if not isinstance(value, dict):
+            self.expected(key, "a table", value)
+        for name in value:
+            if name not in allowed:
+                full = f"{key}.{name}" if key else name
+                close = difflib.get_close_matches(str(name), allowed, n=1, cutoff=0.6)
+                hint = (f"did you mean '{key + '.' if key else ''}{close[0]}'?" if close
+                        else "allowed: " + ", ".join(allowed))
+                raise SceneError(one_line(
+                    f"{self.where}: unknown key '{full}' ({hint}){self._origin(full)}"))
+        return value
+
+    def required(self, key: str, table: dict, name: str, what: str) -> Any:
+        if table.get(name) is None:
+            self.fail(f"{key}.{name}" if key else name, f"required key is missing (expected {what})")
+        return table[name]
+
+    def number(self, key: str, value: Any, what: str = "a number",
+               ok: Callable[[float], bool] = lambda x: True) -> float:
+        if (isinstance(value, bool) or not isinstance(value, (int, float))
+                or not math.isfinite(value) or not ok(value)):
+            self.expected(key, what, value)
+        return float(value)
+
+    def integer(self, key: str, value: Any, what: str = "an integer",
+                ok: Callable[[int], bool] = lambda x: True) -> int:
+        if isinstance(value, bool) or not isinstance(value, int) or not ok(value):
+            self.expected(key, what, value)
+        return value
+
+    def string(self, key: str, value: Any, what: str = "a string") -> str:
+        if not isinstance(value, str):
+            self.expected(key, what, value)
+        return value
+
+    def boolean(self, key: str, value: Any) -> bool:
+        if not isinstance(value, bool):
+            self.expected(key, "true or false", value)
+        return value
+
+    def choice(self, key: str, value: Any, choices: tuple[str, ...]) -> str:
+        if not isinstance(value, str) or value not in choices:
+            self.expected(key, "one of " + ", ".join(f'"{c}"' for c in choices), value)
+        return value
+
+    def vector(self, key: str, value: Any, dim: int, kind: str, broadcast: bool = True) -> list:
+        """A per-axis list of length ``dim`` of ``kind`` items (see ``_KINDS``).
+
+        A scalar is broadcast to every axis when ``broadcast`` (per-axis resolutions such as
+        ``cells``), and otherwise accepted only in 1D (points and vectors such as ``g``).
+        """
+        singular, plural, is_int, ok = _KINDS[kind]
+        what = f"{dim} {singular if dim == 1 else plural}"
+        if not broadcast and dim > 1:
+            what = f"a list of {what}"
+        items = value if isinstance(value, list) else [value] * (dim if broadcast else 1)
+        if len(items) != dim:
+            self.expected(key, what, value)
+        out = []
+        for item in items:
+            good = not isinstance(item, bool) and (
+                isinstance(item, int) if is_int
+                else isinstance(item, (int, float)) and math.isfinite(item))
+            if not good or not ok(item):
+                self.expected(key, what, value)
+            out.append(item if is_int else float(item))
+        return out
+
+
+_KINDS = {  # kind -> (singular, plural, integer?, predicate)
+    "float": ("number", "numbers", False, lambda x: True),
+    "float>0": ("positive number", "positive numbers", False, lambda x: x > 0),
+    "int>0": ("positive integer", "positive integers", True, lambda x: x > 0),
+}
+
+
+def one_line(text: str) -> str:
+    return " ".join(text.splitlines())
+
+
+# ---------------------------------------------------------------- sections
+
+
+def resolve(raw: dict, where: str, default_name: str,
+            origins: dict[str, str] | None = None) -> dict:
+    """Validate a raw scene dict and return the resolved scene (see module docstring)."""
+    c = _Checker(where, origins or {})
+    c.table("", raw, TOP_KEYS)
+    dim = c.integer("dim", c.required("", raw, "dim", "1, 2 or 3"), "1, 2 or 3",
+                    lambda d: d in DIMS)
+    name = c.string("name", raw.get("name", default_name), "a non-empty string")
+    if not name.strip():
+        c.expected("name", "a non-empty string", name)
+    out: dict[str, Any] = {
+        "name": name,
+        "description": c.string("description", raw.get("description", "")),
+        "dim": dim,
+    }
+    out["grid"] = _grid(c, raw.get("grid", {}), dim)
+    out["materials"] = _materials(c, raw.get("materials", {}))
+    out["bodies"] = _bodies(c, raw.get("bodies", []), dim, out["grid"], out["materials"])
+    min_dx = min(out["grid"]["cell_size"])
+    out["method"] = _method(c, raw.get("method", {}), min_dx)
+    out["gravity"] = _gravity(c, raw.get("gravity", {}), dim)
+    damping = c.table("damping", raw.get("damping", {}), DAMPING_KEYS)
+    out["damping"] = {"coefficient": c.number("damping.coefficient",
+                                              damping.get("coefficient", 0.0),
+                                              "a number >= 0 (1/s)", lambda x: x >= 0)}
+    out["boundary"] = _boundary(c, raw.get("boundary", {}), dim)
+    out["time"] = _time(c, raw.get("time", {}))
+    out["output"] = _output(c, raw.get("output", {}), out["time"])
+    out["metrics"] = _metrics(c, raw.get("metrics", {}), dim, out["bodies"])
+    return out
+
+
+def _grid(c: _Checker, raw: Any, dim: int) -> dict:
+    t = c.table("grid", raw, GRID_KEYS)
+    cell_size = c.vector("grid.cell_size", c.required("grid", t, "cell_size",
+                                                      f"{dim} positive numbers"), dim, "float>0")
+    cells = c.vector("grid.cells", c.required("grid", t, "cells", f"{dim} positive integers"),
+                     dim, "int>0")
+    origin = c.vector("grid.origin", t.get("origin", 0.0), dim, "float")
+    patch = c.vector("grid.patch_size", t.get("patch_size", DEFAULT_PATCH_SIZE[dim]), dim, "int>0")
+    ghost = t.get("ghost", "auto")
+    if ghost != "auto":
+        c.integer("grid.ghost", ghost, '"auto" or an integer >= 1', lambda g: g >= 1)
+    return {"origin": origin, "cell_size": cell_size, "cells": cells,
+            "patch_size": [min(p, n) for p, n in zip(patch, cells)], "ghost": ghost}
+
+
+def _materials(c: _Checker, raw: Any) -> dict:
+    if not isinstance(raw, dict) or not raw:
+        c.expected("materials", "at least one [materials.NAME] table", raw)
+    out = {}
+    for name, spec in raw.items():
+        key = f"materials.{name}"
+        t = c.table(key, spec, MATERIAL_KEYS)
+        model = c.choice(f"{key}.model", c.required(key, t, "model", " or ".join(f'"{m}"' for m in MODELS)), MODELS)
+        out[name] = {
+            "model": model,
+            "density": c.number(f"{key}.density", c.required(key, t, "density", "a number > 0"),
+                                "a number > 0 (kg/m^dim)", lambda x: x > 0),
+            "youngs_modulus": c.number(
+                f"{key}.youngs_modulus", c.required(key, t, "youngs_modulus", "a number > 0"),
+                "a number > 0 (Pa)", lambda x: x > 0),
+            "poisson_ratio": c.number(
+                f"{key}.poisson_ratio", c.required(key, t, "poisson_ratio", "-1 < nu < 0.5"),
+                "a number with -1 < nu < 0.5", lambda x: -1 < x < 0.5),
+        }
+    return out
+
+
+def _bodies(c: _Checker, raw: Any, dim: int, grid: dict, materials: dict) -> list:
+    if isinstance(raw, dict):
+        c.fail("bodies", "expected an array of tables ([[bodies]]), got a single table [bodies]")
+    if not isinstance(raw, list) or not raw:
+        c.expected("bodies", "at least one [[bodies]] table", raw)
+    lo = grid["origin"]
+    hi = [o + n * h for o, n, h in zip(lo, grid["cells"], grid["cell_size"])]
+    return [_body(c, f"bodies.{i}", spec, dim, lo, hi, grid, materials)
+            for i, spec in enumerate(raw)]
+
+
+def _body(c: _Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: dict,
+          materials: dict) -> dict:
+    t = c.table(key, raw, BODY_KEYS)
+    shape = c.choice(f"{key}.shape", t.get("shape", "box"), tuple(SHAPE_DIMS))
+    if dim not in SHAPE_DIMS[shape]:
+        allowed = ", ".join(f'"{s}"' for s, dims in SHAPE_DIMS.items() if dim in dims)
+        c.fail(f"{key}.shape", f'expected {allowed} in a {dim}D scene, got "{shape}" '
+                               f"(only for dim {' or '.join(map(str, SHAPE_DIMS[shape]))})")
+    for name in _SHAPE_ONLY_KEYS:
+        if name in t and name not in SHAPE_KEYS[shape]:
+            c.fail(f"{key}.{name}", f'not used by shape "{shape}" (expected '
+                                    f"{' and '.join(SHAPE_KEYS[shape])})")
+    material = c.string(f"{key}.material", c.required(key, t, "material", "a material name"))
+    if material not in materials:
+        c.fail(f"{key}.material", f"unknown material {show(material)} (defined: "
+                                  + ", ".join(show(m) for m in materials) + ")")
+    out: dict[str, Any] = {"shape": shape}
+    if shape == "box":
+        pts = f"{dim} numbers"
+        bmin = c.vector(f"{key}.min", c.required(key, t, "min", pts), dim, "float", False)
+        bmax = c.vector(f"{key}.max", c.required(key, t, "max", pts), dim, "float", False)
+        if any(b <= a for a, b in zip(bmin, bmax)):
+            c.expected(f"{key}.max", f"each component > {key}.min {show(bmin)}", bmax)
+        out.update(min=bmin, max=bmax)
+    else:
+        center = c.vector(f"{key}.center", c.required(key, t, "center", f"{dim} numbers"),
+                          dim, "float", False)
+        radius = c.number(f"{key}.radius", c.required(key, t, "radius", "a number > 0"),
+                          "a number > 0", lambda x: x > 0)
+        out.update(center=center, radius=radius)
+        bmin = [x - radius for x in center]
+        bmax = [x + radius for x in center]
+    for axis in range(dim):
+        tol = 1e-9 * grid["cell_size"][axis]
+        below, above = bmin[axis] < lo[axis] - tol, bmax[axis] > hi[axis] + tol
+        if below or above:
+            side = "center" if shape != "box" else ("min" if below else "max")
+            c.fail(f"{key}.{side}", f"body {key.split('.')[1]} spans [{bmin[axis]!r}, {bmax[axis]!r}] on "
+                        f"axis {axis} ({AXIS_NAMES[axis]}), expected it inside the grid "
+                        f"[{lo[axis]!r}, {hi[axis]!r}]")
+    out["material"] = material
+    out["ppc"] = c.vector(f"{key}.ppc", t.get("ppc", 2), dim, "int>0")
+    out["velocity"] = c.vector(f"{key}.velocity", t.get("velocity", [0.0] * dim), dim, "float",
+                               False)
+    out["vibration"] = None
+    if t.get("vibration") is not None:
+        vkey = f"{key}.vibration"
+        v = c.table(vkey, t["vibration"], VIBRATION_KEYS)
+        if shape != "box":
+            c.fail(vkey, f'expected only on shape "box", got shape "{shape}"')
+        out["vibration"] = {
+            "amplitude": c.number(f"{vkey}.amplitude",
+                                  c.required(vkey, v, "amplitude", "a number (velocity)")),
+            "mode": c.integer(f"{vkey}.mode", v.get("mode", 1), "an integer >= 1",
+                              lambda n: n >= 1),
+            "axis": c.integer(f"{vkey}.axis", v.get("axis", 0),
+                              f"an integer in [0, {dim})", lambda a: 0 <= a < dim),
+        }
+    return out
+
+
+def _method(c: _Checker, raw: Any, min_dx: float) -> dict:
+    t = c.table("method", raw, METHOD_KEYS)
+    interp = c.choice("method.interpolator", t.get("interpolator", "cpdi"), INTERPOLATORS)
+    lcr = t.get("lcr")
+    if lcr is None:
+        lcr = DEFAULT_LCR if interp == "cpdi" else "none"
+    try:
+        length = lcr_length(lcr, min_dx)
+    except ValueError as exc:
+        c.expected("method.lcr", str(exc), lcr)
+    if interp != "cpdi" and length is not None:
+        c.fail("method.lcr", f'only used by interpolator "cpdi", got {show(lcr)} with '
+                             f'interpolator "{interp}" (leave it out or set it to "none")')
+    if not isinstance(lcr, str):
+        lcr = float(lcr)
+    return {
+        "interpolator": interp,
+        "lcr": lcr,
+        "update": c.choice("method.update", t.get("update", "usl"), UPDATES),
+        "flip": c.number("method.flip", t.get("flip", 1.0), "a number with 0 <= flip <= 1",
+                         lambda x: 0 <= x <= 1),
+    }
+
+
+def _gravity(c: _Checker, raw: Any, dim: int) -> dict:
+    t = c.table("gravity", raw, GRAVITY_KEYS)
+    return {
+        "g": c.vector("gravity.g", t.get("g", [0.0] * dim), dim, "float", False),
+        "ramp_time": c.number("gravity.ramp_time", t.get("ramp_time", 0.0), "a number >= 0 (s)",
+                              lambda x: x >= 0),
+    }
+
+
+def _boundary(c: _Checker, raw: Any, dim: int) -> dict:
+    every = tuple(f"{a}_{side}" for a in AXIS_NAMES for side in ("min", "max"))
+    t = c.table("boundary", raw, every + ("fixed_regions",))
+    out = {}
+    regions = t.get("fixed_regions", [])
+    if not isinstance(regions, list):
+        c.expected("boundary.fixed_regions", "a list of tables {min, max}", regions)
+    out["fixed_regions"] = []
+    for i, reg in enumerate(regions):
+        key = f"boundary.fixed_regions.{i}"
+        r = c.table(key, reg, ("min", "max"))
+        lo = c.vector(f"{key}.min", c.required(key, r, "min", f"{dim} numbers"), dim, "float", False)
+        hi = c.vector(f"{key}.max", c.required(key, r, "max", f"{dim} numbers"), dim, "float", False)
+        if any(b < a for a, b in zip(lo, hi)):
+            c.fail(f"{key}.max", f"expected max >= min on every axis, got min {show(lo)} max {show(hi)}")
+        out["fixed_regions"].append({"min": lo, "max": hi})
+    for name in every:
+        if AXIS_NAMES.index(name[0]) >= dim:
+            if name in t:
+                c.fail(f"boundary.{name}", f"no {name[0]} axis in a {dim}D scene (expected keys "
+                                           + ", ".join(every[: 2 * dim]) + ")")
+            continue
+        out[name] = c.choice(f"boundary.{name}", t.get(name, "free"), BOUNDARY_KINDS)
+    return out
+
+
+def _time(c: _Checker, raw: Any) -> dict:
+    t = c.table("time", raw, TIME_KEYS)
+    end, steps = t.get("end"), t.get("steps")
+    if end is None and steps is None:
+        c.fail("time", "expected time.end (a positive number, s) and/or time.steps "
+                       "(a positive integer), got neither")
+    cfl = t.get("cfl", 0.4)
+    if not isinstance(cfl, bool) and isinstance(cfl, (int, float)) and cfl >= 1:
+        c.expected("time.cfl", "a number with 0 < cfl < 1 (the CFL number must be < 1)", cfl)
+    dt_max = t.get("dt_max")
+    return {
+        "end": None if end is None else c.number("time.end", end, "a number > 0 (s)",
+                                                 lambda x: x > 0),
+        "steps": None if steps is None else c.integer("time.steps", steps, "an integer > 0",
+                                                      lambda n: n > 0),
+        "cfl": c.number("time.cfl", cfl, "a number with 0 < cfl < 1", lambda x: 0 < x < 1),
+        "dt_max": None if dt_max is None else c.number("time.dt_max", dt_max,
+                                                       "a number > 0 (s)", lambda x: x > 0),
+    }
+
+
+def _output(c: _Checker, raw: Any, time: dict) -> dict:
+    t = c.table("output", raw, OUTPUT_KEYS)
+    every, every_steps = t.get("every"), t.get("every_steps")
+    if every is not None:
+        every = c.number("output.every", every, "a number > 0 (s)", lambda x: x > 0)
+    if every_steps is not None:
+        every_steps = c.integer("output.every_steps", every_steps, "an integer > 0",
+                                lambda n: n > 0)
+    if every is None and every_steps is None:
+        if time["steps"] is not None:
+            every_steps = max(1, time["steps"] // 20)
+        else:
+            every = time["end"] / 20
+    return {
+        "every": every,
+        "every_steps": every_steps,
+        "snapshots": c.boolean("output.snapshots", t.get("snapshots", True)),
+        "figure": c.boolean("output.figure", t.get("figure", True)),
+    }
+
+
+def _metrics(c: _Checker, raw: Any, dim: int, bodies: list) -> dict:
+    t = c.table("metrics", raw, METRICS_KEYS)
+    kind = c.choice("metrics.kind", t.get("kind", "none"), METRICS)
+    axis = t.get("axis")
+    if axis is None:
+        vibrating = [b["vibration"]["axis"] for b in bodies if b["vibration"] is not None]
+        axis = vibrating[0] if kind == "vibrating_bar" and vibrating else dim - 1
+    return {
+        "kind": kind,
+        "every_steps": c.integer("metrics.every_steps", t.get("every_steps", 1),
+                                 "an integer >= 1", lambda n: n >= 1),
+        "axis": c.integer("metrics.axis", axis, f"an integer in [0, {dim})",
+                          lambda a: 0 <= a < dim),
+        "stop_on_separation": c.boolean("metrics.stop_on_separation",
+                                        t.get("stop_on_separation", False)),
+    }

@@ -1,0 +1,77 @@
+"""CPDI1 (Sadeghirad, Brannon & Burghardt 2011), dimension-generic.
+
+Domain vectors ``R = [r1 … rd]``; corners ``x_α = x_p + Σ_k s_αk r_k`` with ``s_αk = ±1``;
+``V = 2^d det R``. Then ``φ_ip = 2^-d Σ_α S_i(x_α)`` and
+``∇φ_ip = (1/V) Σ_α S_i(x_α) cof(R) s_α`` with ``cof(R) = det(R) R^-T`` (2D columns
+``(r2y, −r2x)``, ``(−r1y, r1x)``; 3D columns ``r2×r3, r3×r1, r1×r2``). In 1D this is
+``(S_i(b) − S_i(a))/(b − a)``. Each corner scatters to its cell's 2^d nodes, so a particle yields
+4^d (node, weight, gradient) entries, some for the same node — sums are unaffected.
+"""
+from parmpm.jit import kernel
+from parmpm.shapes.hat import hat_axis
+
+
+@kernel
+def cofactor(d, R, C):
+    """``C = cof(R) = det(R)·R^-T`` for the leading d×d block (the rest of the 3×3 scratch is
+    zeroed); returns det R."""
+    for a in range(3):
+        for b in range(3):
+            C[a, b] = 0.0
+    if d == 1:
+        C[0, 0] = 1.0
+        return R[0, 0]
+    if d == 2:
+        C[0, 0], C[1, 0] = R[1, 1], -R[0, 1]
+        C[0, 1], C[1, 1] = -R[1, 0], R[0, 0]
+        return R[0, 0] * R[1, 1] - R[0, 1] * R[1, 0]
+    for a in range(3):
+        b, c = (a + 1) % 3, (a + 2) % 3
+        # column a = r_b × r_c
+        C[0, a] = R[1, b] * R[2, c] - R[2, b] * R[1, c]
+        C[1, a] = R[2, b] * R[0, c] - R[0, b] * R[2, c]
+        C[2, a] = R[0, b] * R[1, c] - R[1, b] * R[0, c]
+    return R[0, 0] * C[0, 0] + R[1, 0] * C[1, 0] + R[2, 0] * C[2, 0]
+
+
+@kernel
+def cpdi_support(d, xi, R, C, base, nloc, nglob, inv_h, L0, L1, jk, wk, dwk, idx, w, g):
+    """(node, weight, gradient) entries of a CPDI particle at grid coordinates ``xi`` with domain
+    ``R`` (physical units) and scratch ``C`` for its cofactor. Returns the entry count, or -1 if a
+    corner's nodes leave the grid or the patch's local box."""
+    det = cofactor(d, R, C)
+    ncorner = 1 << d
+    inv_v = 1.0 / (ncorner * det)
+    wc = 1.0 / ncorner
+    n = 0
+    for alpha in range(ncorner):
+        for k in range(d):
+            xk = xi[k]
+            for m in range(d):
+                sm = 1.0 if (alpha >> m) & 1 else -1.0
+                xk += sm * R[k, m] * inv_h[k]
+            if hat_axis(xk, base[k], nloc[k], nglob[k], inv_h[k], jk, wk, dwk, k) < 0:
+                return -1
+        gc0 = gc1 = gc2 = 0.0
+        for m in range(d):
+            sm = 1.0 if (alpha >> m) & 1 else -1.0
+            gc0 += C[0, m] * sm
+            gc1 += C[1, m] * sm
+            gc2 += C[2, m] * sm
+        n1 = 2 if d > 1 else 1
+        n2 = 2 if d > 2 else 1
+        for i2 in range(n2):
+            w2 = wk[2, i2] if d > 2 else 1.0
+            o2 = jk[2, i2] if d > 2 else 0
+            for i1 in range(n1):
+                w1 = wk[1, i1] if d > 1 else 1.0
+                o1 = jk[1, i1] if d > 1 else 0
+                for i0 in range(2):
+                    S = wk[0, i0] * w1 * w2
+                    idx[n] = jk[0, i0] + L0 * (o1 + L1 * o2)
+                    w[n] = S * wc
+                    g[n, 0] = S * gc0 * inv_v
+                    g[n, 1] = S * gc1 * inv_v
+                    g[n, 2] = S * gc2 * inv_v
+                    n += 1
+    return n

@@ -1,0 +1,37 @@
+"""Linear hat ``S_i(x)`` of a grid node, per axis (standard MPM, and CPDI's corner evaluations).
+
+In grid units (``ξ = (x − origin)/Δx``) the hat of node ``j`` is ``S(ξ − j) = max(0, 1 − |ξ − j|)``;
+a point in cell ``⌊ξ⌋`` touches nodes ``⌊ξ⌋`` and ``⌊ξ⌋ + 1`` with weights ``1 − f`` and ``f``,
+``f = ξ − ⌊ξ⌋``, and gradients ``∓1/Δx``.
+"""
+import math
+
+from parmpm.jit import kernel
+
+SNAP = 1e-9  # grid units: round-off tolerance at the edge of the grid or of a patch's box
+
+
+@kernel
+def hat_axis(xi, base, nloc, nglob, inv_h, jk, wk, dwk, a):
+    """Fill row ``a`` of (jk, wk, dwk) with the two nodes of the point ``xi`` (grid units) along
+    one axis: local indices, weights, gradients. Returns 2, or -1 if a node falls outside the
+    grid or outside the patch's local (ghost-inclusive) box. A point on (or within round-off of) the
+    first/last node uses the cell inside, so a domain that ends on the grid's face stays inside."""
+    c = math.floor(xi)
+    f = xi - c
+    j = int(c)
+    if f < SNAP and (j + 1 > nglob - 1 or j + 1 - base > nloc - 1):
+        j -= 1  # on (or round-off past) the last node of the box: use the cell below
+        f = 1.0
+    elif f > 1.0 - SNAP and (j < 0 or j - base < 0):
+        j += 1  # round-off before the first node
+        f = 0.0
+    if j < 0 or j + 1 > nglob - 1 or j - base < 0 or j + 1 - base > nloc - 1:
+        return -1
+    jk[a, 0] = j - base
+    jk[a, 1] = j + 1 - base
+    wk[a, 0] = 1.0 - f
+    wk[a, 1] = f
+    dwk[a, 0] = -inv_h
+    dwk[a, 1] = inv_h
+    return 2

@@ -1,0 +1,190 @@
+"""Particle ↔ grid transfers over any interpolator, patch by patch.
+
+Every kernel walks patches in order and each patch's particles in their stored order
+(sorted by global id within the patch), scattering into that patch's ghost-inclusive node box —
+so each patch's partial sums are a deterministic function of its own particles.
+
+* ``p2g``: ``m_i = Σ φ_ip m_p``, ``(mv)_i = Σ φ_ip m_p v_p``,
+  ``f_i = −Σ V_p σ_p ∇φ_ip`` with ``V_p = J_p V0_p`` (the material volume, never the scaled CPDI
+  domain's);
+* ``p2g_momentum``: the MUSL re-map of particle momentum;
+* ``g2p``: FLIP/PIC velocity ``v_p ← α(v_p + Σ φ Δv_i) + (1−α) Σ φ v_i``, position
+  ``x_p += Δt Σ φ v_i``, velocity gradient ``L_p = Σ v_i ⊗ ∇φ_ip``, ``F ← (I + Δt L) F`` and stress.
+
+A support that leaves the grid or the ghost layer stops the kernel with ``err[0]`` = particle.
+"""
+import math
+
+import numpy as np
+
+from parmpm.jit import kernel
+from parmpm.materials import cauchy_stress, det_d, wave_speed
+from parmpm.shapes import domain_matrix, particle_support
+
+G2P_USL, G2P_MUSL_MOTION, G2P_MUSL_DEFORM = 0, 1, 2
+
+
+@kernel
+def _scratch(nloc, d):
+    M = max(nloc[0], nloc[1], nloc[2], 4)
+    K = 64
+    prod = 1
+    for k in range(d):
+        prod *= nloc[k]
+    K = max(K, prod)
+    return (np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3), np.zeros(3, np.int64),
+            np.zeros((3, M), np.int64), np.zeros((3, M)), np.zeros((3, M)),
+            np.zeros(K, np.int64), np.zeros(K), np.zeros((K, 3)))
+
+
+@kernel
+def p2g(method, d, lcr, start, base, nloc, nglob, origin, inv_h,
+        x, v, F, r0, lh0, mass, vol0, stress, gm, gmv, gf, err):
+    R, C, xi, nk, jk, wk, dwk, idx, w, g = _scratch(nloc, d)
+    gm[:] = 0.0
+    gmv[:] = 0.0
+    gf[:] = 0.0
+    for p in range(start.size - 1):
+        for i in range(start[p], start[p + 1]):
+            for k in range(d):
+                xi[k] = (x[i, k] - origin[k]) * inv_h[k]
+            domain_matrix(d, method, lcr, F[i], r0[i], R)
+            n = particle_support(method, d, xi, F[i], lh0[i], R, C, base[p], nloc, nglob, inv_h,
+                                 nk, jk, wk, dwk, idx, w, g)
+            if n < 0:
+                err[0] = i
+                return
+            m = mass[i]
+            V = det_d(d, F[i]) * vol0[i]
+            for e in range(n):
+                node = idx[e]
+                mw = m * w[e]
+                gm[p, node, 0] += mw
+                for a in range(d):
+                    gmv[p, node, a] += mw * v[i, a]
+                    s = 0.0
+                    for b in range(d):
+                        s += stress[i, a, b] * g[e, b]
+                    gf[p, node, a] -= V * s
+
+
+@kernel
+def p2g_momentum(method, d, lcr, start, base, nloc, nglob, origin, inv_h,
+                 x, v, F, r0, lh0, mass, gmv, err):
+    R, C, xi, nk, jk, wk, dwk, idx, w, g = _scratch(nloc, d)
+    gmv[:] = 0.0
+    for p in range(start.size - 1):
+        for i in range(start[p], start[p + 1]):
+            for k in range(d):
+                xi[k] = (x[i, k] - origin[k]) * inv_h[k]
+            domain_matrix(d, method, lcr, F[i], r0[i], R)
+            n = particle_support(method, d, xi, F[i], lh0[i], R, C, base[p], nloc, nglob, inv_h,
+                                 nk, jk, wk, dwk, idx, w, g)
+            if n < 0:
+                err[0] = i
+                return
+            for e in range(n):
+                mw = mass[i] * w[e]
+                for a in range(d):
+                    gmv[p, idx[e], a] += mw * v[i, a]
+
+
+@kernel
+def g2p(mode, method, d, lcr, start, base, nloc, nglob, origin, inv_h, dt, flip,
+        x, v, F, r0, lh0, stress, dx, mat, params, damage, gvel, gdv, err):
+    """One of the three G2P modes (USL; MUSL motion; MUSL deformation). Returns the largest
+    ``c_p + |v_p|`` over the particles (for the next CFL step) in the deformation modes."""
+    R, C, xi, nk, jk, wk, dwk, idx, w, g = _scratch(nloc, d)
+    Lg = np.zeros((3, 3))
+    Fn = np.zeros((d, d))
+    vmax = 0.0
+    for p in range(start.size - 1):
+        for i in range(start[p], start[p + 1]):
+            for k in range(d):
+                xi[k] = (x[i, k] - origin[k]) * inv_h[k]
+            Fi = F[i]
+            domain_matrix(d, method, lcr, Fi, r0[i], R)
+            n = particle_support(method, d, xi, Fi, lh0[i], R, C, base[p], nloc, nglob, inv_h,
+                                 nk, jk, wk, dwk, idx, w, g)
+            if n < 0:
+                err[0] = i
+                return 0.0
+            if mode != G2P_MUSL_DEFORM:
+                for a in range(d):
+                    vi = 0.0
+                    dvi = 0.0
+                    for e in range(n):
+                        vi += w[e] * gvel[p, idx[e], a]
+                        dvi += w[e] * gdv[p, idx[e], a]
+                    if mode == G2P_USL:
+                        x[i, a] += dt * vi
+                    else:
+                        dx[i, a] = dt * vi
+                    v[i, a] = flip * (v[i, a] + dvi) + (1.0 - flip) * vi
+            if mode == G2P_MUSL_MOTION:
+                continue
+            for a in range(d):
+                for b in range(d):
+                    s = 0.0
+                    for e in range(n):
+                        s += gvel[p, idx[e], a] * g[e, b]
+                    Lg[a, b] = s
+            for a in range(d):
+                for b in range(d):
+                    s = Fi[a, b]
+                    for k in range(d):
+                        s += dt * Lg[a, k] * Fi[k, b]
+                    Fn[a, b] = s
+            for a in range(d):
+                for b in range(d):
+                    Fi[a, b] = Fn[a, b]
+                if mode == G2P_MUSL_DEFORM:
+                    x[i, a] += dx[i, a]
+            prm = params[mat[i]]
+            cauchy_stress(d, prm, Fi, damage[i], stress[i])
+            speed2 = 0.0
+            for a in range(d):
+                speed2 += v[i, a] * v[i, a]
+            vmax = max(vmax, wave_speed(d, prm, Fi) + math.sqrt(speed2))
+    return vmax
+
+
+@kernel
+def max_speed(d, v, F, mat, params):
+    """Largest ``c_p + |v_p|`` (current-configuration wave speed plus particle speed)."""
+    vmax = 0.0
+    for i in range(v.shape[0]):
+        s = 0.0
+        for a in range(d):
+            s += v[i, a] * v[i, a]
+        vmax = max(vmax, wave_speed(d, params[mat[i]], F[i]) + math.sqrt(s))
+    return vmax
+
+
+@kernel
+def support_nodes(method, d, lcr, start, base, nloc, nglob, origin, inv_h, x, F, r0, lh0,
+                  nodes, count, err):
+    """Global flat ids of the nodes each particle touches with nonzero weight (for separation
+    detection: particles sharing no node exchange no momentum). ``nodes`` is (N, K)."""
+    R, C, xi, nk, jk, wk, dwk, idx, w, g = _scratch(nloc, d)
+    for p in range(start.size - 1):
+        for i in range(start[p], start[p + 1]):
+            for k in range(d):
+                xi[k] = (x[i, k] - origin[k]) * inv_h[k]
+            domain_matrix(d, method, lcr, F[i], r0[i], R)
+            n = particle_support(method, d, xi, F[i], lh0[i], R, C, base[p], nloc, nglob, inv_h,
+                                 nk, jk, wk, dwk, idx, w, g)
+            if n < 0:
+                err[0] = i
+                return
+            c = 0
+            for e in range(n):
+                if w[e] <= 0.0 or c >= nodes.shape[1]:
+                    continue
+                loc = idx[e]
+                i0 = loc % nloc[0]
+                i1 = (loc // nloc[0]) % nloc[1]
+                i2 = loc // (nloc[0] * nloc[1])
+                nodes[i, c] = (base[p, 0] + i0) + nglob[0] * ((base[p, 1] + i1) + nglob[1] * (base[p, 2] + i2))
+                c += 1
+            count[i] = c

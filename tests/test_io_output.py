@@ -1,0 +1,183 @@
+"""Output round trips: XDMF snapshots (read back with meshio), summary.json, PNG figures."""
+
+import json
+import logging
+import sys
+
+import numpy as np
+import pytest
+
+from parmpm.io import SnapshotWriter, format_summary, pad_point_data, plot_particles, write_summary
+
+meshio = pytest.importorskip("meshio")
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_xdmf_round_trip(tmp_path, dim, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the .h5 must land next to the .xdmf, not in the cwd
+    out = tmp_path / "out"
+    rng = np.random.default_rng(dim)
+    n, steps = 7, 3
+    written = []
+    with SnapshotWriter(out, "particles", dim) as w:
+        for k in range(steps):
+            x = rng.random((n, dim))
+            fields = {
+                "v": rng.random((n, dim)),
+                "F": rng.random((n, dim, dim)),
+                "mass": rng.random(n),
+                "id": np.arange(n, dtype=np.int64),
+                "corners": rng.random((n, 2 ** dim, dim)),
+            }
+            w.write(0.5 * k, x, fields)
+            written.append((x, fields))
+    assert (out / "particles.xdmf").exists() and (out / "particles.h5").exists()
+    assert not (tmp_path / "particles.h5").exists()
+
+    with meshio.xdmf.TimeSeriesReader(out / "particles.xdmf") as reader:
+        points, cells = reader.read_points_cells()
+        assert points.shape == (n, 3)
+        np.testing.assert_array_equal(points[:, :dim], written[0][0])
+        np.testing.assert_array_equal(points[:, dim:], 0.0)
+        assert cells[0].type == "vertex" and len(cells[0].data) == n
+        assert reader.num_steps == steps
+        for k in range(steps):
+            t, pd, _ = reader.read_data(k)
+            x, fields = written[k]
+            assert t == 0.5 * k
+            assert pd["mass"].shape == (n,)
+            np.testing.assert_array_equal(pd["mass"], fields["mass"])
+            np.testing.assert_array_equal(pd["id"], np.arange(n))
+            vec = pd["v"]
+            if dim == 1:
+                assert vec.shape == (n,)
+                np.testing.assert_array_equal(vec, fields["v"][:, 0])
+                np.testing.assert_array_equal(pd["F"], fields["F"][:, 0, 0])
+            else:
+                assert vec.shape == (n, 3)
+                np.testing.assert_array_equal(vec[:, :dim], fields["v"])
+                F = pd["F"].reshape(n, 3, 3)
+                np.testing.assert_array_equal(F[:, :dim, :dim], fields["F"])
+            corners = fields["corners"].reshape(n, -1)
+            for j in range(corners.shape[1]):
+                np.testing.assert_array_equal(pd[f"corners_{j}"], corners[:, j])
+            # every step carries its own (moving) geometry
+            geo = reader.collection[k].find("Geometry")
+            pts = reader._read_data_item(list(geo)[0])
+            np.testing.assert_array_equal(pts[:, :dim], x)
+
+
+def test_xdmf_readable_before_close(tmp_path):
+    w = SnapshotWriter(tmp_path, "snap", 2, flush_seconds=0.0)
+    w.write(0.0, np.zeros((3, 2)), {"s": np.ones(3)})
+    with meshio.xdmf.TimeSeriesReader(tmp_path / "snap.xdmf") as reader:
+        assert reader.num_steps == 1
+    w.write(1.0, np.ones((3, 2)), {"s": np.ones(3)})
+    w.close()
+    w.close()  # idempotent
+    with pytest.raises(ValueError):
+        w.write(2.0, np.ones((3, 2)))
+    with meshio.xdmf.TimeSeriesReader(tmp_path / "snap.xdmf") as reader:
+        assert reader.num_steps == 2
+
+
+def test_pad_point_data_shapes():
+    def shapes(a, dim):
+        return {k: v.shape for k, v in pad_point_data("f", a, 4, dim).items()}
+
+    assert shapes(np.ones((4, 1)), 2) == {"f": (4,)}
+    assert shapes(np.ones((4, 1, 1)), 1) == {"f": (4,)}
+    assert shapes(np.ones((4, 2)), 2) == {"f": (4, 3)}
+    assert shapes(np.ones((4, 3)), 2) == {"f": (4, 3)}
+    assert shapes(np.ones((4, 3, 3)), 3) == {"f": (4, 9)}
+    assert shapes(np.ones((4, 2, 2)), 2) == {"f": (4, 9)}
+    assert shapes(np.ones((4, 4)), 2) == {"f": (4, 9)}  # flattened 2x2 tensor
+    assert shapes(np.ones((4, 4, 2)), 2) == {f"f_{j}": (4,) for j in range(8)}  # CPDI corners
+    t = pad_point_data("F", np.arange(16.0).reshape(4, 2, 2), 4, 2)["F"].reshape(4, 3, 3)
+    np.testing.assert_array_equal(t[:, :2, :2], np.arange(16.0).reshape(4, 2, 2))
+    assert pad_point_data("b", np.array([True, False]), 2, 2)["b"].dtype.kind == "i"
+    with pytest.raises(ValueError):
+        pad_point_data("f", np.ones(3), 4, 2)
+
+
+def test_summary_round_trip(tmp_path):
+    summary = {
+        "scene": "hanging_bar",
+        "dim": 2,
+        "method": "cpdi",
+        "update": "usl",
+        "lcr": np.float64(0.05),
+        "ranks": np.int64(2),
+        "particles": 1200,
+        "steps": np.int32(3000),
+        "time": 0.02,
+        "wall_seconds": 4.0,
+        "particle_steps_per_second": None,
+        "grid": {"cells": np.array([16, 32]), "path": tmp_path / "x.toml"},
+        "metrics": {
+            "separated": np.bool_(True),
+            "separation_time": np.float32(0.5),
+            "max_stretch": 4.2,
+            "relative_error_static": None,
+            "history": np.arange(3.0),
+            "bad": float("nan"),
+        },
+    }
+    path = write_summary(tmp_path / "run", summary)
+    assert path == tmp_path / "run" / "summary.json"
+    data = json.loads(path.read_text())
+    assert data["lcr"] == 0.05 and data["ranks"] == 2 and data["steps"] == 3000
+    assert data["grid"]["cells"] == [16, 32]
+    assert data["grid"]["path"] == str(tmp_path / "x.toml")
+    assert data["metrics"]["separated"] is True
+    assert data["metrics"]["history"] == [0.0, 1.0, 2.0]
+    assert data["metrics"]["bad"] is None  # strict JSON: no NaN
+    assert list((tmp_path / "run").iterdir()) == [path]  # no temp file left behind
+    # overwrite in place
+    write_summary(tmp_path / "run", {"steps": 1})
+    assert json.loads(path.read_text()) == {"steps": 1}
+
+    text = format_summary(data)
+    lines = text.splitlines()
+    assert 5 <= len(lines) <= 8
+    assert "hanging_bar" in lines[0] and "(2D)" in lines[0]
+    assert "cpdi" in text and "usl" in text and "0.05" in text
+    assert "900,000 particle-steps/s" in text  # 1200 * 3000 / 4
+    assert "separated = true" in text and "max_stretch = 4.2" in text
+    assert "history" not in text and "relative_error_static" not in text  # lists, nulls left out
+
+
+def test_format_summary_minimal():
+    lines = format_summary({"scene_name": "vibrating_bar", "particles": 32, "steps": 10}).splitlines()
+    assert len(lines) == 4 and "vibrating_bar" in lines[0]
+    text = format_summary({"scene": "s", "particles": 10, "steps": 5, "particle_steps_per_second": 2.5e6})
+    assert "2,500,000 particle-steps/s" in text
+
+
+@pytest.mark.parametrize("dim, corners", [(1, False), (2, False), (2, True), (3, False)])
+def test_plot_particles_png(tmp_path, dim, corners):
+    pytest.importorskip("matplotlib")
+    rng = np.random.default_rng(0)
+    n = 20
+    x = rng.random((n, dim))
+    stretch = 1.0 + rng.random(n)
+    c = None
+    if corners:
+        r = 0.02
+        c = x[:, None, :] + r * np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]])[None]
+    path = plot_particles(tmp_path / "fig" / f"p{dim}.png", x, stretch, dim, corners=c, title="t")
+    assert path is not None and path.exists()
+    assert path.read_bytes()[:8] == PNG_MAGIC
+
+
+def test_plot_particles_without_matplotlib(tmp_path, monkeypatch, caplog):
+    for name in list(sys.modules):
+        if name == "matplotlib" or name.startswith("matplotlib."):
+            monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # import raises ImportError
+    with caplog.at_level(logging.WARNING, logger="parmpm.io.figures"):
+        assert plot_particles(tmp_path / "p.png", np.zeros((2, 1)), np.ones(2), 1) is None
+    assert "matplotlib" in caplog.text
+    assert not (tmp_path / "p.png").exists()

@@ -1,0 +1,279 @@
+"""Separation counting and scene metrics on synthetic particle states."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from parmpm.errors import SceneError
+from parmpm.exact import (
+    hanging_bar_static_displacement,
+    nominal_stress_1d,
+    vibrating_bar_com_velocity,
+)
+from parmpm.metrics import (
+    HangingBarMetrics,
+    VibratingBarMetrics,
+    _components,
+    count_components,
+    make_metrics,
+)
+
+KERNELS = [pytest.param(_components, id="jit"), pytest.param(_components.py_func, id="py")]
+
+
+def _bfs_components(nodes, nnodes):
+    """Reference: breadth-first search on the particle graph (particles sharing a node)."""
+    n = nodes.shape[0]
+    by_node = {}
+    for p in range(n):
+        for k in range(nnodes[p]):
+            by_node.setdefault(int(nodes[p, k]), []).append(p)
+    seen = np.zeros(n, bool)
+    count = 0
+    for s in range(n):
+        if seen[s]:
+            continue
+        count += 1
+        stack = [s]
+        seen[s] = True
+        while stack:
+            p = stack.pop()
+            for k in range(nnodes[p]):
+                for q in by_node[int(nodes[p, k])]:
+                    if not seen[q]:
+                        seen[q] = True
+                        stack.append(q)
+    return count
+
+
+def _chain_1d(cells_with_particles, n_cells):
+    """1D linear-hat particles, one per listed cell: nodes (c, c+1)."""
+    c = np.asarray(cells_with_particles, dtype=np.int64)
+    nodes = np.stack([c, c + 1], axis=1)
+    return nodes, np.full(c.size, 2, dtype=np.int64), n_cells + 1
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_components_chain_and_gap(kernel):
+    nodes, nn, n_nodes = _chain_1d([0, 1, 2, 3], 10)
+    assert kernel(nodes, nn, n_nodes) == 1
+    # an empty cell between cells 1 and 3 leaves node 2 shared by cells 1 and 2 only
+    nodes, nn, n_nodes = _chain_1d([0, 1, 3, 4], 10)
+    assert kernel(nodes, nn, n_nodes) == 2  # cells 1 and 3 share no node
+    nodes, nn, n_nodes = _chain_1d([0, 0, 5, 8], 10)
+    assert kernel(nodes, nn, n_nodes) == 3
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_components_padding_and_isolated(kernel):
+    nodes = np.array([[0, 1, 99], [1, 2, 99], [5, 6, 7], [0, 0, 0]], dtype=np.int64)
+    nn = np.array([2, 2, 3, 0], dtype=np.int64)  # 99 is padding, particle 3 touches nothing
+    assert kernel(nodes, nn, 100) == 3
+
+
+@pytest.mark.parametrize("kernel", KERNELS)
+def test_components_random_against_bfs(kernel):
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        n, K, n_nodes = 60, 4, 150
+        nodes = rng.integers(0, n_nodes, size=(n, K)).astype(np.int64)
+        nn = rng.integers(0, K + 1, size=n).astype(np.int64)
+        expected = _bfs_components(nodes, nn)
+        assert kernel(nodes, nn, n_nodes) == expected
+        perm = rng.permutation(n)
+        assert kernel(nodes[perm].copy(), nn[perm].copy(), n_nodes) == expected
+
+
+def test_count_components_wrapper():
+    assert count_components(np.zeros((0, 4), np.int64), np.zeros(0, np.int64), 10) == 0
+    # huge id space: compressed before the kernel, same answer
+    big = 10**12
+    nodes = np.array([[big - 1, 5], [5, 7], [3 * 10**9, 4 * 10**9]], dtype=np.int64)
+    nn = np.array([2, 2, 2])
+    assert count_components(nodes, nn, big) == 2
+    # int32 input, 2D grid: two blocks of linear-hat particles separated by an empty column
+    nx = 10
+    nodes2, nn2 = [], []
+    for i in list(range(0, 3)) + list(range(5, 8)):
+        for j in range(3):
+            nodes2.append([i + (nx + 1) * j, i + 1 + (nx + 1) * j, i + (nx + 1) * (j + 1), i + 1 + (nx + 1) * (j + 1)])
+            nn2.append(4)
+    assert count_components(np.array(nodes2, np.int32), np.array(nn2, np.int32), (nx + 1) * 5) == 2
+    with pytest.raises(ValueError):
+        count_components(np.zeros((2, 2), np.int64), np.array([3, 1]), 4)
+
+
+# --------------------------------------------------------------------------------------------
+def _scene_1d(L=1.0, n=32, E=1e6, nu=0.0, rho=1050.0, g=1000.0, model="neo_hookean"):
+    # the resolved-scene layout of parmpm.scene_schema
+    scene = {
+        "dim": 1,
+        "materials": {"rubber": {"model": model, "density": rho, "youngs_modulus": E, "poisson_ratio": nu}},
+        "bodies": [{"shape": "box", "min": [0.0], "max": [L], "material": "rubber", "vibration": None}],
+        "gravity": {"g": [-g], "ramp_time": 0.0},
+        "metrics": {"kind": "hanging_bar", "every_steps": 10, "axis": 0},
+    }
+    h = L / n
+    x0 = (np.arange(n) + 0.5)[:, None] * h
+    mass = np.full(n, rho * h)
+    return scene, x0, mass
+
+
+def test_hanging_bar_1d_exact_static_state():
+    scene, x0, mass = _scene_1d()
+    m = make_metrics(scene, x0, mass)
+    assert isinstance(m, HangingBarMetrics)
+    L = 1.0
+    law = nominal_stress_1d("neo_hookean", 1e6, 0.0)
+    X = L - x0[:, 0]  # distance from the support at the top
+    u = hanging_bar_static_displacement(X, L, 1050.0, 1000.0, law)  # downward displacement
+    s = 1050.0 * 1000.0 / 1e6 * (L - X)
+    lam = s + np.sqrt(1 + s * s)
+    x = (x0[:, 0] - u)[:, None]
+    F = lam[:, None, None]
+    v = np.zeros_like(x)
+    m.sample(0.0, x0, v, np.ones_like(F), 1)
+    m.sample(1.0, x, v, F, 1)
+    r = m.result()
+    json.dumps(r, allow_nan=False)
+    assert r["exact_static_elongation"] == pytest.approx(0.6863289199400745, rel=1e-12)
+    assert r["tip_displacement"] < 0
+    assert r["relative_error_static"] < 1e-9
+    # the tip particle sits half a spacing above the free end: its exact u is a bit below dL
+    assert r["exact_static_tip_displacement"] < r["exact_static_elongation"]
+    assert r["max_stretch"] == pytest.approx(lam.max())
+    assert r["separated"] is False and r["separation_time"] is None
+    assert r["stretch_at_separation"] is None and r["samples"] == 2
+    assert r["max_tip_displacement"] == pytest.approx(abs(r["tip_displacement"]))
+
+
+def test_hanging_bar_1d_linear_law():
+    scene, x0, mass = _scene_1d(model="linear_elastic", nu=0.25, g=10.0)
+    m = HangingBarMetrics(scene, x0, mass)
+    lam_l = 1e6 * 0.25 / (1.25 * 0.5)
+    mu = 1e6 / 2.5
+    k = 1050.0 * 10.0 / (lam_l + 2 * mu)
+    assert m.exact_static_elongation == pytest.approx(k / 2, rel=1e-10)
+
+
+def test_hanging_bar_2d_separation():
+    L, W, n = 1.0, 0.2, 20
+    # an alternative spelling the metrics also accept: list of materials, box table, bare vector
+    scene = {
+        "dim": 2,
+        "materials": [{"name": "rubber", "model": "neo_hookean", "E": 1e6, "nu": 0.3, "density": 1050.0}],
+        "bodies": [{"material": "rubber", "box": {"lo": [0.0, -L], "hi": [W, 0.0]}}],
+        "gravity": [0.0, -1000.0],
+        "metrics": {"kind": "hanging_bar", "every_steps": 1, "axis": "y"},
+    }
+    xs, ys = np.meshgrid((np.arange(4) + 0.5) * W / 4, -L + (np.arange(n) + 0.5) * L / n, indexing="ij")
+    x0 = np.stack([xs.ravel(), ys.ravel()], axis=1)
+    mass = np.ones(x0.shape[0])
+    m = make_metrics(scene, x0, mass)
+    assert m.axis == 1 and m.tip.size == 4
+    F = np.tile(np.eye(2), (x0.shape[0], 1, 1))
+    v = np.zeros_like(x0)
+    stretches = [1.5, 3.0, 4.5, 2.0]
+    for i, (t, s) in enumerate(zip([0.1, 0.2, 0.3, 0.4], stretches)):
+        Fi = F.copy()
+        Fi[:, 0, 1] = 0.1  # shear does not count, F e_y = (0.1, s)
+        Fi[0, 1, 1] = s
+        x = x0.copy()
+        x[m.tip, 1] -= 0.1 * (i + 1)
+        m.sample(t, x, v, Fi, 1 if i < 2 else 2)
+    r = m.result()
+    json.dumps(r, allow_nan=False)
+    assert r["separated"] is True
+    assert r["separation_time"] == pytest.approx(0.3)
+    assert r["stretch_at_separation"] == pytest.approx(math.hypot(0.1, 4.5))
+    assert r["max_stretch"] == pytest.approx(math.hypot(0.1, 4.5))
+    assert r["tip_displacement"] == pytest.approx(-0.4)
+    assert r["max_tip_displacement"] == pytest.approx(0.4)
+    assert r["exact_static_elongation"] is None and r["relative_error_static"] is None
+    assert r["max_components"] == 2
+
+
+def test_hanging_bar_gravity_along_plus_axis():
+    scene, x0, mass = _scene_1d()
+    scene["gravity"]["g"] = [1000.0]
+    m = HangingBarMetrics(scene, x0, mass)
+    assert m.tip.tolist() == [x0.shape[0] - 1]  # lowest = largest coordinate
+    x = x0.copy()
+    x[-1, 0] += 0.2  # moves along gravity: downward
+    m.sample(0.0, x, np.zeros_like(x), np.ones((x0.shape[0], 1, 1)), None)
+    assert m.result()["tip_displacement"] == pytest.approx(-0.2)
+    assert m.result()["separated"] is False
+
+
+def _vib_scene(dim=1, nu=0.0, n=200):
+    E, rho, L, v0 = 100.0, 1.0, 25.0, 0.1
+    lo, hi = [0.0] * dim, [L] + [1.0] * (dim - 1)
+    scene = {
+        "dim": dim,
+        "materials": {"m": {"model": "linear_elastic", "density": rho, "youngs_modulus": E, "poisson_ratio": nu}},
+        "bodies": [{"shape": "box", "min": lo, "max": hi, "material": "m",
+                    "vibration": {"amplitude": v0, "mode": 1, "axis": 0}}],
+        "gravity": {"g": [0.0] * dim, "ramp_time": 0.0},
+        "metrics": {"kind": "vibrating_bar", "every_steps": 5, "axis": 0},
+    }
+    X = (np.arange(n) + 0.5) * L / n
+    x0 = np.zeros((n, dim))
+    x0[:, 0] = X
+    if dim > 1:
+        x0[:, 1] = 0.5
+    return scene, x0, np.full(n, rho * L / n), (E, rho, L, v0)
+
+
+@pytest.mark.parametrize("scale, expected", [(1.0, 0.0), (1.02, 0.02)])
+def test_vibrating_bar_metric(scale, expected):
+    scene, x0, mass, (E, rho, L, v0) = _vib_scene()
+    m = make_metrics(scene, x0, mass)
+    assert isinstance(m, VibratingBarMetrics)
+    assert m.period == pytest.approx(10.0)
+    beta = math.pi / (2 * L)
+    omega = math.sqrt(E / rho) * beta
+    for t in np.linspace(0.0, 20.0, 41):
+        v = np.zeros_like(x0)
+        v[:, 0] = scale * v0 * math.cos(omega * t) * np.sin(beta * x0[:, 0])
+        m.sample(t, x0, v, np.ones((x0.shape[0], 1, 1)), 1)
+    r = m.result()
+    json.dumps(r, allow_nan=False)
+    assert r["samples"] == 41 and r["period"] == pytest.approx(10.0)
+    # midpoint rule over 200 particles: O(h^2) ~ 1e-5 error in the mean
+    assert r["com_velocity_rel_l2_error"] == pytest.approx(expected, abs=5e-5)
+    np.testing.assert_allclose(m.com_velocity_exact, vibrating_bar_com_velocity(m.times, v0, L, E, rho))
+
+
+def test_vibrating_bar_wave_modulus_by_dimension():
+    E, nu = 100.0, 0.3
+    lam = E * nu / ((1 + nu) * (1 - 2 * nu))
+    mu = E / (2 * (1 + nu))
+    for dim, modulus in [(1, lam + 2 * mu), (2, E / (1 - nu**2)), (3, E)]:
+        scene, x0, mass, _ = _vib_scene(dim=dim, nu=nu, n=20)
+        m = make_metrics(scene, x0, mass)
+        assert m.modulus == pytest.approx(modulus)
+        assert m.L == pytest.approx(25.0)
+
+
+def test_make_metrics_kinds():
+    scene, x0, mass = _scene_1d()
+    scene["metrics"]["kind"] = "none"
+    assert make_metrics(scene, x0, mass) is None
+    del scene["metrics"]
+    assert make_metrics(scene, x0, mass) is None
+    scene["metrics"] = {"kind": "teapot"}
+    with pytest.raises(SceneError):
+        make_metrics(scene, x0, mass)
+    scene["metrics"] = {"kind": "vibrating_bar"}
+    with pytest.raises(SceneError):  # body 0 has no vibration table
+        make_metrics(scene, x0, mass)
+
+
+def test_lattice_fallback_without_box():
+    scene, x0, mass = _scene_1d(n=16)
+    del scene["bodies"][0]["min"], scene["bodies"][0]["max"]
+    m = HangingBarMetrics(scene, x0, mass)
+    assert m.L == pytest.approx(1.0)
+    assert m.X_tip == pytest.approx(1.0 - 0.5 / 16)
