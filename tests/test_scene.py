@@ -121,7 +121,8 @@ def test_defaults(tmp_path):
     assert d["method"]["lcr"] == "2dx" and scene.lcr == pytest.approx(1.0)
     assert d["damping"] == {"coefficient": 0.0}
     assert d["output"] == {"every": 0.05, "every_steps": None, "snapshots": True, "figure": True}
-    assert d["metrics"] == {"kind": "none", "every_steps": 1, "axis": 1}
+    assert d["metrics"] == {"kind": "none", "every_steps": 1, "axis": 1, "stop_on_separation": False}
+    assert d["boundary"]["fixed_regions"] == []
     assert _round_trip(scene, tmp_path).data == d
 
 
