@@ -30,7 +30,7 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
 * ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi", default "cpdi"), ``lcr``
   (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none"; default "2dx" for cpdi,
   "none" otherwise, and any other value is an error with another interpolator), ``update``
-  ("usl" | "musl", default "usl": with USL the CPDI domains keep tiling the body exactly, with MUSL they drift apart — see README), ``flip`` (0..1, default 1.0).
+  ("auto" | "usl" | "musl", default "auto": USL for cpdi, whose domains then keep tiling the body exactly, MUSL for the others, which USL destabilises through nearly empty nodes — see README), ``flip`` (0..1, default 1.0).
 * ``[gravity]``: ``g`` (default 0), ``ramp_time`` (>= 0 s, default 0: applied suddenly).
 * ``[damping]``: ``coefficient`` (>= 0 1/s, default 0).
 * ``[boundary]``: ``x_min`` ... ``z_max`` for the scene's axes only: "fixed" | "slip" | "free"

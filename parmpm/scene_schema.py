@@ -24,7 +24,7 @@ from parmpm.errors import SceneError
 DIMS = (1, 2, 3)
 AXIS_NAMES = "xyz"
 INTERPOLATORS = ("mpm", "ugimp", "cpgimp", "cpdi")
-UPDATES = ("usl", "musl")
+UPDATES = ("auto", "usl", "musl")
 MODELS = ("linear_elastic", "neo_hookean")
 SHAPE_DIMS = {"box": (1, 2, 3), "disk": (2,), "sphere": (3,)}
 BOUNDARY_KINDS = ("fixed", "slip", "free")
@@ -409,7 +409,7 @@ def _method(c: _Checker, raw: Any, min_dx: float) -> dict:
     return {
         "interpolator": interp,
         "lcr": lcr,
-        "update": c.choice("method.update", t.get("update", "usl"), UPDATES),
+        "update": c.choice("method.update", t.get("update", "auto"), UPDATES),
         "flip": c.number("method.flip", t.get("flip", 1.0), "a number with 0 <= flip <= 1",
                          lambda x: 0 <= x <= 1),
     }

@@ -58,10 +58,11 @@ class Simulation:
         for r, reg in enumerate(data["boundary"]["fixed_regions"]):
             regions[r, 0, :d], regions[r, 1, :d] = reg["min"], reg["max"]
         m = data["method"]
-        self.stepper = Stepper(self.disc, P, self.params, bc, regions, m["update"], m["flip"],
+        self.update = m["update"] if m["update"] != "auto" else ("usl" if interp.code == CPDI else "musl")
+        self.stepper = Stepper(self.disc, P, self.params, bc, regions, self.update, m["flip"],
                                data["damping"]["coefficient"])
         # initial stress from the initial F (identity → zero for the elastic models)
-        self.t, self.nstep = 0.0, 0
+        self.t, self.nstep, self.last_dt = 0.0, 0, 0.0
         self.vmax = max_speed(d, P.v, P.F, P.mat, self.params)
         order = np.argsort(P.gid)
         from parmpm.metrics import make_metrics
@@ -110,7 +111,8 @@ class Simulation:
         P = self.particles
         o = np.argsort(P.gid)
         pieces = self.components()
-        self.metrics.sample(self.t, P.x[o], P.v[o], P.F[o], pieces)
+        self.metrics.sample(self.t, P.x[o], P.v[o], P.F[o], pieces,
+                            v_time=self.t - 0.5 * self.last_dt)
         return pieces
 
     def axial_stretch(self) -> np.ndarray:
@@ -193,6 +195,7 @@ class Simulation:
                 self.vmax = self.stepper.step(dt, self.gravity(self.t))
                 self.t += dt
                 self.nstep += 1
+                self.last_dt = dt
                 if not math.isfinite(self.vmax):
                     raise SimulationError(f"non-finite velocity or stress at step {self.nstep} "
                                           f"(t = {self.t:.6g} s); try a smaller time.cfl")
@@ -221,7 +224,7 @@ class Simulation:
         loop = time.perf_counter() - warm_wall if warm_wall else wall
         summary = {
             "scene": data["name"], "dim": self.dim, "method": self.interp.name,
-            "lcr": self.lcr, "update": data["method"]["update"], "flip": data["method"]["flip"],
+            "lcr": self.lcr, "update": self.update, "flip": data["method"]["flip"],
             "ranks": 1, "particles": P.n, "steps": self.nstep, "time": self.t,
             "stopped": self.stopped or "end",
             "wall_seconds": wall,

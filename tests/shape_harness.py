@@ -2,18 +2,31 @@
 import numpy as np
 
 from decomposition import PatchLayout
-from parmpm.shapes import domain_matrix, particle_support
+from parmpm.shapes import CPDI, domain_matrix, particle_support
 
 
 def entries(method, d, x, F=None, lh0=None, r0=None, lcr=0.0, h=None, cells=12, ghost=3, jit=True):
     """Global node coordinates (n, d), weights (n,), gradients (n, d) of a particle at ``x`` in a
     single-patch grid of ``cells`` cells of size ``h`` per axis (origin 0)."""
+    lay = PatchLayout((cells,) * d, (cells,) * d, ghost)
+    return _entries(method, d, x, F, lh0, r0, lcr, h, lay, lay.local_base()[0], jit)
+
+
+def entries_in_patch(method, d, x, layout, coords, F=None, lh0=None, r0=None, lcr=0.0, h=None,
+                     jit=True):
+    """As :func:`entries`, but the local (ghost-inclusive) box is that of the patch at ``coords``
+    of ``layout``: ``None`` means the particle touches a node outside the grid or beyond that
+    patch's ghost layer."""
+    return _entries(method, d, x, F, lh0, r0, lcr, h, layout,
+                    layout.local_base()[layout.patch_id(coords)], jit)
+
+
+def _entries(method, d, x, F, lh0, r0, lcr, h, lay, base, jit):
     h = np.ones(d) if h is None else np.asarray(h, float)
     F = np.eye(d) if F is None else np.asarray(F, float)
     lh0 = 0.25 * h if lh0 is None else np.asarray(lh0, float)
     r0 = np.diag(lh0) if r0 is None else np.asarray(r0, float)
-    lay = PatchLayout((cells,) * d, (cells,) * d, ghost)
-    base, nloc, nglob = lay.local_base()[0], lay.local_nodes3, lay.global_nodes3
+    nloc, nglob = lay.local_nodes3, lay.global_nodes3
     inv_h = np.concatenate([1.0 / h, np.ones(3 - d)])
     xi = np.zeros(3)
     xi[:d] = np.asarray(x, float) / h
@@ -35,3 +48,12 @@ def entries(method, d, x, F=None, lh0=None, r0=None, lcr=0.0, h=None, cells=12, 
     i2 = loc // (nloc[0] * nloc[1])
     nodes = (np.stack([i0, i1, i2], axis=1) + base)[:, :d] * h
     return nodes, w[:n].copy(), g[:n, :d].copy(), R[:d, :d].copy()
+
+
+def domain(d, F, r0, lcr=0.0, jit=True):
+    """The CPDI domain ``R' `` (d, d) that ``domain_matrix`` builds from ``F`` and ``R0`` (capped at
+    ``lcr`` when ``lcr > 0``), without evaluating any weights."""
+    R = np.zeros((3, 3))
+    dm = domain_matrix if jit else domain_matrix.py_func
+    dm(d, CPDI, lcr, np.asarray(F, float), np.asarray(r0, float), R)
+    return R[:d, :d].copy()
