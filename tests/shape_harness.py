@@ -17,8 +17,9 @@ def entries_in_patch(method, d, x, layout, coords, F=None, lh0=None, r0=None, lc
     """As :func:`entries`, but the local (ghost-inclusive) box is that of the patch at ``coords``
     of ``layout``: ``None`` means the particle touches a node outside the grid or beyond that
     patch's ghost layer."""
+    coords3 = tuple(int(c) for c in coords) + (0,) * (3 - len(coords))
     return _entries(method, d, x, F, lh0, r0, lcr, h, layout,
-                    layout.local_base()[layout.patch_id(coords)], jit)
+                    layout.local_base()[layout.patch_id(coords3)], jit)
 
 
 def _entries(method, d, x, F, lh0, r0, lcr, h, lay, base, jit):
