@@ -306,3 +306,20 @@ def test_domain_scaling(d, jit):
         assert counts["rescaled"] == 0, counts  # 1D/2D rebuilds are exact
     if d == 2:
         assert counts["both_2d"] > 0, counts
+
+
+# --- cpGIMP domains collapsed along an axis (regression) ---------------------------------------
+# The weight used to be (Φ(ξ+l−j) − Φ(ξ−l−j))/2l in absolute grid coordinates, which cancels for a
+# half-width l = l0·|F_kk| ≪ 1 (0 at a 90° rotation, NaN at F_kk = 0). gimp_axis now averages the
+# hat piecewise between its kinks, so a collapsed domain gives the hat at its centre.
+
+@pytest.mark.parametrize("fkk", [0.0, np.cos(np.pi / 2), 1e-9, 1e-3])
+def test_cpgimp_partition_of_unity_for_collapsed_domain(fkk):
+    """cpGIMP is meant to misbehave under large rotation (DESIGN.md §4), but as a shape function:
+    a domain of vanishing width is the hat at the centre, whose weights still sum to one."""
+    F = np.array([[fkk, -1.0], [1.0, fkk]])
+    x = np.array([5.3, 4.2]) * _h(2)
+    nodes, w, g, _ = entries(CPGIMP, 2, x, F=F, h=_h(2))
+    assert np.all(np.isfinite(w)) and np.all(np.isfinite(g))
+    assert abs(w.sum() - 1.0) <= TOL
+    np.testing.assert_allclose(w @ nodes, x, rtol=0, atol=TOL * np.abs(nodes).max())

@@ -1,8 +1,9 @@
 """GIMP weights per axis for a top-hat particle of any half-width (uGIMP and cpGIMP).
 
 Bardenhagen & Kober (2004): ``φ_i = (1/2l) ∫_{x_p−l}^{x_p+l} S_i(x) dx`` and
-``∇φ_i = (1/2l) ∫ ∇S_i dx = (S_i(x_p+l) − S_i(x_p−l)) / 2l``. With the hat's antiderivative
-``Φ`` (in grid units) this is ``φ_j = (Φ(ξ+l−j) − Φ(ξ−l−j)) / 2l`` — exact for every ``l``, so
+``∇φ_i = (1/2l) ∫ ∇S_i dx = (S_i(x_p+l) − S_i(x_p−l)) / 2l``, evaluated piecewise between the
+hat's kinks so it is exact for every ``l`` — including a collapsed domain (``l → 0``, cpGIMP at 90°
+rotation), where it becomes the hat at the centre — so
 cpGIMP domains that stretch beyond half a cell stay correct (the usual piecewise-quadratic
 closed form assumes ``l ≤ Δx/2``). uGIMP keeps ``l = Δx/(2·ppc)``; cpGIMP uses
 ``l_k = l0_k·|F_kk|``, the common choice whose failure under large rotation the studies show.
@@ -20,15 +21,35 @@ def _hat(s):
 
 
 @kernel
-def _hat_integral(s):
-    """Φ(s) = ∫_{-∞}^{s} max(0, 1 − |t|) dt."""
-    if s <= -1.0:
-        return 0.0
-    if s < 0.0:
-        return 0.5 * (s + 1.0) * (s + 1.0)
-    if s < 1.0:
-        return 1.0 - 0.5 * (1.0 - s) * (1.0 - s)
-    return 1.0
+def _hat_average(a, b):
+    """Mean of the hat over [a, b] (node-relative grid units), split at its kinks -1, 0, 1 so each
+    piece is linear and integrates exactly as length × midpoint value: no cancellation when the
+    domain is thin (a collapsed cpGIMP domain averages to the hat at its centre)."""
+    if b <= a:
+        return _hat(a)
+    total = 0.0
+    lo = a
+    for k in (-1.0, 0.0, 1.0, math.inf):
+        if k <= lo:
+            continue
+        hi = min(k, b)
+        total += (hi - lo) * _hat(0.5 * (lo + hi))
+        lo = hi
+        if lo >= b:
+            break
+    return total / (b - a)
+
+
+@kernel
+def _hat_slope_average(a, b):
+    """Mean of the hat's derivative over [a, b]: ``(S(b) − S(a))/(b − a)``, or the slope of the
+    piece when the domain is degenerate or lies within one linear piece."""
+    if b <= a or math.floor(a) == math.floor(b):
+        m = 0.5 * (a + b)
+        if m <= -1.0 or m >= 1.0:
+            return 0.0
+        return 1.0 if m < 0.0 else -1.0
+    return (_hat(b) - _hat(a)) / (b - a)
 
 
 @kernel
@@ -47,10 +68,9 @@ def gimp_axis(xi, half, base, nloc, nglob, inv_h, jk, wk, dwk, a):
     n = hi - lo + 1
     if n > jk.shape[1]:
         return -1
-    inv2l = 0.5 / half
     for t in range(n):
         j = lo + t
         jk[a, t] = j - base
-        wk[a, t] = (_hat_integral(xi + half - j) - _hat_integral(xi - half - j)) * inv2l
-        dwk[a, t] = (_hat(xi + half - j) - _hat(xi - half - j)) * inv2l * inv_h
+        wk[a, t] = _hat_average(xi - half - j, xi + half - j)
+        dwk[a, t] = _hat_slope_average(xi - half - j, xi + half - j) * inv_h
     return n
