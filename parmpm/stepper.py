@@ -70,6 +70,12 @@ class Stepper:
             self.err[0] = -1
             raise SimulationError(reach_message(self, i, phase))
 
+    def _grid_update(self, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
+        D = self.disc
+        grid_update(D.dim, D.own_lo, D.own_hi, D.base, D.nloc, D.nglob, self.bc, self.regions,
+                    D.origin3, D.h3, dt, gravity, self.damping, self.mass_eps, self.gm, self.gmv,
+                    self.gf, self.gvel, self.gdv, momentum_only)
+
     def step(self, dt: float, gravity: np.ndarray) -> float:
         """Advance by ``dt``; returns the largest ``c + |v|`` for the next CFL step."""
         P, D, plan = self.P, self.disc, self.plan
@@ -78,9 +84,7 @@ class Stepper:
             self.gm, self.gmv, self.gf, self.err)
         self._check("p2g")
         accumulate(plan, self.gm, self.gmv, self.gf)
-        grid_update(D.dim, D.own_lo, D.own_hi, D.base, D.nloc, D.nglob, self.bc, self.regions,
-                    D.origin3, D.h3, dt, gravity, self.damping, self.mass_eps, self.gm, self.gmv, self.gf, self.gvel, self.gdv,
-                    False)
+        self._grid_update(dt, gravity, momentum_only=False)
         fill(plan, self.gvel, self.gdv)
         g2p_tail = (P.x, P.v, P.F, P.r0, P.lh0, P.stress, P.dx, P.mat, self.params, P.damage,
                     self.gvel, self.gdv, self.err)
@@ -91,9 +95,7 @@ class Stepper:
             p2g_momentum(*args, P.x, P.v, P.F, P.r0, P.lh0, P.mass, self.gmv, self.err)
             self._check("p2g")
             accumulate(plan, self.gmv)
-            grid_update(D.dim, D.own_lo, D.own_hi, D.base, D.nloc, D.nglob, self.bc,
-                        self.regions, D.origin3, D.h3, dt, gravity, self.damping, self.mass_eps, self.gm, self.gmv, self.gf,
-                        self.gvel, self.gdv, True)
+            self._grid_update(dt, gravity, momentum_only=True)
             fill(plan, self.gvel)
             vmax = g2p(G2P_MUSL_DEFORM, *args, dt, self.flip, *g2p_tail)
         self._check("g2p")
