@@ -1,10 +1,20 @@
-"""Patch decomposition of a Cartesian node grid: layout, ghost layers, halo exchange.
+"""Patch decomposition of a Cartesian node grid: layout, sparse patch set, halo exchange,
+record migration and load balance.
 
-Physics-free: this package knows "fields on a node grid cut into patches" and nothing of MPM.
-The index arithmetic (:mod:`decomposition.layout`) needs no communicator; the halo operations
-(:mod:`decomposition.halo`) sum ghost contributions into owners and copy owners back to ghosts.
+Physics-free: this package knows "fields on a node grid cut into patches" and "records that
+belong to a patch" and nothing of MPM. :mod:`~decomposition.layout` is index arithmetic;
+:mod:`~decomposition.partition` picks the existing patches and their owners;
+:mod:`~decomposition.halo` sums ghost contributions into owners and copies owners back to ghosts
+(locally and over MPI); :mod:`~decomposition.migrate` moves records between ranks;
+:mod:`~decomposition.patchset` keeps the live picture consistent on every rank.
 """
+from decomposition.comm import SerialComm, allreduce_max, is_parallel, ordered_sum, world
+from decomposition.halo import HaloPlan, accumulate, fill, halo_pairs
 from decomposition.layout import PatchLayout
-from decomposition.halo import HaloPlan, accumulate, fill
+from decomposition.migrate import migrate
+from decomposition.partition import active_patches, assign, imbalance, morton_order
+from decomposition.patchset import PatchSet
 
-__all__ = ["PatchLayout", "HaloPlan", "accumulate", "fill"]
+__all__ = ["PatchLayout", "PatchSet", "HaloPlan", "accumulate", "fill", "halo_pairs", "migrate",
+           "active_patches", "assign", "imbalance", "morton_order", "SerialComm", "world",
+           "is_parallel", "allreduce_max", "ordered_sum"]

@@ -1,94 +1,261 @@
 """Ghost-layer exchange between patches: ``accumulate`` (ghost → owner sum) and ``fill``
-(owner → ghost copy).
+(owner → ghost copy), on one rank or many.
 
-A :class:`HaloPlan` lists, for every owner patch ``p`` and every other patch ``q`` in the fixed
-neighbour-offset order, the box of nodes that ``p`` owns and ``q`` holds as ghosts. Accumulate adds
-``q``'s partial sums into ``p`` in that order, so each node's total is
-``own + Σ_{offsets in fixed order} neighbour`` — the same floating-point sum whichever process
-hosts which patch (the key to rank-count-independent results). Fill copies the other way.
-Here every patch is local; the MPI layer (later) replaces the reads of remote patches with
-receive buffers in the same order.
+A :class:`HaloPlan` is built from the *global* list of halo pairs: for every existing owner patch
+``p`` (ascending id) and every other existing patch ``q`` in the layout's fixed neighbour-offset
+order, the box of nodes that ``p`` owns and ``q`` holds as ghosts. Each rank keeps the rows that
+concern its own patches:
+
+* owner rows (``p`` here): ``accumulate`` adds ``q``'s partial sums into ``p`` *in global row
+  order*, reading ``q`` from local memory when ``q`` is here and from the receive buffer when it
+  is not — so every node's total is ``own + Σ_{offsets in fixed order} neighbour``, the same
+  floating-point sum whichever rank hosts which patch (the key to rank-count-independent
+  results); ``fill`` copies ``p``'s owned box to ``q`` (locally, or into the send buffer);
+* ghost rows (``q`` here, ``p`` elsewhere): ``accumulate`` packs ``q``'s ghost box for ``p``'s
+  rank; ``fill`` unpacks the owner's values into it.
+
+Between ranks, each peer pair exchanges one message per operation, packed field after field,
+rows in global order on both sides (so offsets agree without any handshake), with non-blocking
+``Isend``/``Irecv`` on numpy buffers.
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
+from decomposition.comm import is_parallel
 from decomposition.layout import PatchLayout
+
+TAG_ACCUMULATE, TAG_FILL = 101, 102
+
+
+def halo_pairs(layout: PatchLayout, ids: np.ndarray) -> np.ndarray:
+    """(n, 11) global halo rows: owner id p, other id q, p-local offset (3), q-local offset (3),
+    size (3); ordered by p ascending, then by the fixed neighbour-offset order."""
+    ids = np.unique(np.asarray(ids, dtype=np.int64))
+    present = np.zeros(layout.n_patches, bool)
+    present[ids] = True
+    nppa, ps, g3, L = (layout.patches_per_axis, layout.psize3, layout.ghost3,
+                       layout.local_nodes3)
+    coords = layout.patch_coords()[ids]
+    own_lo = coords * ps
+    own_hi = np.where(coords == nppa - 1, layout.global_nodes3, own_lo + ps)
+    p_base = own_lo - g3
+    parts, keys = [], []
+    for oi, off in enumerate(layout.neighbour_offsets()):
+        qc = coords + np.asarray(off, dtype=np.int64)
+        ok = np.all((qc >= 0) & (qc < nppa), axis=1)
+        qc = np.where(ok[:, None], qc, 0)
+        qid = qc[:, 0] + nppa[0] * (qc[:, 1] + nppa[1] * qc[:, 2])
+        ok &= present[qid]
+        q_lo = qc * ps - g3
+        lo, hi = np.maximum(own_lo, q_lo), np.minimum(own_hi, q_lo + L)
+        ok &= np.all(hi > lo, axis=1)
+        rows = np.concatenate([ids[:, None], qid[:, None], lo - p_base, lo - q_lo, hi - lo], axis=1)
+        parts.append(rows[ok])
+        keys.append(np.stack([np.flatnonzero(ok), np.full(ok.sum(), oi)], axis=1))
+    if not parts:
+        return np.zeros((0, 11), np.int64)
+    rows, key = np.concatenate(parts), np.concatenate(keys)
+    return rows[np.lexsort((key[:, 1], key[:, 0]))].astype(np.int64)
 
 
 class HaloPlan:
-    """Copy boxes between patches of one layout.
+    """This rank's share of the halo pairs between the existing patches ``patch_ids``.
 
-    ``boxes`` is an int64 array (n_pairs, 11): owner p, other q, p-local offset (3),
-    q-local offset (3), size (3); rows grouped by owner in patch order, then by neighbour offset.
+    ``owner`` gives the rank of each of ``patch_ids`` (default: all on rank 0). Local patch
+    ``s`` (slot ``s`` of every field array) is ``local_ids[s]``; slots follow ascending id.
     """
 
-    def __init__(self, layout: PatchLayout, patch_ids=None):
+    def __init__(self, layout: PatchLayout, patch_ids=None, owner=None, comm=None):
         self.layout = layout
-        coords = layout.patch_coords()
-        ids = np.arange(layout.n_patches) if patch_ids is None else np.asarray(patch_ids)
-        slot = {int(pid): s for s, pid in enumerate(ids)}
-        nppa = layout.patches_per_axis
-        rows = []
-        for s, pid in enumerate(ids):
-            c = coords[pid]
-            own_lo, own_hi = layout.owned_box(c)
-            p_base = layout.local_box(c)[0]
-            for off in layout.neighbour_offsets():
-                qc = c + np.array(off, dtype=np.int64)
-                if np.any(qc < 0) or np.any(qc >= nppa):
-                    continue
-                q = slot.get(layout.patch_id(qc))
-                if q is None:
-                    continue
-                q_lo, q_hi = layout.local_box(qc)
-                lo, hi = np.maximum(own_lo, q_lo), np.minimum(own_hi, q_hi)
-                if np.any(hi <= lo):
-                    continue
-                rows.append([s, q, *(lo - p_base), *(lo - q_lo), *(hi - lo)])
-        self.boxes = np.array(rows, dtype=np.int64).reshape(-1, 11)
+        self.comm = comm
+        self.rank = comm.Get_rank() if comm is not None else 0
+        ids = np.arange(layout.n_patches) if patch_ids is None else np.asarray(patch_ids, np.int64)
+        owner = np.zeros(ids.size, np.int64) if owner is None else np.asarray(owner, np.int64)
+        order = np.argsort(ids, kind="stable")
+        self.ids, self.owner = ids[order], owner[order]
+        self.rank_of = np.full(layout.n_patches, -1, np.int64)
+        self.rank_of[self.ids] = self.owner
+        self.local_ids = self.ids[self.owner == self.rank]
+        self.slot_of = np.full(layout.n_patches, -1, np.int64)
+        self.slot_of[self.local_ids] = np.arange(self.local_ids.size)
         self.local_nodes3 = layout.local_nodes3
+
+        rows = halo_pairs(layout, self.ids)
+        rp, rq = self.rank_of[rows[:, 0]], self.rank_of[rows[:, 1]]
+        me = self.rank
+        own, ghost = rows[rp == me], rows[(rq == me) & (rp != me)]
+        own_peer = rq[rp == me]
+        ghost_peer = rp[(rq == me) & (rp != me)]
+        self.peers = np.unique(np.concatenate([own_peer[own_peer != me], ghost_peer]))
+        self.n_local_pairs = int(np.sum(own_peer == me))
+        seg_of = {int(r): i for i, r in enumerate(self.peers)}
+
+        def segments(rows_, peer):
+            size = np.prod(rows_[:, 8:11], axis=1)
+            seg = np.array([seg_of.get(int(r), -1) for r in peer], np.int64)
+            node_off = np.zeros(rows_.shape[0], np.int64)
+            nodes = np.zeros(self.peers.size, np.int64)
+            for i in range(rows_.shape[0]):  # per halo pair, at plan time only
+                if seg[i] >= 0:
+                    node_off[i] = nodes[seg[i]]
+                    nodes[seg[i]] += size[i]
+            return seg, node_off, nodes
+
+        oseg, ooff, self.own_seg_nodes = segments(own, own_peer)
+        q_slot = np.where(own_peer == me, self.slot_of[own[:, 1]], -1)
+        #: owner rows: p slot, q slot (-1: remote), p offset 3, q offset 3, size 3, segment, node offset
+        self.own_rows = np.concatenate([self.slot_of[own[:, :1]], q_slot[:, None], own[:, 2:11],
+                                        oseg[:, None], ooff[:, None]], axis=1).astype(np.int64)
+        gseg, goff, self.ghost_seg_nodes = segments(ghost, ghost_peer)
+        #: ghost rows: q slot, q offset 3, size 3, segment, node offset
+        self.ghost_rows = np.concatenate([self.slot_of[ghost[:, 1:2]], ghost[:, 5:11],
+                                          gseg[:, None], goff[:, None]], axis=1).astype(np.int64)
+        self._bufs: dict[int, tuple] = {}
+
+    @property
+    def n_local(self) -> int:
+        return int(self.local_ids.size)
 
     @property
     def ghost_nodes_per_exchange(self) -> int:
-        """Nodes copied by one accumulate (or fill) of a one-component field."""
-        return int(np.prod(self.boxes[:, 8:11], axis=1).sum()) if len(self.boxes) else 0
+        """Nodes this rank copies or sends in one accumulate (or fill) of a 1-component field."""
+        size = lambda r, cols: int(np.prod(r[:, cols], axis=1).sum()) if len(r) else 0  # noqa: E731
+        return size(self.own_rows, slice(8, 11)) + size(self.ghost_rows, slice(4, 7))
+
+    @property
+    def remote_nodes_per_exchange(self) -> int:
+        """Nodes this rank sends to (or receives from) other ranks per 1-component exchange."""
+        return int(self.own_seg_nodes.sum() + self.ghost_seg_nodes.sum())
+
+    def _buffers(self, k_total: int):
+        if k_total not in self._bufs:
+            ob = np.concatenate([[0], np.cumsum(self.own_seg_nodes * k_total)]).astype(np.int64)
+            gb = np.concatenate([[0], np.cumsum(self.ghost_seg_nodes * k_total)]).astype(np.int64)
+            self._bufs[k_total] = (ob, np.zeros(ob[-1]), gb, np.zeros(gb[-1]))
+        return self._bufs[k_total]
+
+
+# --- kernels ---------------------------------------------------------------------------------
+@njit(cache=True)
+def _owner_accumulate(field, rows, L, buf, base, seg_nodes, kbefore):
+    k = field.shape[2]
+    for r in range(rows.shape[0]):
+        p, q = rows[r, 0], rows[r, 1]
+        pos = 0
+        if q < 0:
+            s = rows[r, 11]
+            pos = base[s] + kbefore * seg_nodes[s] + rows[r, 12] * k
+        for k2 in range(rows[r, 10]):
+            for k1 in range(rows[r, 9]):
+                np0 = rows[r, 2] + L[0] * (rows[r, 3] + k1 + L[1] * (rows[r, 4] + k2))
+                nq0 = rows[r, 5] + L[0] * (rows[r, 6] + k1 + L[1] * (rows[r, 7] + k2))
+                for k0 in range(rows[r, 8]):
+                    for c in range(k):
+                        if q >= 0:
+                            field[p, np0 + k0, c] += field[q, nq0 + k0, c]
+                        else:
+                            field[p, np0 + k0, c] += buf[pos]
+                            pos += 1
 
 
 @njit(cache=True)
-def _accumulate(field, boxes, L):
-    for r in range(boxes.shape[0]):
-        p, q = boxes[r, 0], boxes[r, 1]
-        for k2 in range(boxes[r, 10]):
-            for k1 in range(boxes[r, 9]):
-                np0 = boxes[r, 2] + L[0] * (boxes[r, 3] + k1 + L[1] * (boxes[r, 4] + k2))
-                nq0 = boxes[r, 5] + L[0] * (boxes[r, 6] + k1 + L[1] * (boxes[r, 7] + k2))
-                for k0 in range(boxes[r, 8]):
-                    for c in range(field.shape[2]):
-                        field[p, np0 + k0, c] += field[q, nq0 + k0, c]
+def _owner_fill(field, rows, L, buf, base, seg_nodes, kbefore):
+    k = field.shape[2]
+    for r in range(rows.shape[0]):
+        p, q = rows[r, 0], rows[r, 1]
+        pos = 0
+        if q < 0:
+            s = rows[r, 11]
+            pos = base[s] + kbefore * seg_nodes[s] + rows[r, 12] * k
+        for k2 in range(rows[r, 10]):
+            for k1 in range(rows[r, 9]):
+                np0 = rows[r, 2] + L[0] * (rows[r, 3] + k1 + L[1] * (rows[r, 4] + k2))
+                nq0 = rows[r, 5] + L[0] * (rows[r, 6] + k1 + L[1] * (rows[r, 7] + k2))
+                for k0 in range(rows[r, 8]):
+                    for c in range(k):
+                        if q >= 0:
+                            field[q, nq0 + k0, c] = field[p, np0 + k0, c]
+                        else:
+                            buf[pos] = field[p, np0 + k0, c]
+                            pos += 1
 
 
 @njit(cache=True)
-def _fill(field, boxes, L):
-    for r in range(boxes.shape[0]):
-        p, q = boxes[r, 0], boxes[r, 1]
-        for k2 in range(boxes[r, 10]):
-            for k1 in range(boxes[r, 9]):
-                np0 = boxes[r, 2] + L[0] * (boxes[r, 3] + k1 + L[1] * (boxes[r, 4] + k2))
-                nq0 = boxes[r, 5] + L[0] * (boxes[r, 6] + k1 + L[1] * (boxes[r, 7] + k2))
-                for k0 in range(boxes[r, 8]):
-                    for c in range(field.shape[2]):
-                        field[q, nq0 + k0, c] = field[p, np0 + k0, c]
+def _ghost_copy(field, rows, L, buf, base, seg_nodes, kbefore, unpack):
+    """Pack a ghost box into the buffer (``unpack`` False) or write the buffer into it."""
+    k = field.shape[2]
+    for r in range(rows.shape[0]):
+        q, s = rows[r, 0], rows[r, 7]
+        pos = base[s] + kbefore * seg_nodes[s] + rows[r, 8] * k
+        for k2 in range(rows[r, 6]):
+            for k1 in range(rows[r, 5]):
+                nq0 = rows[r, 1] + L[0] * (rows[r, 2] + k1 + L[1] * (rows[r, 3] + k2))
+                for k0 in range(rows[r, 4]):
+                    for c in range(k):
+                        if unpack:
+                            field[q, nq0 + k0, c] = buf[pos]
+                        else:
+                            buf[pos] = field[q, nq0 + k0, c]
+                        pos += 1
+
+
+# --- operations --------------------------------------------------------------------------------
+def _exchange(plan: HaloPlan, send, sbase, snodes, recv, rbase, rnodes, tag):
+    """Post receives and sends for every peer; returns (recv requests, send requests)."""
+    if not is_parallel(plan.comm) or plan.peers.size == 0:
+        return [], []
+    from mpi4py import MPI
+
+    comm = plan.comm
+    rreq = [comm.Irecv([recv[rbase[i]:rbase[i + 1]], MPI.DOUBLE], source=int(r), tag=tag)
+            for i, r in enumerate(plan.peers) if rnodes[i]]
+    sreq = [comm.Isend([send[sbase[i]:sbase[i + 1]], MPI.DOUBLE], dest=int(r), tag=tag)
+            for i, r in enumerate(plan.peers) if snodes[i]]
+    return rreq, sreq
+
+
+def _waitall(reqs) -> None:
+    if reqs:
+        from mpi4py import MPI
+
+        MPI.Request.Waitall(reqs)
 
 
 def accumulate(plan: HaloPlan, *fields: np.ndarray) -> None:
-    """Add every ghost copy's partial sum into the owning node; fields are (patches, nodes, k)."""
+    """Add every ghost copy's partial sum into the owning node; fields are (slots, nodes, k)."""
+    k_total = sum(f.shape[2] for f in fields)
+    ob, obuf, gb, gbuf = plan._buffers(k_total)
+    L = plan.local_nodes3
+    kb = 0
+    for f in fields:  # pack what other ranks own
+        _ghost_copy(f, plan.ghost_rows, L, gbuf, gb, plan.ghost_seg_nodes, kb, False)
+        kb += f.shape[2]
+    rreq, sreq = _exchange(plan, gbuf, gb, plan.ghost_seg_nodes, obuf, ob, plan.own_seg_nodes,
+                           TAG_ACCUMULATE)
+    _waitall(rreq)
+    kb = 0
     for f in fields:
-        _accumulate(f, plan.boxes, plan.local_nodes3)
+        _owner_accumulate(f, plan.own_rows, L, obuf, ob, plan.own_seg_nodes, kb)
+        kb += f.shape[2]
+    _waitall(sreq)
 
 
 def fill(plan: HaloPlan, *fields: np.ndarray) -> None:
-    """Copy every owned node's value into all of its ghost copies."""
+    """Copy every owned node's value into all of its ghost copies, on this rank and others."""
+    k_total = sum(f.shape[2] for f in fields)
+    ob, obuf, gb, gbuf = plan._buffers(k_total)
+    L = plan.local_nodes3
+    kb = 0
+    for f in fields:  # local copies, and pack what other ranks hold as ghosts
+        _owner_fill(f, plan.own_rows, L, obuf, ob, plan.own_seg_nodes, kb)
+        kb += f.shape[2]
+    rreq, sreq = _exchange(plan, obuf, ob, plan.own_seg_nodes, gbuf, gb, plan.ghost_seg_nodes,
+                           TAG_FILL)
+    _waitall(rreq)
+    kb = 0
     for f in fields:
-        _fill(f, plan.boxes, plan.local_nodes3)
+        _ghost_copy(f, plan.ghost_rows, L, gbuf, gb, plan.ghost_seg_nodes, kb, True)
+        kb += f.shape[2]
+    _waitall(sreq)

@@ -91,6 +91,14 @@ def build_parser() -> argparse.ArgumentParser:
 
     commands.add_parser("scenes", help="list the built-in scenes",
                         description="List the built-in scenes: name and one-line description.")
+
+    bench = commands.add_parser(
+        "bench", help="time steps of a synthetic block (time per step, phases, halo share)",
+        description="Benchmark the time-step loop on a translating neo-Hookean block of about "
+        "--particles particles; print time per step and its phases (rank 0). Run under mpirun "
+        "for several ranks; run_scripts/mpi_scaling.py compares rank counts.")
+    from parmpm.bench import add_arguments  # light: the solver is imported only when it runs
+    add_arguments(bench)
     return parser
 
 
@@ -138,7 +146,7 @@ def _cmd_scenes() -> int:
     return 0
 
 
-def _cmd_run(args: argparse.Namespace, rank: int) -> int:
+def _cmd_run(args: argparse.Namespace, rank: int, comm) -> int:
     from parmpm.scene import load_scene
 
     scene = load_scene(args.scene, overrides=args.overrides)  # before the heavy imports below
@@ -147,9 +155,16 @@ def _cmd_run(args: argparse.Namespace, rank: int) -> int:
     from parmpm.simulation import Simulation
 
     out_dir = args.out if args.out is not None else DEFAULT_OUT / scene.name
-    summary = Simulation(scene, out_dir, quiet=args.quiet or rank != 0).run_on_world()
+    summary = Simulation(scene, out_dir, quiet=args.quiet or rank != 0, comm=comm).run()
     if rank == 0:
         print(format_summary(summary), flush=True)
+    return 0
+
+
+def _cmd_bench(args: argparse.Namespace, rank: int, comm) -> int:
+    from parmpm.bench import run_bench
+
+    run_bench(args, comm)  # rank 0 prints the table
     return 0
 
 
@@ -173,7 +188,8 @@ def _run_guarded(args: argparse.Namespace) -> int:
         return code  # pragma: no cover (Abort does not return)
 
     try:
-        return _cmd_run(args, rank)
+        command = _cmd_bench if args.command == "bench" else _cmd_run
+        return command(args, rank, comm)
     except ParmpmError as exc:
         return fail(f"parmpm: error: {_one_line(exc)}", 2)
     except KeyboardInterrupt:

@@ -8,8 +8,11 @@
   numbers the run's ``summary.json`` reports, against :mod:`parmpm.exact`.
 
 A metrics object is built once with the reference positions ``x0`` and masses, then sampled by the
-run loop every ``metrics.every_steps`` steps. The arrays it is given must hold *all* particles in
-global-id order (gathered on the rank that owns the metrics), the same order as ``x0``.
+run loop every ``metrics.every_steps`` steps. Under MPI each rank computes :meth:`terms` for its
+own particles (per-particle addends and local maxima); the run driver sums the addends patch by
+patch and the patches in id order (the same rounding on any number of ranks), takes the maxima
+over ranks, and passes the totals to :meth:`record`. :meth:`sample` does both for arrays of all
+particles in global-id order (the same order as ``x0``).
 """
 
 from __future__ import annotations
@@ -52,6 +55,17 @@ def _find(parent, i):
         parent[i] = parent[parent[i]]
         i = parent[i]
     return i
+
+
+@kernel
+def patch_sums(start, values):
+    """(patches, k) sums of ``values`` rows over each patch's particles, strictly in order."""
+    out = np.zeros((start.size - 1, values.shape[1]))
+    for p in range(start.size - 1):
+        for i in range(start[p], start[p + 1]):
+            for c in range(values.shape[1]):
+                out[p, c] += values[i, c]
+    return out
 
 
 @kernel
@@ -314,6 +328,8 @@ class HangingBarMetrics:
         extreme = bar_coords.max() if down > 0 else bar_coords.min()
         tol = 1e-9 * max(float(np.ptp(bar_coords)), 1.0)
         self.tip = np.flatnonzero(self.bar & (np.abs(xa - extreme) <= tol))
+        self.tip_mask = np.zeros(self.x0.shape[0], bool)
+        self.tip_mask[self.tip] = True
         lo, hi = _bar_span(body, self.x0[self.bar], self.axis)
         self.L = hi - lo
         # reference distance of the tip particles from the support (the top of the bar)
@@ -340,14 +356,24 @@ class HangingBarMetrics:
         self.separation_time = None
         self.stretch_at_separation = None
 
-    def sample(self, t, x, v, F, components, v_time=None) -> None:
-        """Record one sample (positions x (N,dim), F (N,dim,dim), components: int or None)."""
-        n = self.mass.shape[0]
+    def terms(self, gid, x, v, F):
+        """Per-particle addends (tip displacement along the axis, tip indicator) and the local
+        maximum axial stretch of the bar, for particles ``gid`` (any subset, any order)."""
+        n = np.shape(gid)[0]
         x = _as_points(x, n, self.dim)
         F = np.asarray(F, dtype=float).reshape(n, self.dim, self.dim)
-        stretch = np.sqrt(np.sum(F[self.bar, :, self.axis] ** 2, axis=1))
-        max_stretch = float(np.max(stretch)) if stretch.size else float("nan")
-        tip = float(np.mean(x[self.tip, self.axis] - self.x0[self.tip, self.axis])) * self.up_sign
+        tip = self.tip_mask[gid]
+        sums = np.zeros((n, 2))
+        sums[:, 0] = np.where(tip, x[:, self.axis] - self.x0[gid, self.axis], 0.0)
+        sums[:, 1] = tip
+        bar = self.bar[gid]
+        stretch = np.sqrt(np.sum(F[bar, :, self.axis] ** 2, axis=1))
+        return sums, np.array([stretch.max() if stretch.size else -np.inf])
+
+    def record(self, t, sums, maxes, components, v_time=None) -> None:
+        """Record one sample from globally reduced :meth:`terms` and the component count."""
+        max_stretch = float(maxes[0]) if np.isfinite(maxes[0]) else float("nan")
+        tip = float(sums[0] / sums[1]) * self.up_sign if sums[1] > 0 else float("nan")
         self.times.append(float(t))
         self.tip_history.append(tip)
         self.max_stretch_history.append(max_stretch)
@@ -356,6 +382,12 @@ class HangingBarMetrics:
         if comps > 1 and self.separation_time is None:
             self.separation_time = float(t)
             self.stretch_at_separation = max_stretch
+
+    def sample(self, t, x, v, F, components, v_time=None) -> None:
+        """Record one sample from arrays of *all* particles in global-id order."""
+        n = self.mass.shape[0]
+        sums, maxes = self.terms(np.arange(n), x, v, F)
+        self.record(t, sums.sum(axis=0), maxes, components, v_time)
 
     def result(self) -> dict:
         """JSON-ready dict (see the class docstring for the definitions)."""
@@ -421,19 +453,30 @@ class VibratingBarMetrics:
         self.com_velocity: list[float] = []
         self.com_velocity_exact: list[float] = []
 
-    def sample(self, t, x, v, F, components, v_time=None) -> None:
+    def terms(self, gid, x, v, F):
+        """Per-particle momentum along the axis of the bar's particles ``gid``; no maxima."""
+        n = np.shape(gid)[0]
+        v = _as_points(v, n, self.dim)
+        sums = np.where(self.bar[gid], self.mass[gid] * v[:, self.axis], 0.0)[:, None]
+        return sums, np.zeros(0)
+
+    def record(self, t, sums, maxes, components, v_time=None) -> None:
         """Record ``v̄_num`` and ``v̄_exact``. The explicit step is symplectic Euler: the particle
         velocity after a step approximates the velocity half a step earlier (``v_time``), to second
         order; comparing it with the exact value at ``t`` instead adds an O(Δt) error."""
-        n = self.mass.shape[0]
-        v = _as_points(v, n, self.dim)
-        vbar = float(np.sum(self.mass[self.bar] * v[self.bar, self.axis]) / self.bar_mass)
+        vbar = float(sums[0]) / self.bar_mass
         exact = float(
             vibrating_bar_com_velocity(t if v_time is None else v_time, self.v0, self.L, self.modulus, self.rho, self.mode)
         )
         self.times.append(float(t))
         self.com_velocity.append(vbar)
         self.com_velocity_exact.append(exact)
+
+    def sample(self, t, x, v, F, components, v_time=None) -> None:
+        """Record one sample from arrays of *all* particles in global-id order."""
+        n = self.mass.shape[0]
+        sums, maxes = self.terms(np.arange(n), x, v, F)
+        self.record(t, sums.sum(axis=0), maxes, components, v_time)
 
     def result(self) -> dict:
         """JSON-ready dict: ``com_velocity_rel_l2_error``, ``samples``, ``period``, ..."""

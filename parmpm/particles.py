@@ -16,10 +16,12 @@ import numpy as np
 from parmpm.jit import kernel
 
 FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx")
+INT_FIELDS = ("gid", "mat", "patch")
 
 
 class Particles:
-    """SoA particle arrays of one rank; ``start`` holds the CSR offsets of each local patch."""
+    """SoA particle arrays of one rank, grouped by local patch slot (``start``: CSR offsets) and
+    sorted by global id inside a patch. ``patch`` is the global id of the particle's patch."""
 
     def __init__(self, dim: int, n: int):
         self.dim = dim
@@ -40,23 +42,33 @@ class Particles:
         return self.gid.size
 
     def fields(self) -> dict[str, np.ndarray]:
-        names = ("gid", "mat", "patch") + FLOAT_FIELDS
+        names = INT_FIELDS + FLOAT_FIELDS
         return {k: getattr(self, k) for k in names}
 
+    def replace(self, fields: dict[str, np.ndarray]) -> None:
+        """Take new arrays for every field (after migration); ``start`` must be rebuilt."""
+        for name, arr in fields.items():
+            setattr(self, name, arr)
+
     def permute(self, perm: np.ndarray) -> None:
-        """Reorder every field by ``perm``."""
+        """Reorder (or select) every field by ``perm``."""
         for name, arr in self.fields().items():
             setattr(self, name, np.take(arr, perm, axis=0))
 
-    def group_by_patch(self, new_patch: np.ndarray, n_patches: int) -> bool:
-        """Sort by (patch, gid) and rebuild the CSR offsets; a no-op when no particle changed
-        patch. Returns True if the order changed."""
-        if np.array_equal(new_patch, self.patch) and self.start.size == n_patches + 1:
+    def group_by_patch(self, new_patch: np.ndarray, slot_of: np.ndarray, n_slots: int,
+                       force: bool = False) -> bool:
+        """Sort by (local slot of the global patch id, gid) and rebuild the CSR offsets; a no-op
+        when no particle changed patch (and not ``force``). Returns True if the order changed.
+        The order inside a patch depends only on the patch's particles, never on the rank."""
+        if (not force and np.array_equal(new_patch, self.patch)
+                and self.start.size == n_slots + 1):
             return False
-        key = new_patch * (int(self.gid.max(initial=0)) + 1) + self.gid
+        slot = slot_of[new_patch]
+        key = slot * (int(self.gid.max(initial=0)) + 1) + self.gid
         self.patch = new_patch
-        self.permute(np.argsort(key, kind="stable"))
-        counts = np.bincount(self.patch, minlength=n_patches)
+        order = np.argsort(key, kind="stable")
+        self.permute(order)
+        counts = np.bincount(slot, minlength=n_slots)
         self.start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         return True
 
@@ -116,17 +128,24 @@ def bodies_to_particles(scene: dict, material_rows: dict[str, int], params: np.n
 
 
 @kernel
-def locate_patches(d, x, origin, inv_h, cells, psize, ppa, out):
-    """Flat patch id of each particle's cell; returns the index of the first particle outside the
-    grid, or -1."""
+def locate_patches(d, x, origin, inv_h, cells, psize, ppa, current, out):
+    """Flat global patch id of each particle's cell into ``out``; a particle outside the grid
+    keeps ``current``. Returns the index of the first particle outside the grid, or -1."""
+    first = -1
     for i in range(x.shape[0]):
         pid = 0
         stride = 1
         for k in range(d):
-            c = math.floor((x[i, k] - origin[k]) * inv_h[k])
-            if c < 0 or c >= cells[k]:
-                return i
-            pid += stride * (int(c) // psize[k])
+            u = (x[i, k] - origin[k]) * inv_h[k]
+            if not (u >= 0.0 and u < cells[k]):  # NaN lands here too
+                pid = -1
+                break
+            pid += stride * (int(u) // psize[k])
             stride *= ppa[k]
-        out[i] = pid
-    return -1
+        if pid < 0:
+            out[i] = current[i]
+            if first < 0:
+                first = i
+        else:
+            out[i] = pid
+    return first

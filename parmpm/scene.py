@@ -44,6 +44,9 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
 * ``[metrics]``: ``kind`` ("hanging_bar" | "vibrating_bar" | "none", default "none"),
   ``every_steps`` (default 1), ``axis`` (default: the first vibration axis for vibrating_bar,
   else ``dim − 1``, the axis along which a hanging bar's gravity acts).
+* ``[decomposition]``: ``rebalance_threshold`` (>= 0, default 0.1: re-partition the patches when
+  the busiest rank holds more than 1.1 × the mean particle count), ``rebalance_cooldown``
+  (int >= 1, default 50: imbalance checks skipped after a re-partition that would not help).
 
 Absent optional values (``time.end``, ``time.dt_max``, ``output.every``, ``bodies.N.vibration``,
 ...) are ``None`` in ``Scene.data`` and omitted from ``Scene.to_toml()``.
@@ -62,7 +65,7 @@ from parmpm.scene_schema import lcr_length, one_line, resolve, toml_key, toml_va
 __all__ = ["Scene", "load_scene", "scene_from_toml", "builtin_scenes", "parse_lcr"]
 
 _SECTION_ORDER = ("grid", "materials", "bodies", "method", "gravity", "damping", "boundary",
-                  "time", "output", "metrics")
+                  "time", "output", "metrics", "decomposition")
 
 
 class Scene:

@@ -31,7 +31,7 @@ BOUNDARY_KINDS = ("fixed", "slip", "free")
 METRICS = ("hanging_bar", "vibrating_bar", "none")
 
 TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method", "gravity",
-            "damping", "boundary", "time", "output", "metrics")
+            "damping", "boundary", "time", "output", "metrics", "decomposition")
 GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost")
 MATERIAL_KEYS = ("model", "density", "youngs_modulus", "poisson_ratio")
 BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration")
@@ -44,6 +44,7 @@ DAMPING_KEYS = ("coefficient",)
 TIME_KEYS = ("end", "steps", "cfl", "dt_max")
 OUTPUT_KEYS = ("every", "every_steps", "snapshots", "figure")
 METRICS_KEYS = ("kind", "every_steps", "axis", "stop_on_separation")
+DECOMPOSITION_KEYS = ("rebalance_threshold", "rebalance_cooldown")
 
 DEFAULT_PATCH_SIZE = {1: 32, 2: 32, 3: 16}
 DEFAULT_LCR = "2dx"
@@ -279,6 +280,16 @@ def resolve(raw: dict, where: str, default_name: str,
     out["time"] = _time(c, raw.get("time", {}))
     out["output"] = _output(c, raw.get("output", {}), out["time"])
     out["metrics"] = _metrics(c, raw.get("metrics", {}), dim, out["bodies"])
+    dec = c.table("decomposition", raw.get("decomposition", {}), DECOMPOSITION_KEYS)
+    out["decomposition"] = {
+        "rebalance_threshold": c.number("decomposition.rebalance_threshold",
+                                        dec.get("rebalance_threshold", 0.1),
+                                        "a number >= 0 (max/mean - 1 of particles per rank)",
+                                        lambda x: x >= 0),
+        "rebalance_cooldown": c.integer("decomposition.rebalance_cooldown",
+                                        dec.get("rebalance_cooldown", 50), "an integer >= 1",
+                                        lambda n: n >= 1),
+    }
     return out
 
 

@@ -1,9 +1,12 @@
 """The run loop: owns time (Δt from CFL, stop criteria), not physics.
 
-``Simulation(scene, out_dir).run()`` builds particles and patches from the resolved scene, steps
-until ``time.end`` or ``time.steps``, samples the scene's metrics, writes snapshots (XDMF),
-``summary.json`` and a figure, and returns the summary. Output and metrics are callbacks on the
-clock; a non-finite velocity stops the run with a clear error (NaN check on by default).
+``Simulation(scene, out_dir, comm=comm).run()`` builds particles and patches from the resolved
+scene, spreads the patches over the ranks of ``comm`` (none: one rank), steps until ``time.end``
+or ``time.steps``, samples the scene's metrics, writes snapshots (XDMF), ``summary.json`` and a
+figure, and returns the summary. Output and metrics are callbacks on the clock; a non-finite
+velocity stops the run with a clear error (NaN check on by default). Every rank runs the same
+loop with the same global Δt; every figure in the summary is reduced over all ranks and only
+rank 0 writes files.
 """
 from __future__ import annotations
 
@@ -13,29 +16,31 @@ from pathlib import Path
 
 import numpy as np
 
-from decomposition import PatchLayout
+from decomposition import PatchLayout, PatchSet, SerialComm, allreduce_max, ordered_sum
 from parmpm.errors import ParmpmError, SimulationError
 from parmpm.grid import BC_CODES
 from parmpm.log import get_logger
 from parmpm.materials import material_table
-from parmpm.particles import bodies_to_particles
+from parmpm.particles import bodies_to_particles, locate_patches
 from parmpm.progress import Progress
 from parmpm.shapes import CPDI, INTERPOLATORS, domain_matrix
-from parmpm.stepper import Discretisation, Stepper
+from parmpm.stepper import PHASES, Discretisation, Stepper, fmt_vec
 from parmpm.transfer import max_speed, support_nodes
 
 log = get_logger(__name__)
 
 
 class Simulation:
-    """One run of a resolved scene on this process's patches."""
+    """One run of a resolved scene on this process's patches (``comm``: an mpi4py communicator;
+    None runs every patch here)."""
 
     def __init__(self, scene, out_dir=None, quiet: bool = False, comm=None):
         self.scene = scene
         self.data = data = scene.data
         self.out_dir = Path(out_dir) if out_dir else Path("parmpm-out") / scene.name
         self.quiet = quiet
-        self.comm = comm
+        self.comm = comm = comm if comm is not None else SerialComm()
+        self.rank, self.size = comm.Get_rank(), comm.Get_size()
         d = self.dim = data["dim"]
         grid = data["grid"]
         interp = INTERPOLATORS[data["method"]["interpolator"]]
@@ -49,8 +54,25 @@ class Simulation:
                                    np.asarray(grid["origin"], float),
                                    np.asarray(grid["cell_size"], float), layout)
         self.params, names = material_table(data["materials"])
-        self.particles = bodies_to_particles(data, {n: i for i, n in enumerate(names)}, self.params)
-        P = self.particles
+        # Every rank seeds the same particles (global ids = seeding order), keeps its own.
+        P = bodies_to_particles(data, {n: i for i, n in enumerate(names)}, self.params)
+        self.n_total = P.n
+        from parmpm.metrics import make_metrics
+        self.metrics = make_metrics(data, P.x0, P.mass)
+        D = self.disc
+        where = np.zeros(P.n, np.int64)
+        bad = locate_patches(d, P.x, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
+                             layout.patches_per_axis, where, where)
+        if bad >= 0:
+            raise SimulationError(f"particle {bad} at {fmt_vec(P.x[bad])} is outside the grid")
+        dec = data["decomposition"]
+        self.patches = PatchSet(layout, comm, np.bincount(where, minlength=layout.n_patches),
+                                threshold=dec["rebalance_threshold"],
+                                cooldown=dec["rebalance_cooldown"])
+        mine = np.flatnonzero(self.patches.rank_of[where] == self.rank)
+        P.permute(mine)
+        P.patch = where[mine]
+        self.particles = P
         bc = np.zeros((3, 2), np.int64)
         for k, axis in enumerate("xyz"[:d]):
             bc[k] = [BC_CODES[data["boundary"][f"{axis}_min"]], BC_CODES[data["boundary"][f"{axis}_max"]]]
@@ -59,14 +81,11 @@ class Simulation:
             regions[r, 0, :d], regions[r, 1, :d] = reg["min"], reg["max"]
         m = data["method"]
         self.update = m["update"] if m["update"] != "auto" else ("usl" if interp.code == CPDI else "musl")
-        self.stepper = Stepper(self.disc, P, self.params, bc, regions, self.update, m["flip"],
-                               data["damping"]["coefficient"])
-        # initial stress from the initial F (identity → zero for the elastic models)
+        self.stepper = Stepper(self.disc, P, self.patches, self.params, bc, regions, self.update,
+                               m["flip"], data["damping"]["coefficient"], self.n_total)
         self.t, self.nstep, self.last_dt = 0.0, 0, 0.0
-        self.vmax = max_speed(d, P.v, P.F, P.mat, self.params)
-        order = np.argsort(P.gid)
-        from parmpm.metrics import make_metrics
-        self.metrics = make_metrics(data, P.x0[order], P.mass[order])
+        vmax = max_speed(d, P.v, P.F, P.mat, self.params)
+        self.vmax = float(allreduce_max(comm, np.array([vmax]))[0])
 
     # --- clock --------------------------------------------------------------------------------
     def next_dt(self) -> float:
@@ -90,30 +109,51 @@ class Simulation:
         f = min(1.0, t / ramp) if ramp > 0 else 1.0
         return np.concatenate([np.asarray(g["g"], float) * f, np.zeros(3 - self.dim)])
 
-    # --- callbacks ----------------------------------------------------------------------------
+    # --- callbacks (collective: every rank calls them) ---------------------------------------
     def components(self) -> int:
-        """Connected pieces of material (particles linked through shared grid nodes)."""
-        from parmpm.metrics import count_components
+        """Connected pieces of material over all ranks (particles linked through grid nodes)."""
+        from parmpm.connectivity import compact_nodes, global_components, local_components, shared_pairs
 
-        P, D = self.particles, self.disc
+        P, D, ps = self.particles, self.disc, self.patches
         K = max(64, int(np.prod(D.nloc[:self.dim])))
         nodes = np.zeros((P.n, K), np.int64)
         count = np.zeros(P.n, np.int64)
         err = np.full(1, -1, np.int64)
         support_nodes(D.method, D.dim, D.lcr, P.start, D.base, D.nloc, D.nglob, D.origin3,
                       D.inv_h3, P.x, P.F, P.r0, P.lh0, nodes, count, err)
-        return count_components(nodes, count, int(np.prod(D.nglob)))
+        compact, n_nodes = compact_nodes(nodes, count)
+        k, label = local_components(compact, count, n_nodes)
+        if self.size == 1:
+            return int(k)
+        lay = D.layout
+        pairs = shared_pairs(nodes, count, label, lay.global_nodes3, lay.psize3, lay.ghost3,
+                             lay.patches_per_axis, ps.rank_of, self.rank)
+        return global_components(self.comm, int(k), pairs)
 
     def sample_metrics(self) -> int:
         """Sample the scene's metrics; returns the number of connected pieces of material."""
         if self.metrics is None:
             return 1
+        from parmpm.metrics import patch_sums
+
         P = self.particles
-        o = np.argsort(P.gid)
         pieces = self.components()
-        self.metrics.sample(self.t, P.x[o], P.v[o], P.F[o], pieces,
-                            v_time=self.t - 0.5 * self.last_dt)
+        sums, maxes = self.metrics.terms(P.gid, P.x, P.v, P.F)
+        per_patch = patch_sums(P.start, np.ascontiguousarray(sums))
+        total = ordered_sum(self.comm, self.patches.local_ids, per_patch)
+        maxes = allreduce_max(self.comm, maxes) if maxes.size else maxes
+        self.metrics.record(self.t, total, maxes, pieces, v_time=self.t - 0.5 * self.last_dt)
         return pieces
+
+    def gather(self, fields: dict[str, np.ndarray]) -> dict[str, np.ndarray] | None:
+        """All particles' ``fields`` in global-id order on rank 0 (None elsewhere). Output only."""
+        fields = dict(fields, _gid=self.particles.gid)
+        parts = self.comm.gather(fields, root=0)
+        if self.rank != 0:
+            return None
+        out = {k: np.concatenate([p[k] for p in parts]) for k in fields}
+        order = np.argsort(out.pop("_gid"), kind="stable")
+        return {k: v[order] for k, v in out.items()}
 
     def axial_stretch(self) -> np.ndarray:
         axis = self.data["metrics"]["axis"]
@@ -133,58 +173,67 @@ class Simulation:
         return corners
 
     def snapshot(self, writer) -> None:
-        if writer is None:
+        if not self.data["output"]["snapshots"]:
             return
         P = self.particles
-        o = np.argsort(P.gid)
-        writer.write(self.t, P.x[o], {
-            "gid": P.gid[o].astype(float), "velocity": P.v[o],
-            "stress": P.stress[o].reshape(P.n, -1), "stretch": self.axial_stretch()[o],
-            "damage": P.damage[o], "rank": np.zeros(P.n)})
+        g = self.gather({"x": P.x, "velocity": P.v, "stress": P.stress.reshape(P.n, -1),
+                         "stretch": self.axial_stretch(), "damage": P.damage,
+                         "rank": np.full(P.n, float(self.rank)), "gid": P.gid.astype(float)})
+        if writer is None or g is None:
+            return
+        x = g.pop("x")
+        writer.write(self.t, x, g)
 
-    # --- ranks ----------------------------------------------------------------------------------
-    def run_on_world(self) -> dict:
-        """Run under MPI_COMM_WORLD. Until the patch decomposition spreads patches over ranks
-        (the MPI issue), rank 0 runs every patch and the other ranks wait without spinning."""
-        try:
-            from mpi4py import MPI
-        except ImportError:
-            return self.run()
-        comm = MPI.COMM_WORLD
-        if comm.Get_size() == 1:
-            return self.run()
-        if comm.Get_rank() == 0:
-            log.warning("patches are not yet distributed over ranks: rank 0 runs all %d patches "
-                        "on %d ranks", self.disc.layout.n_patches, comm.Get_size())
-            summary = self.run()
-            summary["ranks"] = comm.Get_size()
-            comm.Ibarrier().Wait()
-        else:
-            req = comm.Ibarrier()
-            while not req.Test():
-                time.sleep(0.02)
-            summary = None
-        return comm.bcast(summary, root=0)
+    def decomposition_report(self) -> dict:
+        """Patches, particles per rank, imbalance, ghost width and halo traffic (collective)."""
+        ps, lay = self.patches, self.disc.layout
+        plan = ps.plan
+        d = self.dim
+        comps = 1 + 2 * d if self.update == "usl" else 1 + 3 * d  # components accumulated
+        comps_fill = 2 * d if self.update == "usl" else 3 * d     # components filled
+        # bytes this rank sends per step: ghost boxes in accumulate, owned boxes in fill
+        sent = 8 * (int(plan.ghost_seg_nodes.sum()) * comps + int(plan.own_seg_nodes.sum()) * comps_fill)
+        local = {"patches": ps.n_local, "particles": int(self.particles.n), "sent": sent}
+        rows = self.comm.allgather(local)
+        loads = np.array([r["particles"] for r in rows], float)
+        halo_bytes = sum(r["sent"] for r in rows)
+        return {
+            "ranks": self.size, "patches": int(ps.ids.size), "patches_dense": lay.n_patches,
+            "patch_size": list(lay.patch_size), "ghost": lay.ghost,
+            "patches_per_rank": [r["patches"] for r in rows],
+            "particles_per_rank": [r["particles"] for r in rows],
+            "imbalance": float(loads.max() / loads.mean() - 1.0) if loads.mean() > 0 else 0.0,
+            "halo_bytes_per_step": int(halo_bytes),
+            "rebalances": ps.rebalances, "patch_set_changes": ps.rebuilds,
+        }
 
     # --- the loop -----------------------------------------------------------------------------
     def run(self) -> dict:
+        """Step to the end (collective). Every rank returns the same summary; rank 0 writes the
+        shared files (summary.json, snapshots, figure)."""
         from parmpm.io.summary import write_summary
         from parmpm.io.xdmf import SnapshotWriter
 
-        data, P = self.data, self.particles
+        data = self.data
         out = data["output"]
-        try:
-            self.out_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise ParmpmError(f"cannot create output folder '{self.out_dir}': {exc.strerror}") from None
-        writer = SnapshotWriter(self.out_dir, data["name"], self.dim) if out["snapshots"] else None
+        root = self.rank == 0
+        problem = None
+        if root:
+            try:
+                self.out_dir.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                problem = f"cannot create output folder '{self.out_dir}': {exc.strerror}"
+        problem = self.comm.bcast(problem, root=0)
+        if problem:
+            raise ParmpmError(problem)
+        writer = SnapshotWriter(self.out_dir, data["name"], self.dim) if out["snapshots"] and root else None
         every_t, every_n = out["every"], out["every_steps"]
         next_out = every_t if every_t else math.inf
         me = data["metrics"]["every_steps"]
         stop_on_sep = data["metrics"]["stop_on_separation"]
         self.stopped = None
         progress = Progress(total_steps=data["time"]["steps"], end_time=data["time"]["end"],
-                            enabled=not self.quiet)
+                            enabled=not self.quiet and root)
         wall0 = time.perf_counter()
         warm_wall, warm_steps = None, 0
         try:
@@ -201,6 +250,7 @@ class Simulation:
                                           f"(t = {self.t:.6g} s); try a smaller time.cfl")
                 if warm_wall is None:
                     warm_wall = time.perf_counter()  # the first step includes JIT compilation
+                    self.stepper.timers = dict.fromkeys(self.stepper.timers, 0.0)
                 else:
                     warm_steps += 1
                 if self.nstep % me == 0 and self.sample_metrics() > 1 and stop_on_sep:
@@ -214,7 +264,7 @@ class Simulation:
                     while next_out <= self.t * (1 + 1e-12):
                         next_out += every_t
                 elapsed = time.perf_counter() - (warm_wall or wall0)
-                rate = P.n * warm_steps / elapsed if warm_steps and elapsed > 0 else 0.0
+                rate = self.n_total * warm_steps / elapsed if warm_steps and elapsed > 0 else 0.0
                 progress.update(self.nstep, self.t, rate)
         finally:
             progress.close()
@@ -222,24 +272,38 @@ class Simulation:
                 writer.close()
         wall = time.perf_counter() - wall0
         loop = time.perf_counter() - warm_wall if warm_wall else wall
+        wall, loop = (float(v) for v in allreduce_max(self.comm, np.array([wall, loop])))
+        timers = self.stepper.timers
+        phase = allreduce_max(self.comm, np.array([timers[k] for k in PHASES]))
+        lay = self.disc.layout
         summary = {
             "scene": data["name"], "dim": self.dim, "method": self.interp.name,
             "lcr": self.lcr, "update": self.update, "flip": data["method"]["flip"],
-            "ranks": 1, "particles": P.n, "steps": self.nstep, "time": self.t,
+            "ranks": self.size, "particles": self.n_total, "steps": self.nstep, "time": self.t,
             "stopped": self.stopped or "end",
             "wall_seconds": wall,
-            "particle_steps_per_second": P.n * warm_steps / loop if warm_steps and loop > 0 else None,
-            "grid": {"cells": list(self.disc.layout.cells), "cell_size": list(map(float, self.disc.h)),
-                     "patch_size": list(self.disc.layout.patch_size),
-                     "patches": self.disc.layout.n_patches, "ghost": self.disc.layout.ghost},
+            "particle_steps_per_second": (self.n_total * warm_steps / loop
+                                          if warm_steps and loop > 0 else None),
+            "grid": {"cells": list(lay.cells), "cell_size": list(map(float, self.disc.h)),
+                     "patch_size": list(lay.patch_size), "patches": int(self.patches.ids.size),
+                     "ghost": lay.ghost},
+            "decomposition": self.decomposition_report(),
+            "phase_seconds_per_step": ({k: float(v) / warm_steps for k, v in zip(PHASES, phase)}
+                                       if warm_steps else None),
             "metrics": self.metrics.result() if self.metrics is not None else {},
         }
-        write_summary(self.out_dir, summary)
+        if root:
+            write_summary(self.out_dir, summary)
         if out["figure"]:
-            from parmpm.io.figures import plot_particles
-            o = np.argsort(P.gid)
+            P = self.particles
             corners = self.domain_corners()
-            plot_particles(self.out_dir / f"{data['name']}.png", P.x[o], self.axial_stretch()[o],
-                           self.dim, corners=None if corners is None else corners[o],
-                           title=f"{data['name']} · {self.interp.name} · t = {self.t:.3g} s")
+            fields = {"x": P.x, "stretch": self.axial_stretch()}
+            if corners is not None:
+                fields["corners"] = corners
+            g = self.gather(fields)
+            if root:
+                from parmpm.io.figures import plot_particles
+                plot_particles(self.out_dir / f"{data['name']}.png", g["x"], g["stretch"],
+                               self.dim, corners=g.get("corners"),
+                               title=f"{data['name']} · {self.interp.name} · t = {self.t:.3g} s")
         return summary

@@ -3,19 +3,29 @@
 USL:  p2g → accumulate → grid update → fill → g2p (velocity, position, L, F, stress)
 MUSL: p2g → accumulate → grid update → fill → g2p motion (velocity, position increment)
       → p2g momentum re-map → accumulate → grid velocity → fill → g2p deformation (L, F, stress)
-then every particle is re-assigned to the patch that holds its new position (migration).
+then every particle goes to the patch (and rank) that holds its new position (migration), and
+:meth:`Stepper.finish` agrees with all ranks on the next step: the largest wave speed, errors,
+changes of the patch set, load balance.
+
+Errors found inside a step (a support reaching past the ghost layer, a particle leaving the grid)
+are remembered, not raised: the step runs to its end on every rank, so no rank is left waiting in
+an exchange, and :meth:`Stepper.finish` raises the first rank's message on every rank at once.
 """
 from __future__ import annotations
 
+import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from decomposition import HaloPlan, PatchLayout, accumulate, fill
+from decomposition import PatchLayout, PatchSet, accumulate, allreduce_max, fill, is_parallel, migrate
 from parmpm.errors import SimulationError
 from parmpm.grid import grid_update
 from parmpm.particles import Particles, locate_patches
 from parmpm.transfer import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL, g2p, p2g, p2g_momentum
+
+PHASES = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "reduce")
 
 
 @dataclass
@@ -30,36 +40,58 @@ class Discretisation:
     layout: PatchLayout
 
     def __post_init__(self):
-        lay = self.layout
         pad = 3 - self.dim
         self.origin3 = np.concatenate([self.origin, np.zeros(pad)])
         self.h3 = np.concatenate([self.h, np.ones(pad)])
         self.inv_h3 = 1.0 / self.h3
-        self.base = lay.local_base()
-        self.nloc = lay.local_nodes3
-        self.nglob = lay.global_nodes3
-        coords = lay.patch_coords()
-        owned = [lay.owned_box(c) for c in coords]
-        self.own_lo = np.array([lo for lo, _ in owned]) - self.base
-        self.own_hi = np.array([hi for _, hi in owned]) - self.base
+        self.nloc = self.layout.local_nodes3
+        self.nglob = self.layout.global_nodes3
+        self.set_patches(np.arange(self.layout.n_patches))
+
+    def set_patches(self, local_ids: np.ndarray) -> None:
+        """Per-slot node boxes of this rank's patches (global ids ``local_ids``)."""
+        lay = self.layout
+        coords = lay.patch_coords()[local_ids]
+        self.base = (coords * lay.psize3 - lay.ghost3).astype(np.int64)
+        lo = coords * lay.psize3
+        hi = np.where(coords == lay.patches_per_axis - 1, lay.global_nodes3, lo + lay.psize3)
+        self.own_lo = (lo - self.base).astype(np.int64)
+        self.own_hi = (hi - self.base).astype(np.int64)
 
 
 class Stepper:
-    """Owns the grid buffers (allocated once) and advances particles by one step."""
+    """Owns the grid buffers of this rank's patches and advances its particles by one step."""
 
-    def __init__(self, disc: Discretisation, particles: Particles, params: np.ndarray,
-                 bc: np.ndarray, regions: np.ndarray, update: str, flip: float, damping: float):
-        self.disc, self.P, self.params, self.bc, self.regions = disc, particles, params, bc, regions
+    def __init__(self, disc: Discretisation, particles: Particles, patches: PatchSet,
+                 params: np.ndarray, bc: np.ndarray, regions: np.ndarray, update: str,
+                 flip: float, damping: float, n_total: int):
+        self.disc, self.P, self.patches = disc, particles, patches
+        self.params, self.bc, self.regions = params, bc, regions
         self.update, self.flip, self.damping = update, flip, damping
-        self.plan = HaloPlan(disc.layout)
-        npatch, nn, d = disc.layout.n_patches, disc.layout.n_local_nodes, disc.dim
-        self.gm = np.zeros((npatch, nn, 1))
-        self.gmv, self.gf, self.gvel, self.gdv = (np.zeros((npatch, nn, d)) for _ in range(4))
+        self.comm = patches.comm
+        self.n_total = n_total
         self.err = np.full(1, -1, np.int64)
-        self.mass_eps = 1e-12 * float(particles.mass.min(initial=1.0))
-        self._patch = np.zeros(particles.n, np.int64)
-        self.migrate()
+        mmin = float(particles.mass.min(initial=np.inf))
+        mmin = float(allreduce_max(self.comm, np.array([-mmin]))[0])
+        self.mass_eps = 1e-12 * (-mmin if math.isfinite(mmin) else 1.0)
+        self.error: str | None = None
+        self.timers = dict.fromkeys(PHASES, 0.0)
+        self.migrated = 0
+        self._new_patch = np.zeros(0, np.int64)
+        self._patches_changed(force=True)
 
+    # --- patch set ------------------------------------------------------------------------------
+    def _patches_changed(self, force: bool = False) -> None:
+        """(Re)build the grid buffers and particle grouping for the current local patches."""
+        ps, D, P = self.patches, self.disc, self.P
+        D.set_patches(ps.local_ids)
+        n, nn, d = ps.n_local, D.layout.n_local_nodes, D.dim
+        self.plan = ps.plan
+        self.gm = np.zeros((n, nn, 1))
+        self.gmv, self.gf, self.gvel, self.gdv = (np.zeros((n, nn, d)) for _ in range(4))
+        P.group_by_patch(P.patch, ps.slot_of, n, force=True)
+
+    # --- the step -------------------------------------------------------------------------------
     def _args(self):
         D = self.disc
         return (D.method, D.dim, D.lcr, self.P.start, D.base, D.nloc, D.nglob, D.origin3, D.inv_h3)
@@ -68,7 +100,8 @@ class Stepper:
         i = int(self.err[0])
         if i >= 0:
             self.err[0] = -1
-            raise SimulationError(reach_message(self, i, phase))
+            if self.error is None:
+                self.error = reach_message(self, i, phase)
 
     def _grid_update(self, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
         D = self.disc
@@ -76,47 +109,121 @@ class Stepper:
                     D.origin3, D.h3, dt, gravity, self.damping, self.mass_eps, self.gm, self.gmv,
                     self.gf, self.gvel, self.gdv, momentum_only)
 
+    def _lap(self, phase: str, t0: float) -> float:
+        t = time.perf_counter()
+        self.timers[phase] += t - t0
+        return t
+
     def step(self, dt: float, gravity: np.ndarray) -> float:
-        """Advance by ``dt``; returns the largest ``c + |v|`` for the next CFL step."""
-        P, D, plan = self.P, self.disc, self.plan
+        """Advance this rank's particles by ``dt`` (collective: every rank calls it); returns the
+        largest ``c + |v|`` over all ranks for the next CFL step."""
+        P, plan = self.P, self.plan
         args = self._args()
+        t = time.perf_counter()
         p2g(*args, P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress,
             self.gm, self.gmv, self.gf, self.err)
         self._check("p2g")
+        t = self._lap("p2g", t)
         accumulate(plan, self.gm, self.gmv, self.gf)
+        t = self._lap("accumulate", t)
         self._grid_update(dt, gravity, momentum_only=False)
+        t = self._lap("grid", t)
         fill(plan, self.gvel, self.gdv)
+        t = self._lap("fill", t)
         g2p_tail = (P.x, P.v, P.F, P.r0, P.lh0, P.stress, P.dx, P.mat, self.params, P.damage,
                     self.gvel, self.gdv, self.err)
         if self.update == "usl":
             vmax = g2p(G2P_USL, *args, dt, self.flip, *g2p_tail)
         else:
             g2p(G2P_MUSL_MOTION, *args, dt, self.flip, *g2p_tail)
+            t = self._lap("g2p", t)
             p2g_momentum(*args, P.x, P.v, P.F, P.r0, P.lh0, P.mass, self.gmv, self.err)
             self._check("p2g")
+            t = self._lap("p2g", t)
             accumulate(plan, self.gmv)
+            t = self._lap("accumulate", t)
             self._grid_update(dt, gravity, momentum_only=True)
+            t = self._lap("grid", t)
             fill(plan, self.gvel)
+            t = self._lap("fill", t)
             vmax = g2p(G2P_MUSL_DEFORM, *args, dt, self.flip, *g2p_tail)
         self._check("g2p")
+        t = self._lap("g2p", t)
         self.migrate()
+        t = self._lap("migrate", t)
+        vmax = self.finish(vmax)
+        self._lap("reduce", t)
         return vmax
 
+    # --- migration --------------------------------------------------------------------------------
     def migrate(self) -> None:
-        """Assign every particle to the patch that holds its position; regroup if any moved."""
-        D, P = self.disc, self.P
+        """Send every particle to the patch (on whichever rank) that holds its new position."""
+        D, P, ps = self.disc, self.P, self.patches
         lay = D.layout
-        if self._patch.size != P.n:
-            self._patch = np.zeros(P.n, np.int64)
+        if self._new_patch.size != P.n:
+            self._new_patch = np.zeros(P.n, np.int64)
+        new = self._new_patch
         bad = locate_patches(D.dim, P.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
-                             lay.patches_per_axis, self._patch)
-        if bad >= 0:
-            raise SimulationError(
-                f"particle {P.gid[bad]} at {fmt_vec(P.x[bad])} left the grid "
-                f"(origin {fmt_vec(D.origin)}, extent {fmt_vec(D.origin + D.h * lay.cells)}); "
-                "enlarge grid.cells or move grid.origin")
-        if P.group_by_patch(self._patch, lay.n_patches):
-            self._patch = np.zeros(P.n, np.int64)
+                             lay.patches_per_axis, P.patch, new)
+        if bad >= 0 and self.error is None:
+            self.error = (f"particle {P.gid[bad]} at {fmt_vec(P.x[bad])} left the grid "
+                          f"(origin {fmt_vec(D.origin)}, extent {fmt_vec(D.origin + D.h * lay.cells)}); "
+                          "enlarge grid.cells or move grid.origin")
+        dest = ps.rank_of[new]
+        lost = dest < 0
+        if np.any(lost):  # moved past a neighbour patch in one step (CFL > 1): stay, and stop
+            i = int(np.flatnonzero(lost)[0])
+            if self.error is None:
+                self.error = (f"particle {P.gid[i]} at {fmt_vec(P.x[i])} moved more than one patch "
+                              "in one step; reduce time.cfl")
+            new[lost] = P.patch[lost]
+            dest[lost] = ps.rank
+        occupied_before = np.diff(P.start) > 0
+        if is_parallel(self.comm):
+            out = dest != ps.rank
+            self.migrated += int(out.sum())
+            fields = P.fields()
+            fields["patch"] = new
+            P.replace(migrate(fields, dest, self.comm, ps.peers))
+            self._new_patch = np.zeros(0, np.int64)
+            P.group_by_patch(P.patch, ps.slot_of, ps.n_local, force=True)
+        else:
+            if P.group_by_patch(new, ps.slot_of, ps.n_local):
+                self._new_patch = np.zeros(0, np.int64)
+        self._occupancy_changed = bool(np.any((np.diff(P.start) > 0) != occupied_before))
+
+    # --- agreement between ranks ----------------------------------------------------------------
+    def finish(self, vmax: float) -> float:
+        """End-of-step collective: one ``Allreduce(MAX)`` of (speed, error, patch-set change,
+        particles per rank); raises a run-stopping error on every rank at once."""
+        ps, P = self.patches, self.P
+        local = np.array([vmax if math.isfinite(vmax) else math.inf,
+                          ps.rank + 1.0 if self.error else 0.0,
+                          1.0 if self._occupancy_changed else 0.0, float(P.n)])
+        g = allreduce_max(self.comm, local)
+        if g[1] > 0:
+            msg = self.comm.bcast(self.error, root=int(g[1]) - 1)
+            raise SimulationError(msg)
+        if g[2] > 0:
+            if ps.update(ps.gather_counts(np.diff(P.start))):
+                self._patches_changed()
+        mean = self.n_total / ps.size
+        if ps.size > 1 and g[3] > (1.0 + ps.threshold) * mean and ps.ready_to_rebalance():
+            old = ps.rebalance(ps.gather_counts(np.diff(P.start)))
+            if old is not None:
+                self._rebalance_moves()
+        return float(g[0])
+
+    def _rebalance_moves(self) -> None:
+        """Whole patches changed owner: send their particles to the new owners."""
+        P, ps = self.P, self.patches
+        dest = ps.rank_of[P.patch]
+        self.migrated += int(np.sum(dest != ps.rank))
+        P.replace(migrate(P.fields(), dest, self.comm, None))
+        self._patches_changed()
+
+    def local_counts(self) -> np.ndarray:
+        return np.diff(self.P.start)
 
 
 def fmt_vec(v) -> str:

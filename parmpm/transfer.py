@@ -11,7 +11,8 @@ so each patch's partial sums are a deterministic function of its own particles.
 * ``g2p``: FLIP/PIC velocity ``v_p ← α(v_p + Σ φ Δv_i) + (1−α) Σ φ v_i``, position
   ``x_p += Δt Σ φ v_i``, velocity gradient ``L_p = Σ v_i ⊗ ∇φ_ip``, ``F ← (I + Δt L) F`` and stress.
 
-A support that leaves the grid or the ghost layer stops the kernel with ``err[0]`` = particle.
+A support that leaves the grid or the ghost layer sets ``err[0]`` (the first such particle) and
+that particle is skipped: the step still ends on every rank, and the caller stops the run.
 """
 import math
 
@@ -52,8 +53,9 @@ def p2g(method, d, lcr, start, base, nloc, nglob, origin, inv_h,
             n = particle_support(method, d, xi, F[i], lh0[i], R, C, base[p], nloc, nglob, inv_h,
                                  nk, jk, wk, dwk, idx, w, g)
             if n < 0:
-                err[0] = i
-                return
+                if err[0] < 0:
+                    err[0] = i
+                continue
             m = mass[i]
             V = det_d(d, F[i]) * vol0[i]
             for e in range(n):
@@ -81,8 +83,9 @@ def p2g_momentum(method, d, lcr, start, base, nloc, nglob, origin, inv_h,
             n = particle_support(method, d, xi, F[i], lh0[i], R, C, base[p], nloc, nglob, inv_h,
                                  nk, jk, wk, dwk, idx, w, g)
             if n < 0:
-                err[0] = i
-                return
+                if err[0] < 0:
+                    err[0] = i
+                continue
             for e in range(n):
                 mw = mass[i] * w[e]
                 for a in range(d):
@@ -107,8 +110,9 @@ def g2p(mode, method, d, lcr, start, base, nloc, nglob, origin, inv_h, dt, flip,
             n = particle_support(method, d, xi, Fi, lh0[i], R, C, base[p], nloc, nglob, inv_h,
                                  nk, jk, wk, dwk, idx, w, g)
             if n < 0:
-                err[0] = i
-                return 0.0
+                if err[0] < 0:
+                    err[0] = i
+                continue
             if mode != G2P_MUSL_DEFORM:
                 for a in range(d):
                     vi = 0.0
@@ -145,7 +149,9 @@ def g2p(mode, method, d, lcr, start, base, nloc, nglob, origin, inv_h, dt, flip,
             speed2 = 0.0
             for a in range(d):
                 speed2 += v[i, a] * v[i, a]
-            vmax = max(vmax, wave_speed(d, prm, Fi) + math.sqrt(speed2))
+            s = wave_speed(d, prm, Fi) + math.sqrt(speed2)
+            if not (s <= vmax):
+                vmax = s if s == s else math.inf  # a NaN stays visible as inf
     return vmax
 
 
@@ -175,8 +181,9 @@ def support_nodes(method, d, lcr, start, base, nloc, nglob, origin, inv_h, x, F,
             n = particle_support(method, d, xi, F[i], lh0[i], R, C, base[p], nloc, nglob, inv_h,
                                  nk, jk, wk, dwk, idx, w, g)
             if n < 0:
-                err[0] = i
-                return
+                if err[0] < 0:
+                    err[0] = i
+                continue
             c = 0
             for e in range(n):
                 if w[e] <= 0.0 or c >= nodes.shape[1]:

@@ -1,0 +1,80 @@
+"""The communicator seen by the decomposition: an mpi4py communicator, or a one-rank stand-in.
+
+A serial run is the parallel run with one rank, so the same code calls the same methods; only
+the handful used here are provided by :class:`SerialComm`. Collective helpers that need MPI
+constants (``MAX``) live here so that no other module has to branch on the communicator type.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+class SerialComm:
+    """The subset of ``mpi4py.MPI.Comm`` used by parmpm, for one process without MPI."""
+
+    def Get_rank(self) -> int:
+        return 0
+
+    def Get_size(self) -> int:
+        return 1
+
+    def allgather(self, obj):
+        return [obj]
+
+    def gather(self, obj, root=0):
+        return [obj]
+
+    def bcast(self, obj, root=0):
+        return obj
+
+    def Barrier(self) -> None:
+        pass
+
+
+def world(use_mpi: bool = True):
+    """``MPI.COMM_WORLD`` when mpi4py imports, else a :class:`SerialComm`."""
+    if use_mpi:
+        try:
+            from mpi4py import MPI
+        except ImportError:
+            return SerialComm()
+        return MPI.COMM_WORLD
+    return SerialComm()
+
+
+def is_parallel(comm) -> bool:
+    return comm is not None and comm.Get_size() > 1
+
+
+def allreduce_max(comm, values: np.ndarray) -> np.ndarray:
+    """Element-wise maximum of a float64 vector over all ranks (exact: max has no rounding)."""
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    if not is_parallel(comm):
+        return values.copy()
+    from mpi4py import MPI
+
+    out = np.empty_like(values)
+    comm.Allreduce(values, out, op=MPI.MAX)
+    return out
+
+
+def ordered_sum(comm, keys: np.ndarray, partials: np.ndarray) -> np.ndarray:
+    """Σ of per-item partial sums over all ranks, added in ascending ``keys`` order.
+
+    Each rank passes the partial sums of the items (patches) it holds; every rank gets the same
+    total, rounded the same way whichever rank held which item: the foundation of rank-count
+    independent reductions (energies, metrics).
+    """
+    keys = np.asarray(keys, dtype=np.int64)
+    partials = np.asarray(partials, dtype=np.float64)
+    if partials.ndim != 2 or partials.shape[0] != keys.size:
+        raise ValueError(f"partials must be (len(keys), k), got {partials.shape} for {keys.size} keys")
+    if is_parallel(comm):
+        parts = comm.allgather((keys, partials))
+        keys = np.concatenate([k for k, _ in parts])
+        partials = np.concatenate([p for _, p in parts])
+    if keys.size == 0:
+        return np.zeros(partials.shape[1])
+    order = np.argsort(keys, kind="stable")
+    # cumsum adds strictly in sequence (np.sum's pairwise blocking is not an order we control)
+    return np.cumsum(partials[order], axis=0)[-1]
