@@ -267,3 +267,59 @@ def test_unbounded_interpolators_default_ghost():
         assert INTERPOLATORS[name].ghost_width(None, 0.5) == 2
     assert INTERPOLATORS["cpdi"].ghost_width(None, 0.5) == 2  # unscaled cpdi
     assert INTERPOLATORS["ugimp"].code == UGIMP
+
+
+# --- sparse patch set and partition --------------------------------------------------------------
+from decomposition.partition import active_patches, assign, imbalance, morton_order, split_contiguous  # noqa: E402
+
+
+def _box_patches(lay, lo_cell, hi_cell):
+    """Patches holding any cell of the cell box [lo_cell, hi_cell)."""
+    axes = [np.arange(lo, hi) for lo, hi in zip(lo_cell, hi_cell)]
+    cells = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, lay.dim)
+    c3 = np.zeros((cells.shape[0], 3), np.int64)
+    c3[:, :lay.dim] = cells
+    return np.unique(lay.patch_of_cell(c3))
+
+
+@pytest.mark.parametrize("psize,expected", [(4, 20), (2, 80)])
+def test_sparse_set_for_the_hanging_bar(psize, expected):
+    """The 2D hanging bar (20 × 32 cells of 0.1 m; the bar fills cells x 5..14, y 20..29) with
+    ghost 2: only the bar's patches and those within halo reach of them exist (one patch when
+    the patch is 4 cells, two when it is 2 cells, since a 2-cell ghost layer then spans a whole
+    neighbour patch): 20 of 40 and 80 of 160."""
+    lay = PatchLayout((20, 32), (psize, psize), 2)
+    ids = active_patches(lay, _box_patches(lay, (5, 20), (15, 30)))
+    assert ids.size == expected and lay.n_patches == {4: 40, 2: 160}[psize]
+    assert np.all(np.diff(ids) > 0)
+
+
+def test_sparse_set_covers_every_node_a_patch_touches():
+    """Every patch that owns a node inside an occupied patch's ghost-inclusive box exists."""
+    lay = PatchLayout((30, 20, 10), (3, 4, 2), 2)
+    rng = np.random.default_rng(4)
+    occ = rng.choice(lay.n_patches, 7, replace=False)
+    ids = set(active_patches(lay, occ).tolist())
+    coords = lay.patch_coords()
+    for p in occ:
+        lo, hi = lay.local_box(coords[p])
+        lo, hi = np.maximum(lo, 0), np.minimum(hi, lay.global_nodes3)
+        for q, c in enumerate(coords):
+            olo, ohi = lay.owned_box(c)
+            if np.all(np.maximum(lo, olo) < np.minimum(hi, ohi)):
+                assert q in ids
+
+
+def test_morton_partition_is_contiguous_and_balanced():
+    lay = PatchLayout((64, 64), (4, 4), 2)
+    rng = np.random.default_rng(2)
+    ids = np.arange(lay.n_patches)
+    counts = rng.integers(50, 150, ids.size)
+    for n in (1, 2, 3, 4, 7):
+        owner = assign(lay, ids, counts, n)
+        along = owner[np.searchsorted(ids, morton_order(lay, ids))]
+        assert np.all(np.diff(along) >= 0)  # contiguous pieces of the curve
+        loads = np.bincount(owner, weights=counts + 1, minlength=n)
+        assert imbalance(loads) < 0.02
+    assert np.array_equal(split_contiguous(np.ones(4), 2), [0, 0, 1, 1])
+    assert np.array_equal(split_contiguous(np.zeros(3), 3), [0, 1, 2])
