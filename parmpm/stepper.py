@@ -179,17 +179,18 @@ class Stepper:
             new[lost] = P.patch[lost]
             dest[lost] = ps.rank
         occupied_before = np.diff(P.start) > 0
+        moved = None
         if is_parallel(self.comm):
-            out = dest != ps.rank
-            self.migrated += int(out.sum())
+            self.migrated += int(np.count_nonzero(dest != ps.rank))
             fields = P.fields()
             fields["patch"] = new
-            P.replace(migrate(fields, dest, self.comm, ps.peers))
+            moved = migrate(fields, dest, self.comm, ps.peers)
+        if moved is not None and moved is not fields:  # particles left or arrived
+            P.replace(moved)
             self._new_patch = np.zeros(0, np.int64)
             P.group_by_patch(P.patch, ps.slot_of, ps.n_local, force=True)
-        else:
-            if P.group_by_patch(new, ps.slot_of, ps.n_local):
-                self._new_patch = np.zeros(0, np.int64)
+        elif P.group_by_patch(new, ps.slot_of, ps.n_local):
+            self._new_patch = np.zeros(0, np.int64)
         self._occupancy_changed = bool(np.any((np.diff(P.start) > 0) != occupied_before))
 
     # --- agreement between ranks ----------------------------------------------------------------
