@@ -176,7 +176,7 @@ class Simulation:
         if not self.data["output"]["snapshots"]:
             return
         P = self.particles
-        g = self.gather({"x": P.x, "velocity": P.v, "stress": P.stress.reshape(P.n, -1),
+        g = self.gather({"x": P.x, "velocity": P.v, "stress": P.stress.reshape(P.n, self.dim * self.dim),
                          "stretch": self.axial_stretch(), "damage": P.damage,
                          "rank": np.full(P.n, float(self.rank)), "gid": P.gid.astype(float)})
         if writer is None or g is None:

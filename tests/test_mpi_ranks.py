@@ -34,6 +34,8 @@ def _cases() -> dict:
                                                        "time.steps=40"]]
     cases["2d_cpdi_musl"] = ["hanging_bar", OFF + ["method.update=musl", "grid.patch_size=4",
                                                    "time.steps=40"]]
+    # two patches only: on 3 and 4 ranks some ranks hold nothing; with snapshots and figure on
+    cases["1d_cpdi_idle_ranks"] = ["hanging_bar_1d", ["grid.patch_size=16", "time.steps=30"]]
     for m in ("cpdi", "mpm", "ugimp"):
         cases[f"crossing_{m}"] = [CROSSING, [f"method.interpolator={m}"]]
     return cases

@@ -106,7 +106,9 @@ def format_summary(summary: dict) -> str:
     ``scene.method.interpolator``; ``scheme`` (USL/MUSL); ``lcr`` | ``l_cr``; ``ranks``;
     ``particles`` | ``n_particles``; ``steps`` | ``n_steps``; ``time`` | ``t_end`` |
     ``simulated_time``; ``wall_time`` | ``wall_time_s`` | ``wall_s``; ``particle_steps_per_s``
-    (else particles·steps/wall); ``metrics`` (a dict: its scalar entries are listed).
+    (else particles·steps/wall); ``decomposition`` (patches allocated of the dense box, patch size,
+    ghost width; on several ranks the load imbalance and halo bytes per step); ``metrics`` (a dict:
+    its scalar entries are listed).
     """
     scene = summary.get("scene")
     name = _get(summary, "scene_name", "scene.name", "name")
@@ -143,6 +145,14 @@ def format_summary(summary: dict) -> str:
         + (f"{float(rate):,.0f}" if rate is not None else "-")
         + " particle-steps/s",
     ]
+    dec = summary.get("decomposition")
+    if isinstance(dec, dict) and dec.get("patches") is not None:
+        line = (f"patches     {_fmt(dec['patches'])} of {_fmt(dec.get('patches_dense'))} allocated"
+                f" ({'x'.join(map(str, dec.get('patch_size', [])))} cells, ghost {_fmt(dec.get('ghost'))})")
+        if (dec.get("ranks") or 1) > 1:
+            line += (f", imbalance {100 * float(dec.get('imbalance', 0.0)):.1f} %,"
+                     f" halo {float(dec.get('halo_bytes_per_step', 0)) / 1024:.1f} KiB/step")
+        lines.append(line)
     metrics = summary.get("metrics")
     if isinstance(metrics, dict) and metrics:
         items = [
