@@ -145,6 +145,17 @@ class Simulation:
         self.metrics.record(self.t, total, maxes, pieces, v_time=self.t - 0.5 * self.last_dt)
         return pieces
 
+    def totals(self) -> dict:
+        """Mass, momentum and kinetic energy over all ranks (per-patch sums in patch order)."""
+        from parmpm.metrics import patch_sums
+
+        P = self.particles
+        terms = np.concatenate([P.mass[:, None], P.mass[:, None] * P.v,
+                                0.5 * P.mass[:, None] * np.sum(P.v * P.v, axis=1, keepdims=True)], axis=1)
+        total = ordered_sum(self.comm, self.patches.local_ids, patch_sums(P.start, terms))
+        return {"mass": float(total[0]), "momentum": [float(c) for c in total[1:1 + self.dim]],
+                "kinetic_energy": float(total[-1])}
+
     def gather(self, fields: dict[str, np.ndarray]) -> dict[str, np.ndarray] | None:
         """All particles' ``fields`` in global-id order on rank 0 (None elsewhere). Output only."""
         fields = dict(fields, _gid=self.particles.gid)
@@ -288,6 +299,7 @@ class Simulation:
                      "patch_size": list(lay.patch_size), "patches": int(self.patches.ids.size),
                      "ghost": lay.ghost},
             "decomposition": self.decomposition_report(),
+            "final": self.totals(),
             "phase_seconds_per_step": ({k: float(v) / warm_steps for k, v in zip(PHASES, phase)}
                                        if warm_steps else None),
             "metrics": self.metrics.result() if self.metrics is not None else {},

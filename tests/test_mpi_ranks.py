@@ -86,6 +86,7 @@ def test_bit_identical_on_1_to_4_ranks(runs, case):
         for k in FIELDS:
             np.testing.assert_array_equal(got[k], ref[k], err_msg=f"{case}: {k} differs on {n} ranks")
         assert summary["metrics"] == ref_summary["metrics"], f"{case}: metrics differ on {n} ranks"
+        assert summary["final"] == ref_summary["final"], f"{case}: totals differ on {n} ranks"
         assert (summary["steps"], summary["time"]) == (ref_summary["steps"], ref_summary["time"])
 
 
