@@ -97,3 +97,11 @@ def test_mpi_scaling_quick(tmp_path):
         assert float(r["seconds_per_step"]) > 0
         assert 0.0 <= float(r["halo_share"]) <= 1.0 and 0.0 <= float(r["migrate_share"]) <= 1.0
     assert "eff." in proc.stdout
+
+
+def test_cli_bench_error_is_one_line(capsys):
+    import parmpm.__main__ as cli
+
+    assert cli.main(["bench", "--steps", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("parmpm: error: bench: --steps must be >= 2")
