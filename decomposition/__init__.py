@@ -11,10 +11,10 @@ belong to a patch" and nothing of MPM. :mod:`~decomposition.layout` is index ari
 from decomposition.comm import SerialComm, allreduce_max, is_parallel, ordered_sum, world
 from decomposition.halo import HaloPlan, accumulate, fill, halo_pairs
 from decomposition.layout import PatchLayout
-from decomposition.migrate import migrate
+from decomposition.migrate import exchange, migrate
 from decomposition.partition import active_patches, assign, imbalance, morton_order
 from decomposition.patchset import PatchSet
 
-__all__ = ["PatchLayout", "PatchSet", "HaloPlan", "accumulate", "fill", "halo_pairs", "migrate",
+__all__ = ["PatchLayout", "PatchSet", "HaloPlan", "accumulate", "fill", "halo_pairs", "migrate", "exchange",
            "active_patches", "assign", "imbalance", "morton_order", "SerialComm", "world",
            "is_parallel", "allreduce_max", "ordered_sum"]

@@ -43,17 +43,31 @@ def unpack(rows: np.ndarray, like: dict[str, np.ndarray]) -> dict[str, np.ndarra
 
 
 def migrate(records: dict[str, np.ndarray], dest: np.ndarray, comm, peers) -> dict[str, np.ndarray]:
-    """Send each record to rank ``dest[i]``; return the records this rank now holds.
+    """Send each record to rank ``dest[i]``; return the records this rank now holds (the same
+    dict object when nothing left or arrived). See :func:`exchange` for ``peers``."""
+    keep, received = exchange(records, dest, comm, peers)
+    if received is None and keep.size == np.shape(dest)[0]:
+        return records
+    out = {name: a[keep] for name, a in records.items()}
+    if received is not None:
+        out = {name: np.concatenate([out[name], received[name]]) for name in records}
+    return out
 
-    ``peers`` are the ranks that may exchange records with this one (the relation must be
-    symmetric); a ``dest`` outside ``peers`` and this rank is a ValueError raised *before*
+
+def exchange(records: dict[str, np.ndarray], dest: np.ndarray, comm, peers):
+    """Send each record to rank ``dest[i]``; return ``(keep, received)``: the indices of the
+    records that stay here, and the arrived records (a dict like ``records``, or None).
+
+    Callers that re-sort anyway build their new arrays from both in one pass (no intermediate
+    copies). ``peers`` are the ranks that may exchange records with this one (the relation must
+    be symmetric); a ``dest`` outside ``peers`` and this rank is a ValueError raised *before*
     anything is sent, so the caller decides how all ranks stop. ``peers=None`` means every rank.
     """
     dest = np.asarray(dest, dtype=np.int64)
     if not is_parallel(comm):
         if np.any(dest != 0):
             raise ValueError("records addressed to another rank in a one-rank run")
-        return records
+        return np.arange(dest.size), None
     from mpi4py import MPI
 
     me, size = comm.Get_rank(), comm.Get_size()
@@ -85,10 +99,4 @@ def migrate(records: dict[str, np.ndarray], dest: np.ndarray, comm, peers) -> di
             received.append(buf.reshape(-1, W))
     MPI.Request.Waitall(reqs)
     keep = np.flatnonzero(dest == me)
-    if not received and keep.size == dest.size:
-        return records
-    out = {name: a[keep] for name, a in records.items()}
-    if received:
-        extra = unpack(np.concatenate(received), records)
-        out = {name: np.concatenate([out[name], extra[name]]) for name in records}
-    return out
+    return keep, (unpack(np.concatenate(received), records) if received else None)

@@ -55,6 +55,30 @@ class Particles:
         for name, arr in self.fields().items():
             setattr(self, name, np.take(arr, perm, axis=0))
 
+    def merge(self, fields: dict[str, np.ndarray], keep: np.ndarray, received: dict | None,
+              slot_of: np.ndarray, n_slots: int) -> None:
+        """After a migration: the kept rows ``fields[keep]`` and the ``received`` ones, sorted by
+        (slot, gid) and written once into fresh arrays (one copy per field, no intermediates).
+        ``fields['patch']`` holds the kept rows' new global patch ids."""
+        k = keep.size
+        patch = fields["patch"][keep]
+        gid = self.gid[keep]
+        if received is not None:
+            patch = np.concatenate([patch, received["patch"]])
+            gid = np.concatenate([gid, received["gid"]])
+        slot = slot_of[patch]
+        order = np.argsort(slot * (int(gid.max(initial=0)) + 1) + gid, kind="stable")
+        n = order.size
+        for name, a in fields.items():
+            out = np.empty((n,) + a.shape[1:], a.dtype)
+            r = received[name] if received is not None else a[:0]
+            w = int(np.prod(a.shape[1:], dtype=np.int64))
+            _merge_rows(out.reshape(n, w), a.reshape(a.shape[0], w), r.reshape(r.shape[0], w),
+                        keep, order, k)
+            setattr(self, name, out)
+        counts = np.bincount(slot, minlength=n_slots)
+        self.start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+
     def group_by_patch(self, new_patch: np.ndarray, slot_of: np.ndarray, n_slots: int,
                        force: bool = False) -> bool:
         """Sort by (local slot of the global patch id, gid) and rebuild the CSR offsets; a no-op
@@ -71,6 +95,20 @@ class Particles:
         counts = np.bincount(slot, minlength=n_slots)
         self.start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         return True
+
+
+@kernel
+def _merge_rows(out, old, new, keep, order, k):
+    """``out[i] = (old[keep] ++ new)[order[i]]`` row by row, without building the concatenation."""
+    for i in range(order.size):
+        j = order[i]
+        if j < k:
+            s = keep[j]
+            for c in range(out.shape[1]):
+                out[i, c] = old[s, c]
+        else:
+            for c in range(out.shape[1]):
+                out[i, c] = new[j - k, c]
 
 
 def _lattice(lo, hi, spacing):

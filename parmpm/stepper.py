@@ -19,7 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from decomposition import PatchLayout, PatchSet, accumulate, allreduce_max, fill, is_parallel, migrate
+from decomposition import (PatchLayout, PatchSet, accumulate, allreduce_max, exchange, fill,
+                           is_parallel, migrate)
 from parmpm.errors import SimulationError
 from parmpm.grid import grid_update
 from parmpm.particles import Particles, locate_patches
@@ -179,16 +180,15 @@ class Stepper:
             new[lost] = P.patch[lost]
             dest[lost] = ps.rank
         occupied_before = np.diff(P.start) > 0
-        moved = None
+        keep, received = None, None
         if is_parallel(self.comm):
             self.migrated += int(np.count_nonzero(dest != ps.rank))
             fields = P.fields()
             fields["patch"] = new
-            moved = migrate(fields, dest, self.comm, ps.peers)
-        if moved is not None and moved is not fields:  # particles left or arrived
-            P.replace(moved)
+            keep, received = exchange(fields, dest, self.comm, ps.peers)
+        if keep is not None and (received is not None or keep.size != P.n):  # some left or came
+            P.merge(fields, keep, received, ps.slot_of, ps.n_local)
             self._new_patch = np.zeros(0, np.int64)
-            P.group_by_patch(P.patch, ps.slot_of, ps.n_local, force=True)
         elif P.group_by_patch(new, ps.slot_of, ps.n_local):
             self._new_patch = np.zeros(0, np.int64)
         self._occupancy_changed = bool(np.any((np.diff(P.start) > 0) != occupied_before))
