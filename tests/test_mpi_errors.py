@@ -44,3 +44,19 @@ def test_particle_leaving_the_grid_stops_every_rank(tmp_path):
     # the disk's supports reach the grid's edge (p2g) before a centre leaves it
     assert len(lines) == 1 and ("outside the grid" in lines[0] or "left the grid" in lines[0]), \
         proc.stderr
+
+
+@pytest.mark.parametrize("kind,code", [("user", 2), ("bug", 1)])
+def test_failure_on_one_rank_ends_every_rank(tmp_path, kind, code):
+    """Rank 1 fails alone mid-run while rank 0 waits for it in a collective: the job must end
+    (abort) within seconds with rank 1's message, never hang."""
+    script = __import__("pathlib").Path(__file__).parent / "mpi_fail_one_rank.py"
+    t0 = time.monotonic()
+    proc = subprocess.run([mpirun(), "-n", "2", sys.executable, str(script), kind, str(tmp_path / "o")],
+                          capture_output=True, text=True, timeout=120)
+    wall = time.monotonic() - t0
+    assert proc.returncode != 0
+    assert f"injected {'failure' if kind == 'user' else 'bug'} on rank 1 only" in proc.stderr
+    assert wall < 60, f"took {wall:.1f} s"
+    if kind == "user":
+        assert "Traceback" not in proc.stderr
