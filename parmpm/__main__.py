@@ -4,6 +4,7 @@
     mpirun -n 4 python -m parmpm run vibrating_bar --set method.interpolator=mpm
     python -m parmpm run my_scene.toml --out results/ --quiet
     python -m parmpm scenes                                       # the built-in scenes
+    mpirun -n 3 python -m parmpm restart parmpm-out/hanging_bar/checkpoint_00000200.h5
 
 Exit codes: 0 success; 2 a user error (bad scene, bad ``--set``, a run that cannot go on:
 every ``ParmpmError``), printed as one line ``parmpm: error: <message>`` without a traceback;
@@ -25,7 +26,7 @@ import time
 import traceback
 from pathlib import Path
 
-from parmpm.errors import ParmpmError
+from parmpm.errors import ParmpmError, RunInterrupted
 
 DEFAULT_SCENE = "hanging_bar"
 DEFAULT_OUT = Path("parmpm-out")
@@ -88,6 +89,20 @@ def build_parser() -> argparse.ArgumentParser:
                      help=f"output folder (default: {DEFAULT_OUT}/<scene name>/)")
     run.add_argument("-q", "--quiet", action="store_true",
                      help="no progress bar, no info messages (warnings and errors still show)")
+
+    restart = commands.add_parser(
+        "restart", help="continue a run from a checkpoint (any number of ranks)",
+        description="Continue the run saved in CHECKPOINT (checkpoint_<step>.h5) bit for bit, on "
+        "any number of ranks. --set changes the stored scene (e.g. time.end=0.5).",
+        epilog=_RUN_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    restart.add_argument("checkpoint", metavar="CHECKPOINT", type=Path,
+                         help="a checkpoint_<step>.h5 written by a run")
+    restart.add_argument("-s", "--set", dest="overrides", action="append", default=[],
+                         metavar="KEY=VALUE", help="override a value of the stored scene (repeatable)")
+    restart.add_argument("-o", "--out", type=Path, default=None, metavar="DIR",
+                         help="output folder (default: restart_<step>/ beside the checkpoint)")
+    restart.add_argument("-q", "--quiet", action="store_true",
+                         help="no progress bar, no info messages (warnings and errors still show)")
 
     commands.add_parser("scenes", help="list the built-in scenes",
                         description="List the built-in scenes: name and one-line description.")
@@ -161,6 +176,18 @@ def _cmd_run(args: argparse.Namespace, rank: int, comm) -> int:
     return 0
 
 
+def _cmd_restart(args: argparse.Namespace, rank: int, comm) -> int:
+    from parmpm.io.summary import format_summary
+    from parmpm.simulation import Simulation
+
+    sim = Simulation.from_checkpoint(args.checkpoint, args.overrides, args.out,
+                                     quiet=args.quiet or rank != 0, comm=comm)
+    summary = sim.run()
+    if rank == 0:
+        print(format_summary(summary), flush=True)
+    return 0
+
+
 def _cmd_bench(args: argparse.Namespace, rank: int, comm) -> int:
     from parmpm.bench import run_bench
 
@@ -188,8 +215,10 @@ def _run_guarded(args: argparse.Namespace) -> int:
         return code  # pragma: no cover (Abort does not return)
 
     try:
-        command = _cmd_bench if args.command == "bench" else _cmd_run
+        command = {"bench": _cmd_bench, "restart": _cmd_restart}.get(args.command, _cmd_run)
         return command(args, rank, comm)
+    except RunInterrupted as exc:
+        return fail(f"parmpm: {_one_line(exc)}", 130)
     except ParmpmError as exc:
         return fail(f"parmpm: error: {_one_line(exc)}", 2)
     except KeyboardInterrupt:

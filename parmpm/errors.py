@@ -16,3 +16,7 @@ class SceneError(ParmpmError):
 
 class SimulationError(ParmpmError):
     """The run cannot go on (particle left the grid, reach past the ghost layer, NaN, ...)."""
+
+
+class RunInterrupted(ParmpmError):
+    """SIGTERM/SIGINT stopped the run after writing a final checkpoint (exit code 130)."""

@@ -389,6 +389,16 @@ class HangingBarMetrics:
         sums, maxes = self.terms(np.arange(n), x, v, F)
         self.record(t, sums.sum(axis=0), maxes, components, v_time)
 
+    def state(self) -> dict:
+        """The history so far (JSON-ready), for checkpoints."""
+        return {k: v for k, v in vars(self).items() if k in self._STATE}
+
+    def restore(self, state: dict) -> None:
+        """Continue the history saved by :meth:`state` (a restarted run)."""
+        for k in self._STATE:
+            if k in state:
+                setattr(self, k, state[k])
+
     def result(self) -> dict:
         """JSON-ready dict (see the class docstring for the definitions)."""
         stretches = np.asarray(self.max_stretch_history)
@@ -478,6 +488,16 @@ class VibratingBarMetrics:
         sums, maxes = self.terms(np.arange(n), x, v, F)
         self.record(t, sums.sum(axis=0), maxes, components, v_time)
 
+    def state(self) -> dict:
+        """The history so far (JSON-ready), for checkpoints."""
+        return {k: v for k, v in vars(self).items() if k in self._STATE}
+
+    def restore(self, state: dict) -> None:
+        """Continue the history saved by :meth:`state` (a restarted run)."""
+        for k in self._STATE:
+            if k in state:
+                setattr(self, k, state[k])
+
     def result(self) -> dict:
         """JSON-ready dict: ``com_velocity_rel_l2_error``, ``samples``, ``period``, ..."""
         num = np.asarray(self.com_velocity)
@@ -492,6 +512,11 @@ class VibratingBarMetrics:
             "wave_modulus": _to_plain(self.modulus),
             "length": _to_plain(self.L),
         }
+
+
+HangingBarMetrics._STATE = ("times", "tip_history", "max_stretch_history", "components_history",
+                            "separation_time", "stretch_at_separation")
+VibratingBarMetrics._STATE = ("times", "com_velocity", "com_velocity_exact")
 
 
 def make_metrics(scene_data: dict, x0: np.ndarray, mass: np.ndarray):

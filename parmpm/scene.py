@@ -47,6 +47,10 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
 * ``[decomposition]``: ``rebalance_threshold`` (>= 0, default 0.1: re-partition the patches when
   the busiest rank holds more than 1.1 × the mean particle count), ``rebalance_cooldown``
   (int >= 1, default 50: imbalance checks skipped after a re-partition that would not help).
+* ``[checkpoint]``: ``every_steps`` (int >= 1), ``every`` (simulated s), ``wall_minutes``
+  (wall-clock minutes) — a checkpoint is written whenever any set schedule fires (default: none);
+  ``keep`` (int >= 1, default 3: older ones are deleted), ``at_end`` (bool, default false). A
+  SIGTERM or SIGINT always writes a final checkpoint before the run stops.
 
 Absent optional values (``time.end``, ``time.dt_max``, ``output.every``, ``bodies.N.vibration``,
 ...) are ``None`` in ``Scene.data`` and omitted from ``Scene.to_toml()``.
@@ -65,7 +69,7 @@ from parmpm.scene_schema import lcr_length, one_line, resolve, toml_key, toml_va
 __all__ = ["Scene", "load_scene", "scene_from_toml", "builtin_scenes", "parse_lcr"]
 
 _SECTION_ORDER = ("grid", "materials", "bodies", "method", "gravity", "damping", "boundary",
-                  "time", "output", "metrics", "decomposition")
+                  "time", "output", "metrics", "decomposition", "checkpoint")
 
 
 class Scene:

@@ -31,7 +31,7 @@ BOUNDARY_KINDS = ("fixed", "slip", "free")
 METRICS = ("hanging_bar", "vibrating_bar", "none")
 
 TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method", "gravity",
-            "damping", "boundary", "time", "output", "metrics", "decomposition")
+            "damping", "boundary", "time", "output", "metrics", "decomposition", "checkpoint")
 GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost")
 MATERIAL_KEYS = ("model", "density", "youngs_modulus", "poisson_ratio")
 BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration")
@@ -45,6 +45,7 @@ TIME_KEYS = ("end", "steps", "cfl", "dt_max")
 OUTPUT_KEYS = ("every", "every_steps", "snapshots", "figure")
 METRICS_KEYS = ("kind", "every_steps", "axis", "stop_on_separation")
 DECOMPOSITION_KEYS = ("rebalance_threshold", "rebalance_cooldown")
+CHECKPOINT_KEYS = ("every_steps", "every", "wall_minutes", "keep", "at_end")
 
 DEFAULT_PATCH_SIZE = {1: 32, 2: 32, 3: 16}
 DEFAULT_LCR = "2dx"
@@ -289,6 +290,17 @@ def resolve(raw: dict, where: str, default_name: str,
         "rebalance_cooldown": c.integer("decomposition.rebalance_cooldown",
                                         dec.get("rebalance_cooldown", 50), "an integer >= 1",
                                         lambda n: n >= 1),
+    }
+    ck = c.table("checkpoint", raw.get("checkpoint", {}), CHECKPOINT_KEYS)
+    out["checkpoint"] = {
+        "every_steps": None if ck.get("every_steps") is None else c.integer(
+            "checkpoint.every_steps", ck["every_steps"], "an integer >= 1", lambda n: n >= 1),
+        "every": None if ck.get("every") is None else c.number(
+            "checkpoint.every", ck["every"], "a number > 0 (simulated s)", lambda x: x > 0),
+        "wall_minutes": None if ck.get("wall_minutes") is None else c.number(
+            "checkpoint.wall_minutes", ck["wall_minutes"], "a number > 0 (minutes)", lambda x: x > 0),
+        "keep": c.integer("checkpoint.keep", ck.get("keep", 3), "an integer >= 1", lambda n: n >= 1),
+        "at_end": c.boolean("checkpoint.at_end", ck.get("at_end", False)),
     }
     return out
 

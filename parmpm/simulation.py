@@ -17,11 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from decomposition import PatchLayout, PatchSet, SerialComm, allreduce_max, ordered_sum
-from parmpm.errors import ParmpmError, SimulationError
+from parmpm.errors import ParmpmError, RunInterrupted, SimulationError
 from parmpm.grid import BC_CODES
 from parmpm.log import get_logger
 from parmpm.materials import material_table
-from parmpm.particles import bodies_to_particles, locate_patches
+from parmpm.particles import Particles, bodies_to_particles, locate_patches
 from parmpm.progress import Progress
 from parmpm.shapes import CPDI, INTERPOLATORS, domain_matrix
 from parmpm.stepper import PHASES, Discretisation, Stepper, fmt_vec
@@ -34,7 +34,7 @@ class Simulation:
     """One run of a resolved scene on this process's patches (``comm``: an mpi4py communicator;
     None runs every patch here)."""
 
-    def __init__(self, scene, out_dir=None, quiet: bool = False, comm=None):
+    def __init__(self, scene, out_dir=None, quiet: bool = False, comm=None, checkpoint=None):
         self.scene = scene
         self.data = data = scene.data
         self.out_dir = Path(out_dir) if out_dir else Path("parmpm-out") / scene.name
@@ -54,23 +54,31 @@ class Simulation:
                                    np.asarray(grid["origin"], float),
                                    np.asarray(grid["cell_size"], float), layout)
         self.params, names = material_table(data["materials"])
-        # Every rank seeds the same particles (global ids = seeding order), keeps its own.
-        P = bodies_to_particles(data, {n: i for i, n in enumerate(names)}, self.params)
-        self.n_total = P.n
+        self.restart = checkpoint
+        if checkpoint is None:
+            # Every rank seeds the same particles (global ids = seeding order), keeps its own.
+            P = bodies_to_particles(data, {n: i for i, n in enumerate(names)}, self.params)
+            x_all, x0_all, mass_all = P.x, P.x0, P.mass
+        else:
+            x_all, x0_all, mass_all = (checkpoint.read(k) for k in ("x", "x0", "mass"))
+        self.n_total = x_all.shape[0]
         from parmpm.metrics import make_metrics
-        self.metrics = make_metrics(data, P.x0, P.mass)
+        self.metrics = make_metrics(data, x0_all, mass_all)
         D = self.disc
-        where = np.zeros(P.n, np.int64)
-        bad = locate_patches(d, P.x, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
+        where = np.zeros(self.n_total, np.int64)
+        bad = locate_patches(d, x_all, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
                              layout.patches_per_axis, where, where)
         if bad >= 0:
-            raise SimulationError(f"particle {bad} at {fmt_vec(P.x[bad])} is outside the grid")
+            raise SimulationError(f"particle {bad} at {fmt_vec(x_all[bad])} is outside the grid")
         dec = data["decomposition"]
         self.patches = PatchSet(layout, comm, np.bincount(where, minlength=layout.n_patches),
                                 threshold=dec["rebalance_threshold"],
                                 cooldown=dec["rebalance_cooldown"])
         mine = np.flatnonzero(self.patches.rank_of[where] == self.rank)
-        P.permute(mine)
+        if checkpoint is None:
+            P.permute(mine)
+        else:
+            P = self._load_particles(checkpoint, mine)
         P.patch = where[mine]
         self.particles = P
         bc = np.zeros((3, 2), np.int64)
@@ -84,8 +92,51 @@ class Simulation:
         self.stepper = Stepper(self.disc, P, self.patches, self.params, bc, regions, self.update,
                                m["flip"], data["damping"]["coefficient"], self.n_total)
         self.t, self.nstep, self.last_dt = 0.0, 0, 0.0
-        vmax = max_speed(d, P.v, P.F, P.mat, self.params)
-        self.vmax = float(allreduce_max(comm, np.array([vmax]))[0])
+        self.next_out = None
+        if checkpoint is None:
+            vmax = max_speed(d, P.v, P.F, P.mat, self.params)
+            self.vmax = float(allreduce_max(comm, np.array([vmax]))[0])
+        else:
+            a = checkpoint.attrs
+            self.t, self.nstep = float(a["time"]), int(a["step"])
+            self.last_dt, self.vmax = float(a["dt"]), float(a["vmax"])
+            state = checkpoint.state
+            self.next_out = state.get("next_output")
+            if self.metrics is not None and state.get("metrics"):
+                self.metrics.restore(state["metrics"])
+
+    @classmethod
+    def from_checkpoint(cls, path, overrides=(), out_dir=None, quiet=False, comm=None):
+        """Continue the run saved in ``path`` (on any number of ranks); ``overrides`` apply to
+        the stored scene (e.g. ``time.end=...``)."""
+        from parmpm.io.checkpoint import CheckpointReader
+        from parmpm.scene import scene_from_toml
+
+        reader = CheckpointReader(path)
+        if out_dir is None:  # never over earlier output: a folder of its own beside the file
+            out_dir = Path(path).parent / f"restart_{int(reader.attrs['step']):08d}"
+        try:
+            scene = scene_from_toml(str(reader.attrs["scene"]), f"{path}", overrides)
+            return cls(scene, out_dir, quiet=quiet, comm=comm, checkpoint=reader)
+        finally:
+            reader.close()
+
+    def _load_particles(self, reader, mine: np.ndarray) -> Particles:
+        """This rank's rows of the checkpoint, read block by block (``mine`` ascending)."""
+        from parmpm.io.checkpoint import FIELDS
+
+        P = Particles(self.dim, mine.size)
+        block = 1 << 18
+        for name in FIELDS:
+            dst = getattr(P, name)
+            for lo in range(0, self.n_total, block):
+                hi = min(lo + block, self.n_total)
+                a, b = np.searchsorted(mine, [lo, hi])
+                if b > a:
+                    dst[a:b] = reader.read(name, lo, hi)[mine[a:b] - lo]
+        if not np.array_equal(P.gid, mine):
+            raise ParmpmError(f"checkpoint '{reader.path}': damaged: particle ids out of order")
+        return P
 
     # --- clock --------------------------------------------------------------------------------
     def next_dt(self) -> float:
@@ -195,6 +246,64 @@ class Simulation:
         x = g.pop("x")
         writer.write(self.t, x, g)
 
+    def write_checkpoint(self) -> Path:
+        """Write ``checkpoint_<step>.h5`` (collective): blocks of global ids gathered to rank 0,
+        which writes them; atomic; the oldest beyond ``checkpoint.keep`` are deleted."""
+        import json
+
+        from parmpm.io.checkpoint import FIELDS, CheckpointWriter, checkpoint_name, prune
+
+        P, root = self.particles, self.rank == 0
+        order = np.argsort(P.gid, kind="stable")
+        gids = P.gid[order]
+        path = self.out_dir / checkpoint_name(self.nstep)
+        state = {"metrics": self.metrics.state() if self.metrics is not None else None,
+                 "next_output": self.next_out}
+        attrs = {"scene": self.scene.to_toml(), "step": self.nstep, "time": self.t,
+                 "dt": self.last_dt, "vmax": self.vmax, "method": self.interp.name,
+                 "lcr": self.lcr if self.lcr is not None else float("nan"), "ranks": self.size,
+                 "particles": self.n_total, "dim": self.dim, "state": json.dumps(state)}
+        writer, problem = None, None
+        if root:
+            try:
+                writer = CheckpointWriter(path, self.n_total,
+                                          {k: getattr(P, k)[:0] for k in FIELDS}, attrs)
+            except ParmpmError as exc:
+                problem = str(exc)
+        problem = self.comm.bcast(problem, root=0)
+        if problem:
+            raise ParmpmError(problem)
+        block = 1 << 18  # ids per gather: bounds rank 0's extra memory
+        for lo in range(0, self.n_total, block):
+            hi = min(lo + block, self.n_total)
+            a, b = np.searchsorted(gids, [lo, hi])
+            part = {k: getattr(P, k)[order[a:b]] for k in FIELDS}
+            parts = self.comm.gather(part, root=0)
+            if root and problem is None:
+                try:
+                    merged = {k: np.concatenate([q[k] for q in parts]) for k in FIELDS}
+                    o = np.argsort(merged["gid"], kind="stable")
+                    merged = {k: v[o] for k, v in merged.items()}
+                    if not np.array_equal(merged["gid"], np.arange(lo, hi)):
+                        raise ParmpmError(f"checkpoint: particle ids {lo}..{hi - 1} incomplete")
+                    writer.write(lo, merged)
+                except (OSError, ParmpmError) as exc:
+                    problem = f"cannot write checkpoint '{path}': {exc}"
+        if root:
+            try:
+                if problem is None:
+                    writer.commit()
+                    prune(self.out_dir, self.data["checkpoint"]["keep"])
+                else:
+                    writer.abort()
+            except OSError as exc:
+                problem = f"cannot write checkpoint '{path}': {exc}"
+        problem = self.comm.bcast(problem, root=0)
+        if problem:
+            raise ParmpmError(problem)
+        log.info("wrote %s (step %d, t = %.6g s)", path, self.nstep, self.t)
+        return path
+
     def decomposition_report(self) -> dict:
         """Patches, particles per rank, imbalance, ghost width and halo traffic (collective)."""
         ps, lay = self.patches, self.disc.layout
@@ -218,6 +327,28 @@ class Simulation:
             "rebalances": ps.rebalances, "patch_set_changes": ps.rebuilds,
         }
 
+    # --- signals ------------------------------------------------------------------------------
+    def _trap_signals(self):
+        """SIGTERM/SIGINT (a batch system's time limit, Ctrl-C) only raise a flag; the ranks agree
+        on it at the end of the step, write a checkpoint and stop together."""
+        import signal
+        import threading
+
+        if threading.current_thread() is not threading.main_thread():
+            return None
+
+        def flag(signum, frame):
+            self.stepper.stop_flag = True
+
+        return {sig: signal.signal(sig, flag) for sig in (signal.SIGTERM, signal.SIGINT)}
+
+    @staticmethod
+    def _restore_signals(old) -> None:
+        import signal
+
+        for sig, handler in (old or {}).items():
+            signal.signal(sig, handler)
+
     # --- the loop -----------------------------------------------------------------------------
     def run(self) -> dict:
         """Step to the end (collective). Every rank returns the same summary; rank 0 writes the
@@ -237,9 +368,14 @@ class Simulation:
         problem = self.comm.bcast(problem, root=0)
         if problem:
             raise ParmpmError(problem)
-        writer = SnapshotWriter(self.out_dir, data["name"], self.dim) if out["snapshots"] and root else None
+        series = data["name"] if self.restart is None else f"{data['name']}_from_{self.nstep:08d}"
+        writer = SnapshotWriter(self.out_dir, series, self.dim) if out["snapshots"] and root else None
         every_t, every_n = out["every"], out["every_steps"]
-        next_out = every_t if every_t else math.inf
+        if self.next_out is None:
+            self.next_out = every_t if every_t else math.inf
+        ck = data["checkpoint"]
+        next_ck = ck["every"] * (math.floor(self.t / ck["every"] + 1e-9) + 1) if ck["every"] else math.inf
+        ck_wall = time.monotonic()
         me = data["metrics"]["every_steps"]
         stop_on_sep = data["metrics"]["stop_on_separation"]
         self.stopped = None
@@ -247,9 +383,11 @@ class Simulation:
                             enabled=not self.quiet and root)
         wall0 = time.perf_counter()
         warm_wall, warm_steps = None, 0
+        old_handlers = self._trap_signals()
         try:
-            self.sample_metrics()
-            self.snapshot(writer)
+            if self.restart is None:  # a restarted run has these from before
+                self.sample_metrics()
+                self.snapshot(writer)
             while not self.done():
                 dt = self.next_dt()
                 self.vmax = self.stepper.step(dt, self.gravity(self.t))
@@ -269,15 +407,30 @@ class Simulation:
                     log.info("material separated at t = %.6g s: stopping (metrics.stop_on_separation)", self.t)
                     self.snapshot(writer)
                     break
-                due = (every_n and self.nstep % every_n == 0) or self.t >= next_out * (1 - 1e-12)
+                due = (every_n and self.nstep % every_n == 0) or self.t >= self.next_out * (1 - 1e-12)
                 if due or self.done():
                     self.snapshot(writer)
-                    while next_out <= self.t * (1 + 1e-12):
-                        next_out += every_t
+                    while self.next_out <= self.t * (1 + 1e-12):
+                        self.next_out += every_t
+                if self.stepper.stop_requested:
+                    path = self.write_checkpoint()
+                    raise RunInterrupted(f"interrupted at step {self.nstep} (t = {self.t:.6g} s); "
+                                         f"continue with: parmpm restart {path}")
+                ck_due = (ck["every_steps"] and self.nstep % ck["every_steps"] == 0) or \
+                    self.t >= next_ck * (1 - 1e-12) or (ck["at_end"] and self.done())
+                if ck["wall_minutes"]:
+                    waited = allreduce_max(self.comm, np.array([time.monotonic() - ck_wall]))[0]
+                    ck_due = ck_due or waited >= 60.0 * ck["wall_minutes"]
+                if ck_due:
+                    self.write_checkpoint()
+                    ck_wall = time.monotonic()
+                    while next_ck <= self.t * (1 + 1e-12):
+                        next_ck += ck["every"]
                 elapsed = time.perf_counter() - (warm_wall or wall0)
                 rate = self.n_total * warm_steps / elapsed if warm_steps and elapsed > 0 else 0.0
                 progress.update(self.nstep, self.t, rate)
         finally:
+            self._restore_signals(old_handlers)
             progress.close()
             if writer is not None:
                 writer.close()

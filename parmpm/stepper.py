@@ -76,6 +76,8 @@ class Stepper:
         mmin = float(allreduce_max(self.comm, np.array([-mmin]))[0])
         self.mass_eps = 1e-12 * (-mmin if math.isfinite(mmin) else 1.0)
         self.error: str | None = None
+        self.stop_flag = False          # set by a signal handler
+        self.stop_requested = False     # some rank got a signal (agreed at the end of a step)
         self.timers = dict.fromkeys(PHASES, 0.0)
         self.migrated = 0
         self._new_patch = np.zeros(0, np.int64)
@@ -196,12 +198,14 @@ class Stepper:
     # --- agreement between ranks ----------------------------------------------------------------
     def finish(self, vmax: float) -> float:
         """End-of-step collective: one ``Allreduce(MAX)`` of (speed, error, patch-set change,
-        particles per rank); raises a run-stopping error on every rank at once."""
+        particles per rank, stop signal); raises a run-stopping error on every rank at once."""
         ps, P = self.patches, self.P
         local = np.array([vmax if math.isfinite(vmax) else math.inf,
                           ps.rank + 1.0 if self.error else 0.0,
-                          1.0 if self._occupancy_changed else 0.0, float(P.n)])
+                          1.0 if self._occupancy_changed else 0.0, float(P.n),
+                          1.0 if self.stop_flag else 0.0])
         g = allreduce_max(self.comm, local)
+        self.stop_requested = bool(g[4] > 0)
         if g[1] > 0:
             msg = self.comm.bcast(self.error, root=int(g[1]) - 1)
             raise SimulationError(msg)
