@@ -77,8 +77,15 @@ class Simulation:
         mine = np.flatnonzero(self.patches.rank_of[where] == self.rank)
         if checkpoint is None:
             P.permute(mine)
-        else:
-            P = self._load_particles(checkpoint, mine)
+        else:  # collective: a damaged block found by one rank stops every rank
+            problem = None
+            try:
+                P = self._load_particles(checkpoint, mine)
+            except ParmpmError as exc:
+                problem = str(exc)
+            problems = [p for p in comm.allgather(problem) if p]
+            if problems:
+                raise ParmpmError(problems[0])
         P.patch = where[mine]
         self.particles = P
         bc = np.zeros((3, 2), np.int64)

@@ -11,7 +11,8 @@ Schema (format ``parmpm-checkpoint``, version 1), readable with plain h5py::
 
     /                 attrs: format, version, scene (resolved TOML), step, time, dt (last Δt),
                       vmax (max c+|v| for the next Δt), method, lcr (m, NaN = none), ranks
-                      (that wrote it), particles, dim, state (JSON: metrics history, output clock)
+                      (that wrote it), particles, dim, state (JSON: metrics history, output
+                      clock), digest (SHA-256 of the other attributes, see attrs_digest)
     /particles/gid    (N,) int64, = 0..N-1
     /particles/mat    (N,) int64 material row
     /particles/x, v, x0, lh0        (N, dim) float64
@@ -20,6 +21,7 @@ Schema (format ``parmpm-checkpoint``, version 1), readable with plain h5py::
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -33,6 +35,13 @@ VERSION = 1
 #: stored particle fields (``dx`` is MUSL scratch, ``patch`` is derived from ``x``)
 FIELDS = ("gid", "mat", "x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage")
 ATTRS = ("scene", "step", "time", "dt", "vmax", "method", "lcr", "ranks", "particles", "dim", "state")
+
+
+def attrs_digest(attrs: dict) -> str:
+    """SHA-256 of the root attributes (HDF5 checksums data chunks, not attributes)."""
+    text = json.dumps({k: (v.item() if hasattr(v, "item") else v) for k, v in sorted(attrs.items())},
+                      sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
 
 
 def checkpoint_name(step: int) -> str:
@@ -55,6 +64,7 @@ class CheckpointWriter:
         self.f.attrs["version"] = VERSION
         for k, v in attrs.items():
             self.f.attrs[k] = v
+        self.f.attrs["digest"] = attrs_digest({k: self.f.attrs[k] for k in ATTRS})
         g = self.f.create_group("particles")
         for name, a in like.items():
             shape = (n,) + a.shape[1:]
@@ -110,11 +120,24 @@ class CheckpointReader:
             self.close()
             raise ParmpmError(f"{where}: written by a newer parmpm (format version {version}; "
                               f"this parmpm reads up to {VERSION})")
-        missing = [k for k in ATTRS if k not in a]
-        if missing or "particles" not in self.f:
+        try:
+            missing = [k for k in ATTRS + ("digest",) if k not in a]
+            if missing or "particles" not in self.f:
+                raise ParmpmError(f"{where}: damaged: missing {', '.join(missing) or 'particles group'}")
+            self.attrs = {k: a[k] for k in ATTRS}
+            if attrs_digest(self.attrs) != a["digest"]:
+                raise ParmpmError(f"{where}: damaged: its attributes (scene, clock) fail their checksum")
+            self._check_datasets(where)
+        except ParmpmError:
             self.close()
-            raise ParmpmError(f"{where}: damaged: missing {', '.join(missing) or 'particles group'}")
-        self.attrs = {k: a[k] for k in ATTRS}
+            raise
+        except Exception as exc:  # h5py reports damaged metadata in many ways
+            self.close()
+            raise ParmpmError(f"{where}: damaged ({type(exc).__name__}: "
+                              f"{str(exc).splitlines()[0] if str(exc) else 'unreadable'})") from None
+        self.where = where
+
+    def _check_datasets(self, where: str) -> None:
         self.n = int(self.attrs["particles"])
         d = int(self.attrs["dim"])
         expected = {"gid": (), "mat": (), "mass": (), "vol0": (), "damage": (),
@@ -124,10 +147,8 @@ class CheckpointReader:
         for name, tail in expected.items():
             if name not in g or g[name].shape != (self.n,) + tail:
                 got = g[name].shape if name in g else "nothing"
-                self.close()
                 raise ParmpmError(f"{where}: damaged: dataset particles/{name} is {got}, "
                                   f"expected {(self.n,) + tail}")
-        self.where = where
 
     @property
     def state(self) -> dict:
@@ -136,7 +157,7 @@ class CheckpointReader:
     def read(self, name: str, lo: int = 0, hi: int | None = None) -> np.ndarray:
         try:
             return self.f["particles"][name][lo:hi]
-        except OSError as exc:
+        except Exception as exc:  # a Fletcher-32 mismatch, or damaged chunk index
             raise ParmpmError(f"{self.where}: damaged data in particles/{name} "
                               f"({str(exc).splitlines()[0]})") from None
 
