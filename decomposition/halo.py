@@ -89,7 +89,6 @@ class HaloPlan:
         own_peer = rq[rp == me]
         ghost_peer = rp[(rq == me) & (rp != me)]
         self.peers = np.unique(np.concatenate([own_peer[own_peer != me], ghost_peer]))
-        self.n_local_pairs = int(np.sum(own_peer == me))
         seg_of = {int(r): i for i, r in enumerate(self.peers)}
 
         def segments(rows_, peer):
@@ -124,11 +123,6 @@ class HaloPlan:
         size = lambda r, cols: int(np.prod(r[:, cols], axis=1).sum()) if len(r) else 0  # noqa: E731
         return size(self.own_rows, slice(8, 11)) + size(self.ghost_rows, slice(4, 7))
 
-    @property
-    def remote_nodes_per_exchange(self) -> int:
-        """Nodes this rank sends to (or receives from) other ranks per 1-component exchange."""
-        return int(self.own_seg_nodes.sum() + self.ghost_seg_nodes.sum())
-
     def _buffers(self, k_total: int):
         if k_total not in self._bufs:
             ob = np.concatenate([[0], np.cumsum(self.own_seg_nodes * k_total)]).astype(np.int64)
@@ -139,7 +133,10 @@ class HaloPlan:
 
 # --- kernels ---------------------------------------------------------------------------------
 @njit(cache=True)
-def _owner_accumulate(field, rows, L, buf, base, seg_nodes, kbefore):
+def _owner_rows(field, rows, L, buf, base, seg_nodes, kbefore, add):
+    """Owner rows in global order. ``add``: sum the other patch's ghost copy (local, or from
+    ``buf``) into the owned box (accumulate); else copy the owned box to it (fill; a remote
+    ghost copy is packed into ``buf``)."""
     k = field.shape[2]
     for r in range(rows.shape[0]):
         p, q = rows[r, 0], rows[r, 1]
@@ -154,31 +151,15 @@ def _owner_accumulate(field, rows, L, buf, base, seg_nodes, kbefore):
                 for k0 in range(rows[r, 8]):
                     for c in range(k):
                         if q >= 0:
-                            field[p, np0 + k0, c] += field[q, nq0 + k0, c]
+                            if add:
+                                field[p, np0 + k0, c] += field[q, nq0 + k0, c]
+                            else:
+                                field[q, nq0 + k0, c] = field[p, np0 + k0, c]
                         else:
-                            field[p, np0 + k0, c] += buf[pos]
-                            pos += 1
-
-
-@njit(cache=True)
-def _owner_fill(field, rows, L, buf, base, seg_nodes, kbefore):
-    k = field.shape[2]
-    for r in range(rows.shape[0]):
-        p, q = rows[r, 0], rows[r, 1]
-        pos = 0
-        if q < 0:
-            s = rows[r, 11]
-            pos = base[s] + kbefore * seg_nodes[s] + rows[r, 12] * k
-        for k2 in range(rows[r, 10]):
-            for k1 in range(rows[r, 9]):
-                np0 = rows[r, 2] + L[0] * (rows[r, 3] + k1 + L[1] * (rows[r, 4] + k2))
-                nq0 = rows[r, 5] + L[0] * (rows[r, 6] + k1 + L[1] * (rows[r, 7] + k2))
-                for k0 in range(rows[r, 8]):
-                    for c in range(k):
-                        if q >= 0:
-                            field[q, nq0 + k0, c] = field[p, np0 + k0, c]
-                        else:
-                            buf[pos] = field[p, np0 + k0, c]
+                            if add:
+                                field[p, np0 + k0, c] += buf[pos]
+                            else:
+                                buf[pos] = field[p, np0 + k0, c]
                             pos += 1
 
 
@@ -237,7 +218,7 @@ def accumulate(plan: HaloPlan, *fields: np.ndarray) -> None:
     _waitall(rreq)
     kb = 0
     for f in fields:
-        _owner_accumulate(f, plan.own_rows, L, obuf, ob, plan.own_seg_nodes, kb)
+        _owner_rows(f, plan.own_rows, L, obuf, ob, plan.own_seg_nodes, kb, True)
         kb += f.shape[2]
     _waitall(sreq)
 
@@ -249,7 +230,7 @@ def fill(plan: HaloPlan, *fields: np.ndarray) -> None:
     L = plan.local_nodes3
     kb = 0
     for f in fields:  # local copies, and pack what other ranks hold as ghosts
-        _owner_fill(f, plan.own_rows, L, obuf, ob, plan.own_seg_nodes, kb)
+        _owner_rows(f, plan.own_rows, L, obuf, ob, plan.own_seg_nodes, kb, False)
         kb += f.shape[2]
     rreq, sreq = _exchange(plan, obuf, ob, plan.own_seg_nodes, gbuf, gb, plan.ghost_seg_nodes,
                            TAG_FILL)

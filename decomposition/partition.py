@@ -22,7 +22,7 @@ def adjacency_offsets(layout: PatchLayout) -> np.ndarray:
     return np.array(offs, dtype=np.int64).reshape(-1, 3)
 
 
-def _shift(layout: PatchLayout, ids: np.ndarray, off) -> tuple[np.ndarray, np.ndarray]:
+def shift_patches(layout: PatchLayout, ids: np.ndarray, off) -> tuple[np.ndarray, np.ndarray]:
     """Flat ids of the patches at ``coords(ids) + off`` and a mask of those inside the layout."""
     n = layout.patches_per_axis
     c = layout.patch_coords()[ids] + np.asarray(off, dtype=np.int64)
@@ -37,7 +37,7 @@ def active_patches(layout: PatchLayout, occupied: np.ndarray) -> np.ndarray:
     mark = np.zeros(layout.n_patches, bool)
     mark[occupied] = True
     for off in adjacency_offsets(layout):
-        ids, ok = _shift(layout, occupied, off)
+        ids, ok = shift_patches(layout, occupied, off)
         mark[ids[ok]] = True
     return np.flatnonzero(mark).astype(np.int64)
 

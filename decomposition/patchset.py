@@ -21,7 +21,8 @@ import numpy as np
 from decomposition.comm import is_parallel
 from decomposition.halo import HaloPlan
 from decomposition.layout import PatchLayout
-from decomposition.partition import active_patches, adjacency_offsets, assign, imbalance, rank_loads
+from decomposition.partition import (shift_patches, active_patches, adjacency_offsets, assign, imbalance,
+                                    rank_loads)
 
 
 class PatchSet:
@@ -45,26 +46,15 @@ class PatchSet:
         # ranks that records can move to in one step: owners of every patch within reach
         near = set(int(r) for r in p.peers)
         for off in adjacency_offsets(self.layout):
-            q = self._shifted(self.local_ids, off)
-            near.update(int(r) for r in np.unique(self.rank_of[q[q >= 0]]))
+            q, ok = shift_patches(self.layout, self.local_ids, off)
+            near.update(int(r) for r in np.unique(self.rank_of[q[ok]]))
         near.discard(self.rank)
         near.discard(-1)
         self.peers = np.array(sorted(near), np.int64)
 
-    def _shifted(self, ids: np.ndarray, off) -> np.ndarray:
-        n = self.layout.patches_per_axis
-        c = self.layout.patch_coords()[ids] + np.asarray(off, np.int64)
-        ok = np.all((c >= 0) & (c < n), axis=1)
-        flat = c[:, 0] + n[0] * (c[:, 1] + n[1] * c[:, 2])
-        return np.where(ok, flat, -1)
-
     @property
     def n_local(self) -> int:
         return int(self.local_ids.size)
-
-    @property
-    def n_dense(self) -> int:
-        return self.layout.n_patches
 
     # --- global facts ------------------------------------------------------------------------
     def gather_counts(self, local_counts: np.ndarray) -> np.ndarray:
@@ -94,8 +84,8 @@ class PatchSet:
         for off in adjacency_offsets(self.layout):
             if new.size == 0:
                 break
-            q = self._shifted(new, off)
-            hit = (q >= 0) & occ[np.maximum(q, 0)]
+            q, ok = shift_patches(self.layout, new, off)
+            hit = ok & occ[q]
             rank_of[new[hit]] = rank_of[q[hit]]
             new = new[~hit]
         if new.size:  # cannot happen: every active patch is within reach of an occupied one

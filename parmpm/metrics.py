@@ -31,6 +31,7 @@ from parmpm.exact import (
     nominal_stress_1d,
     vibrating_bar_com_velocity,
 )
+from parmpm.connectivity import compact_nodes, local_components
 from parmpm.jit import kernel
 
 logger = logging.getLogger(__name__)
@@ -49,15 +50,6 @@ __all__ = [
 # Numerical separation: connected components of the particle–node graph
 # --------------------------------------------------------------------------------------------
 @kernel
-def _find(parent, i):
-    """Root of ``i`` in a union-find forest, with path halving (Tarjan 1975)."""
-    while parent[i] != i:
-        parent[i] = parent[parent[i]]
-        i = parent[i]
-    return i
-
-
-@kernel
 def patch_sums(start, values):
     """(patches, k) sums of ``values`` rows over each patch's particles, strictly in order."""
     out = np.zeros((start.size - 1, values.shape[1]))
@@ -66,40 +58,6 @@ def patch_sums(start, values):
             for c in range(values.shape[1]):
                 out[p, c] += values[i, c]
     return out
-
-
-@kernel
-def _components(particle_nodes, particle_nnodes, n_nodes):
-    """Number of connected components of particles that share grid nodes.
-
-    Union-find over particles (union by size, path halving): the first particle seen at a node
-    becomes the node's representative, and every later particle touching that node is united
-    with it. ``particle_nodes[p, :particle_nnodes[p]]`` are the flat node ids (``0 <= id <
-    n_nodes``) that particle ``p`` touches with nonzero weight. A particle touching no node is a
-    component of its own. Cost O(N K α(N)) time, O(N + n_nodes) memory.
-    """
-    n = particle_nodes.shape[0]
-    parent = np.arange(n)
-    size = np.ones(n, dtype=np.int64)
-    owner = np.full(n_nodes, -1, dtype=np.int64)
-    components = n
-    for p in range(n):
-        for k in range(particle_nnodes[p]):
-            node = particle_nodes[p, k]
-            q = owner[node]
-            if q < 0:
-                owner[node] = p
-                continue
-            a = _find(parent, p)
-            b = _find(parent, q)
-            if a == b:
-                continue
-            if size[a] < size[b]:
-                a, b = b, a
-            parent[b] = a
-            size[a] += size[b]
-            components -= 1
-    return components
 
 
 def count_components(particle_nodes, particle_nnodes, n_nodes) -> int:
@@ -121,12 +79,8 @@ def count_components(particle_nodes, particle_nnodes, n_nodes) -> int:
         raise ValueError("particle_nnodes out of range [0, K]")
     n_nodes = int(n_nodes)
     if n_nodes > 4 * particle_nodes.size + 1024:
-        valid = np.arange(particle_nodes.shape[1])[None, :] < particle_nnodes[:, None]
-        uniq, inverse = np.unique(particle_nodes[valid], return_inverse=True)
-        compact = np.zeros_like(particle_nodes)
-        compact[valid] = inverse.ravel()
-        particle_nodes, n_nodes = compact, uniq.size
-    return int(_components(particle_nodes, particle_nnodes, max(n_nodes, 1)))
+        particle_nodes, n_nodes = compact_nodes(particle_nodes, particle_nnodes)
+    return int(local_components(particle_nodes, particle_nnodes, max(n_nodes, 1))[0])
 
 
 # --------------------------------------------------------------------------------------------
@@ -272,6 +226,22 @@ def _to_plain(value):
     return value if math.isfinite(value) else None
 
 
+class _History:
+    """Checkpointing of a metric's history: the attributes named in ``_STATE``."""
+
+    _STATE: tuple[str, ...] = ()
+
+    def state(self) -> dict:
+        """The history so far (JSON-ready), for checkpoints."""
+        return {k: v for k, v in vars(self).items() if k in self._STATE}
+
+    def restore(self, state: dict) -> None:
+        """Continue the history saved by :meth:`state` (a restarted run)."""
+        for k in self._STATE:
+            if k in state:
+                setattr(self, k, state[k])
+
+
 # --------------------------------------------------------------------------------------------
 # Metrics registry
 # --------------------------------------------------------------------------------------------
@@ -290,7 +260,7 @@ def register_metrics(kind: str):
 
 
 @register_metrics("hanging_bar")
-class HangingBarMetrics:
+class HangingBarMetrics(_History):
     """Separation, stretch and tip history of the self-weighted bar (body 0).
 
     * axial stretch of particle p: ``|F_p e_a|`` (length of column ``a`` of F), ``a`` =
@@ -389,16 +359,6 @@ class HangingBarMetrics:
         sums, maxes = self.terms(np.arange(n), x, v, F)
         self.record(t, sums.sum(axis=0), maxes, components, v_time)
 
-    def state(self) -> dict:
-        """The history so far (JSON-ready), for checkpoints."""
-        return {k: v for k, v in vars(self).items() if k in self._STATE}
-
-    def restore(self, state: dict) -> None:
-        """Continue the history saved by :meth:`state` (a restarted run)."""
-        for k in self._STATE:
-            if k in state:
-                setattr(self, k, state[k])
-
     def result(self) -> dict:
         """JSON-ready dict (see the class docstring for the definitions)."""
         stretches = np.asarray(self.max_stretch_history)
@@ -424,7 +384,7 @@ class HangingBarMetrics:
 
 
 @register_metrics("vibrating_bar")
-class VibratingBarMetrics:
+class VibratingBarMetrics(_History):
     """Centre-of-mass velocity of the axially vibrating bar (body 0) against the exact mode.
 
     ``v̄_num = Σ m v_a / Σ m`` over the bar's particles, ``v̄_exact = v0/(β_n L) cos(ω_n t)``
@@ -487,16 +447,6 @@ class VibratingBarMetrics:
         n = self.mass.shape[0]
         sums, maxes = self.terms(np.arange(n), x, v, F)
         self.record(t, sums.sum(axis=0), maxes, components, v_time)
-
-    def state(self) -> dict:
-        """The history so far (JSON-ready), for checkpoints."""
-        return {k: v for k, v in vars(self).items() if k in self._STATE}
-
-    def restore(self, state: dict) -> None:
-        """Continue the history saved by :meth:`state` (a restarted run)."""
-        for k in self._STATE:
-            if k in state:
-                setattr(self, k, state[k])
 
     def result(self) -> dict:
         """JSON-ready dict: ``com_velocity_rel_l2_error``, ``samples``, ``period``, ..."""

@@ -227,9 +227,6 @@ class Stepper:
         P.replace(migrate(P.fields(), dest, self.comm, None))
         self._patches_changed()
 
-    def local_counts(self) -> np.ndarray:
-        return np.diff(self.P.start)
-
 
 def fmt_vec(v) -> str:
     return "(" + ", ".join(f"{float(c):.4g}" for c in np.atleast_1d(v)) + ")"

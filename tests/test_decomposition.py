@@ -27,17 +27,18 @@ LAYOUTS = [
 LAYOUT_IDS = [f"c{'x'.join(map(str, c))}-p{'x'.join(map(str, p))}-g{g}" for c, p, g in LAYOUTS]
 
 # STYLE item 4: the halo kernels compiled and through their pure-Python bodies
-def _py_owner(kernel):
-    """One-rank accumulate/fill through the kernel's pure-Python body (no remote rows)."""
+def _py_owner(add):
+    """One-rank accumulate (``add``) or fill through the kernel's pure-Python body."""
     def run(plan, f):
         ob, obuf, _, _ = plan._buffers(f.shape[2])
-        kernel.py_func(f, plan.own_rows, plan.local_nodes3, obuf, ob, plan.own_seg_nodes, 0)
+        _halo._owner_rows.py_func(f, plan.own_rows, plan.local_nodes3, obuf, ob,
+                                  plan.own_seg_nodes, 0, add)
     return run
 
 
 KERNELS = {
     "jit": (lambda plan, f: accumulate(plan, f), lambda plan, f: fill(plan, f)),
-    "py": (_py_owner(_halo._owner_accumulate), _py_owner(_halo._owner_fill)),
+    "py": (_py_owner(True), _py_owner(False)),
 }
 
 
