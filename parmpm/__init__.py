@@ -19,6 +19,9 @@ def __getattr__(name):
         return Simulation
     if name == "run":
         return run
+    if name in ("domain_corners", "domain_sizes", "domain_vectors"):
+        from parmpm import domains
+        return getattr(domains, name)
     raise AttributeError(f"module 'parmpm' has no attribute {name!r}")
 
 
@@ -28,5 +31,5 @@ def run(source, overrides=(), out_dir=None, quiet=True) -> dict:
     return Simulation(load_scene(source, overrides), out_dir, quiet=quiet).run()
 
 
-__all__ = ["Scene", "Simulation", "run", "load_scene", "builtin_scenes", "parse_lcr",
+__all__ = ["Scene", "Simulation", "run", "domain_corners", "domain_sizes", "domain_vectors", "load_scene", "builtin_scenes", "parse_lcr",
            "ParmpmError", "SceneError", "SimulationError", "__version__"]

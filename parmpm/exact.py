@@ -9,6 +9,8 @@ stress ``P``, wave speed ``c = sqrt(E/ρ)``, ``β_n = (2n − 1)π/(2L)``, ``ω_
 * Hanging (self-weighted) bar: the static state is exact for *any* 1D law because the weight
   below ``X`` does not depend on the deformation, ``P(λ(X)) = ρ g (L − X)``; the sudden-gravity
   dynamic response is the small-strain d'Alembert solution.
+* Axis-aligned manufactured solution (Wallstedt & Guilkey 2008; Kamojjala et al. 2015): a
+  prescribed large-deformation motion and the neo-Hookean body force that drives it.
 """
 
 from __future__ import annotations
@@ -33,6 +35,9 @@ __all__ = [
     "hanging_bar_static_displacement",
     "hanging_bar_dynamic_tip",
     "hanging_bar_dynamic_series",
+    "manufactured_phases",
+    "manufactured_motion",
+    "manufactured_body_force",
 ]
 
 
@@ -269,3 +274,43 @@ def hanging_bar_dynamic_series(X, t, L: float, rho: float, g: float, E: float, n
     static = (g / c**2) * (L * X[..., 0] - 0.5 * X[..., 0] ** 2)
     series = np.sum(2.0 * g / (c**2 * L * beta**3) * np.sin(beta * X) * np.cos(omega * t), axis=-1)
     return static - series
+
+
+# --------------------------------------------------------------------------------------------
+# Axis-aligned manufactured solution
+# --------------------------------------------------------------------------------------------
+def manufactured_phases(dim: int) -> np.ndarray:
+    """Phase of each axis: 0, 2π/3, 4π/3 (VERIFICATION.md §3)."""
+    return 2.0 * np.pi * np.arange(dim) / 3.0
+
+
+def manufactured_motion(X, t: float, A: float, c: float):
+    """Exact displacement, velocity and (diagonal) deformation gradient of the axis-aligned
+    manufactured solution (Wallstedt & Guilkey 2008; Kamojjala et al. 2015)::
+
+        U_k = A sin(π X_k) sin(cπt + φ_k),   V_k = A cπ sin(π X_k) cos(cπt + φ_k),
+        F_kk = 1 + Aπ cos(π X_k) sin(cπt + φ_k)
+
+    ``X`` (N, d) reference positions. Returns ``(u, v, F_diag)``, each (N, d).
+    """
+    X = np.atleast_2d(np.asarray(X, dtype=float))
+    ph = c * math.pi * t + manufactured_phases(X.shape[1])
+    s = np.sin(math.pi * X)
+    u = A * s * np.sin(ph)
+    v = A * c * math.pi * s * np.cos(ph)
+    Fd = 1.0 + A * math.pi * np.cos(math.pi * X) * np.sin(ph)
+    return u, v, Fd
+
+
+def manufactured_body_force(X, t: float, A: float, c: float, lam: float, mu: float, rho: float):
+    """Body force (per unit mass) that makes :func:`manufactured_motion` solve the neo-Hookean
+    momentum equation ``ρ0 ∂²U/∂t² = ∇·P + ρ0 b`` (VERIFICATION.md §3)::
+
+        b_k = π² U_k [ μ/ρ0 − c² − (λ (ln J − 1) − μ) / (ρ0 F_kk²) ],   J = Π F_kk
+
+    Derivation: with ``P_kk = μ(F_kk − 1/F_kk) + λ ln J / F_kk`` and ``∂ ln J/∂X_k = ∂_k F_kk / F_kk``,
+    ``∂P_kk/∂X_k = ∂_k F_kk [μ(1 + F_kk⁻²) + λ(1 − ln J) F_kk⁻²]`` and ``∂_k F_kk = −π² U_k``.
+    """
+    u, _, Fd = manufactured_motion(X, t, A, c)
+    lnJ = np.sum(np.log(Fd), axis=1, keepdims=True)
+    return math.pi**2 * u * (mu / rho - c * c - (lam * (lnJ - 1.0) - mu) / (rho * Fd**2))

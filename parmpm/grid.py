@@ -2,8 +2,9 @@
 
 ``v_old = (mv)_i / m_i``, ``v_new = v_old + Δt (f_i / m_i + g − c·v_old)`` (gravity applied as
 ``m_i g``, optional mass-proportional damping ``c``), then per-face conditions on the global
-boundary nodes — fixed: ``v = 0``; slip: the normal component is 0; free: nothing — and ``v = 0``
-on every node inside a fixed region (a grip, e.g. the hanging bar's support) — applied to both
+boundary nodes — fixed: ``v = 0``; slip: the normal component is 0; free: nothing — then ``v = 0``
+on every node inside a fixed region (a grip, e.g. the hanging bar's support) and ``v·n = 0`` inside
+a slip region (a symmetry plane inside the grid, e.g. the manufactured solution's faces) — applied to both
 ``v_old`` and ``v_new`` so the FLIP increment ``Δv = v_new − v_old`` respects them too. Nodes with
 mass below ``mass_eps`` get zero velocity (they carry no material). Ghost nodes are left to
 ``fill``.
@@ -34,8 +35,10 @@ def _apply_bc(d, gidx, nglob, bc, vel):
 
 
 @kernel
-def _in_region(d, gidx, origin, h, regions):
-    """Is the node inside any fixed region (boxes ``regions[r, 0] ≤ x ≤ regions[r, 1]``)?"""
+def _apply_regions(d, gidx, origin, h, regions, normal, vel):
+    """Constrain a node inside region boxes ``regions[r, 0] ≤ x ≤ regions[r, 1]``: all components
+    (``normal[r] < 0``: a fixed region, e.g. a grip) or the ``normal[r]`` component only (a slip
+    region: a symmetry plane inside the grid)."""
     for r in range(regions.shape[0]):
         inside = True
         for k in range(d):
@@ -44,13 +47,17 @@ def _in_region(d, gidx, origin, h, regions):
             if xk < regions[r, 0, k] - tol or xk > regions[r, 1, k] + tol:
                 inside = False
                 break
-        if inside:
-            return True
-    return False
+        if not inside:
+            continue
+        if normal[r] < 0:
+            for a in range(d):
+                vel[a] = 0.0
+        else:
+            vel[normal[r]] = 0.0
 
 
 @kernel
-def grid_update(d, own_lo, own_hi, base, nloc, nglob, bc, regions, origin, h, dt, gvec, damping,
+def grid_update(d, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, origin, h, dt, gvec, damping,
                 mass_eps, gm, gmv, gf, gvel, gdv, from_momentum_only):
     """Owned-node update. With ``from_momentum_only`` (the MUSL re-map) only ``gvel = mv/m`` with
     boundary conditions is formed."""
@@ -75,15 +82,15 @@ def grid_update(d, own_lo, own_hi, base, nloc, nglob, bc, regions, origin, h, dt
                             vold[a] = 0.0
                             vnew[a] = 0.0
                     _apply_bc(d, gidx, nglob, bc, vold)
-                    if regions.shape[0] and _in_region(d, gidx, origin, h, regions):
-                        for a in range(d):
-                            vold[a] = 0.0
-                            vnew[a] = 0.0
+                    if regions.shape[0]:
+                        _apply_regions(d, gidx, origin, h, regions, normal, vold)
                     if from_momentum_only:
                         for a in range(d):
                             gvel[p, node, a] = vold[a]
                         continue
                     _apply_bc(d, gidx, nglob, bc, vnew)
+                    if regions.shape[0]:
+                        _apply_regions(d, gidx, origin, h, regions, normal, vnew)
                     for a in range(d):
                         gvel[p, node, a] = vnew[a]
                         gdv[p, node, a] = vnew[a] - vold[a]

@@ -140,6 +140,15 @@ def bodies_to_particles(scene: dict, material_rows: dict[str, int], params: np.n
             pts = _lattice(lo, lo + n * spacing, spacing)
             pts = pts[np.sum((pts - c) ** 2, axis=1) <= r * r]
         vel = np.tile(np.asarray(body["velocity"], float), (len(pts), 1))
+        omega = body.get("angular_velocity")
+        if omega is not None:  # rigid spin about the body's centre: v += ω × (x − c)
+            centre = (np.asarray(body["center"], float) if body["shape"] != "box" else
+                      0.5 * (np.asarray(body["min"], float) + np.asarray(body["max"], float)))
+            r = pts - centre
+            if d == 2:
+                vel += float(omega) * np.stack([-r[:, 1], r[:, 0]], axis=1)
+            else:
+                vel += np.cross(np.asarray(omega, float), r)
         vib = body.get("vibration")
         if vib:
             ax = vib["axis"]

@@ -28,19 +28,22 @@ UPDATES = ("auto", "usl", "musl")
 MODELS = ("linear_elastic", "neo_hookean")
 SHAPE_DIMS = {"box": (1, 2, 3), "disk": (2,), "sphere": (3,)}
 BOUNDARY_KINDS = ("fixed", "slip", "free")
-METRICS = ("hanging_bar", "vibrating_bar", "none")
+METRICS = ("hanging_bar", "vibrating_bar", "manufactured", "rotation", "none")
 
 TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method", "gravity",
-            "damping", "boundary", "time", "output", "metrics", "decomposition", "checkpoint")
+            "damping", "boundary", "time", "output", "metrics", "decomposition", "checkpoint",
+            "manufactured")
 GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost")
 MATERIAL_KEYS = ("model", "density", "youngs_modulus", "poisson_ratio")
-BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration")
+BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration",
+             "angular_velocity")
 SHAPE_KEYS = {"box": ("min", "max"), "disk": ("center", "radius"), "sphere": ("center", "radius")}
 _SHAPE_ONLY_KEYS = ("min", "max", "center", "radius")
 VIBRATION_KEYS = ("amplitude", "mode", "axis")
 METHOD_KEYS = ("interpolator", "lcr", "update", "flip")
 GRAVITY_KEYS = ("g", "ramp_time")
 DAMPING_KEYS = ("coefficient",)
+MANUFACTURED_KEYS = ("amplitude",)
 TIME_KEYS = ("end", "steps", "cfl", "dt_max")
 OUTPUT_KEYS = ("every", "every_steps", "snapshots", "figure")
 METRICS_KEYS = ("kind", "every_steps", "axis", "stop_on_separation")
@@ -278,6 +281,7 @@ def resolve(raw: dict, where: str, default_name: str,
                                               damping.get("coefficient", 0.0),
                                               "a number >= 0 (1/s)", lambda x: x >= 0)}
     out["boundary"] = _boundary(c, raw.get("boundary", {}), dim)
+    out["manufactured"] = _manufactured(c, raw.get("manufactured"), out["materials"])
     out["time"] = _time(c, raw.get("time", {}))
     out["output"] = _output(c, raw.get("output", {}), out["time"])
     out["metrics"] = _metrics(c, raw.get("metrics", {}), dim, out["bodies"])
@@ -397,6 +401,16 @@ def _body(c: _Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: d
     out["ppc"] = c.vector(f"{key}.ppc", t.get("ppc", 2), dim, "int>0")
     out["velocity"] = c.vector(f"{key}.velocity", t.get("velocity", [0.0] * dim), dim, "float",
                                False)
+    out["angular_velocity"] = None
+    if t.get("angular_velocity") is not None:
+        akey = f"{key}.angular_velocity"
+        if dim == 1:
+            c.fail(akey, "expected no angular velocity in a 1D scene (nothing to rotate about)")
+        if dim == 2:
+            out["angular_velocity"] = c.number(akey, t["angular_velocity"],
+                                               "a number (rad/s, counter-clockwise)")
+        else:
+            out["angular_velocity"] = c.vector(akey, t["angular_velocity"], 3, "float", False)
     out["vibration"] = None
     if t.get("vibration") is not None:
         vkey = f"{key}.vibration"
@@ -447,22 +461,44 @@ def _gravity(c: _Checker, raw: Any, dim: int) -> dict:
     }
 
 
+def _manufactured(c: _Checker, raw: Any, materials: dict) -> dict | None:
+    """The manufactured-solution forcing (parmpm.manufactured): neo-Hookean, one material."""
+    if raw is None:
+        return None
+    t = c.table("manufactured", raw, MANUFACTURED_KEYS)
+    amplitude = c.number("manufactured.amplitude",
+                         c.required("manufactured", t, "amplitude", "a number > 0 (m)"),
+                         "a number > 0 (m)", lambda x: x > 0)
+    if len(materials) != 1 or next(iter(materials.values()))["model"] != "neo_hookean":
+        c.fail("manufactured", "expected exactly one material, of model \"neo_hookean\" (the "
+                               "manufactured body force is derived for it), got "
+                               + ", ".join(f"{n} ({m['model']})" for n, m in materials.items()))
+    return {"amplitude": amplitude}
+
+
 def _boundary(c: _Checker, raw: Any, dim: int) -> dict:
     every = tuple(f"{a}_{side}" for a in AXIS_NAMES for side in ("min", "max"))
-    t = c.table("boundary", raw, every + ("fixed_regions",))
+    t = c.table("boundary", raw, every + ("fixed_regions", "slip_regions"))
     out = {}
-    regions = t.get("fixed_regions", [])
-    if not isinstance(regions, list):
-        c.expected("boundary.fixed_regions", "a list of tables {min, max}", regions)
-    out["fixed_regions"] = []
-    for i, reg in enumerate(regions):
-        key = f"boundary.fixed_regions.{i}"
-        r = c.table(key, reg, ("min", "max"))
-        lo = c.vector(f"{key}.min", c.required(key, r, "min", f"{dim} numbers"), dim, "float", False)
-        hi = c.vector(f"{key}.max", c.required(key, r, "max", f"{dim} numbers"), dim, "float", False)
-        if any(b < a for a, b in zip(lo, hi)):
-            c.fail(f"{key}.max", f"expected max >= min on every axis, got min {show(lo)} max {show(hi)}")
-        out["fixed_regions"].append({"min": lo, "max": hi})
+    for kind, extra in (("fixed_regions", ()), ("slip_regions", ("normal",))):
+        regions = t.get(kind, [])
+        what = "{min, max}" if not extra else "{min, max, normal}"
+        if not isinstance(regions, list):
+            c.expected(f"boundary.{kind}", f"a list of tables {what}", regions)
+        out[kind] = []
+        for i, reg in enumerate(regions):
+            key = f"boundary.{kind}.{i}"
+            r = c.table(key, reg, ("min", "max") + extra)
+            lo = c.vector(f"{key}.min", c.required(key, r, "min", f"{dim} numbers"), dim, "float", False)
+            hi = c.vector(f"{key}.max", c.required(key, r, "max", f"{dim} numbers"), dim, "float", False)
+            if any(b < a for a, b in zip(lo, hi)):
+                c.fail(f"{key}.max", f"expected max >= min on every axis, got min {show(lo)} max {show(hi)}")
+            region = {"min": lo, "max": hi}
+            if extra:
+                axes = tuple(AXIS_NAMES[:dim])
+                region["normal"] = c.choice(f"{key}.normal", c.required(key, r, "normal", " or ".join(
+                    f'"{a}"' for a in axes)), axes)
+            out[kind].append(region)
     for name in every:
         if AXIS_NAMES.index(name[0]) >= dim:
             if name in t:

@@ -23,7 +23,7 @@ from parmpm.log import get_logger
 from parmpm.materials import material_table
 from parmpm.particles import Particles, bodies_to_particles, locate_patches
 from parmpm.progress import Progress
-from parmpm.shapes import CPDI, INTERPOLATORS, domain_matrix
+from parmpm.shapes import CPDI, INTERPOLATORS
 from parmpm.stepper import PHASES, Discretisation, Stepper, fmt_vec
 from parmpm.transfer import max_speed, support_nodes
 
@@ -58,6 +58,9 @@ class Simulation:
         if checkpoint is None:
             # Every rank seeds the same particles (global ids = seeding order), keeps its own.
             P = bodies_to_particles(data, {n: i for i, n in enumerate(names)}, self.params)
+            if data.get("manufactured"):  # start on the exact field (before patches are chosen)
+                from parmpm.manufactured import initialise
+                initialise(P, data["manufactured"]["amplitude"], self.params)
             x_all, x0_all, mass_all = P.x, P.x0, P.mass
         else:
             x_all, x0_all, mass_all = (checkpoint.read(k) for k in ("x", "x0", "mass"))
@@ -91,15 +94,24 @@ class Simulation:
         bc = np.zeros((3, 2), np.int64)
         for k, axis in enumerate("xyz"[:d]):
             bc[k] = [BC_CODES[data["boundary"][f"{axis}_min"]], BC_CODES[data["boundary"][f"{axis}_max"]]]
-        regions = np.zeros((len(data["boundary"]["fixed_regions"]), 2, 3))
-        for r, reg in enumerate(data["boundary"]["fixed_regions"]):
-            regions[r, 0, :d], regions[r, 1, :d] = reg["min"], reg["max"]
+        regions = data["boundary"]["fixed_regions"] + data["boundary"]["slip_regions"]
+        region_box = np.zeros((len(regions), 2, 3))
+        region_normal = np.full(len(regions), -1, np.int64)  # -1: fixed, k: slip with normal k
+        for r, reg in enumerate(regions):
+            region_box[r, 0, :d], region_box[r, 1, :d] = reg["min"], reg["max"]
+            if "normal" in reg:
+                region_normal[r] = "xyz".index(reg["normal"])
         m = data["method"]
         self.update = m["update"] if m["update"] != "auto" else ("usl" if interp.code == CPDI else "musl")
-        self.stepper = Stepper(self.disc, P, self.patches, self.params, bc, regions, self.update,
-                               m["flip"], data["damping"]["coefficient"], self.n_total)
+        self.stepper = Stepper(self.disc, P, self.patches, self.params, bc, region_box, self.update,
+                               m["flip"], data["damping"]["coefficient"], self.n_total, region_normal)
+        if data.get("manufactured"):
+            self._manufactured(data["manufactured"]["amplitude"])
         self.t, self.nstep, self.last_dt = 0.0, 0, 0.0
         self.next_out = None
+        # callables f(simulation), run (collectively) at every output time after the snapshot:
+        # how studies look at the state without files
+        self.observers: list = []
         if checkpoint is None:
             vmax = max_speed(d, P.v, P.F, P.mat, self.params)
             self.vmax = float(allreduce_max(comm, np.array([vmax]))[0])
@@ -111,6 +123,16 @@ class Simulation:
             self.next_out = state.get("next_output")
             if self.metrics is not None and state.get("metrics"):
                 self.metrics.restore(state["metrics"])
+
+    def _manufactured(self, A: float) -> None:
+        """Drive the run with the manufactured solution's body force (:mod:`parmpm.manufactured`)."""
+        from parmpm.manufactured import body_force, frequency
+        from parmpm.materials import PARAM
+
+        c, row = frequency(self.params), self.params[0]
+        lam, mu, rho = row[PARAM["lam"]], row[PARAM["mu"]], row[PARAM["density"]]
+        d = self.dim
+        self.stepper.forcing = lambda t, P, out: body_force(d, P.x0, t, A, c, lam, mu, rho, out)
 
     @classmethod
     def from_checkpoint(cls, path, overrides=(), out_dir=None, quiet=False, comm=None):
@@ -196,7 +218,8 @@ class Simulation:
 
         P = self.particles
         pieces = self.components()
-        sums, maxes = self.metrics.terms(P.gid, P.x, P.v, P.F)
+        sums, maxes = self.metrics.terms(P.gid, P.x, P.v, P.F, t=self.t, particles=P,
+                                         method=self.disc.method, lcr=self.disc.lcr)
         per_patch = patch_sums(P.start, np.ascontiguousarray(sums))
         total = ordered_sum(self.comm, self.patches.local_ids, per_patch)
         maxes = allreduce_max(self.comm, maxes) if maxes.size else maxes
@@ -229,17 +252,20 @@ class Simulation:
         return np.linalg.norm(self.particles.F[:, :, axis], axis=1)
 
     def domain_corners(self) -> np.ndarray | None:
-        """(N, 4, 2) CPDI domain corners (scaled domains as the interpolation sees them), 2D."""
-        if self.dim != 2 or self.disc.method != CPDI:
+        """(N, 4, 2) domain corners of this rank's particles as the interpolation sees them
+        (scaled CPDI domains, cpGIMP boxes, ...; :mod:`parmpm.domains`); 2D only."""
+        if self.dim != 2:
             return None
+        from parmpm.domains import domain_corners
+
         P = self.particles
-        R = np.zeros((3, 3))
-        corners = np.zeros((P.n, 4, 2))
-        signs = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
-        for i in range(P.n):  # output only, not on the time-step path
-            domain_matrix(2, CPDI, self.disc.lcr, P.F[i], P.r0[i], R)
-            corners[i] = P.x[i] + signs @ R[:2, :2].T
-        return corners
+        return domain_corners(2, self.disc.method, self.disc.lcr, P.x, P.F, P.r0, P.lh0)
+
+    def output(self, writer) -> None:
+        """An output time: the snapshot (if enabled), then every observer (collective)."""
+        self.snapshot(writer)
+        for observe in self.observers:
+            observe(self)
 
     def snapshot(self, writer) -> None:
         if not self.data["output"]["snapshots"]:
@@ -394,10 +420,10 @@ class Simulation:
         try:
             if self.restart is None:  # a restarted run has these from before
                 self.sample_metrics()
-                self.snapshot(writer)
+                self.output(writer)
             while not self.done():
                 dt = self.next_dt()
-                self.vmax = self.stepper.step(dt, self.gravity(self.t))
+                self.vmax = self.stepper.step(dt, self.gravity(self.t), self.t)
                 self.t += dt
                 self.nstep += 1
                 self.last_dt = dt
@@ -412,11 +438,11 @@ class Simulation:
                 if self.nstep % me == 0 and self.sample_metrics() > 1 and stop_on_sep:
                     self.stopped = "separated"
                     log.info("material separated at t = %.6g s: stopping (metrics.stop_on_separation)", self.t)
-                    self.snapshot(writer)
+                    self.output(writer)
                     break
                 due = (every_n and self.nstep % every_n == 0) or self.t >= self.next_out * (1 - 1e-12)
                 if due or self.done():
-                    self.snapshot(writer)
+                    self.output(writer)
                     while self.next_out <= self.t * (1 + 1e-12):
                         self.next_out += every_t
                 if self.stepper.stop_requested:

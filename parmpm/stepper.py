@@ -65,9 +65,11 @@ class Stepper:
 
     def __init__(self, disc: Discretisation, particles: Particles, patches: PatchSet,
                  params: np.ndarray, bc: np.ndarray, regions: np.ndarray, update: str,
-                 flip: float, damping: float, n_total: int):
+                 flip: float, damping: float, n_total: int, region_normal: np.ndarray | None = None):
         self.disc, self.P, self.patches = disc, particles, patches
         self.params, self.bc, self.regions = params, bc, regions
+        self.region_normal = (np.full(regions.shape[0], -1, np.int64) if region_normal is None
+                              else np.asarray(region_normal, np.int64))
         self.update, self.flip, self.damping = update, flip, damping
         self.comm = patches.comm
         self.n_total = n_total
@@ -81,6 +83,8 @@ class Stepper:
         self.timers = dict.fromkeys(PHASES, 0.0)
         self.migrated = 0
         self._new_patch = np.zeros(0, np.int64)
+        self.forcing = None                 # f(t, particles, out): per-particle body force
+        self._bforce = np.zeros((0, particles.dim))
         self._patches_changed(force=True)
 
     # --- patch set ------------------------------------------------------------------------------
@@ -108,7 +112,7 @@ class Stepper:
 
     def _grid_update(self, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
         D = self.disc
-        grid_update(D.dim, D.own_lo, D.own_hi, D.base, D.nloc, D.nglob, self.bc, self.regions,
+        grid_update(D.dim, D.own_lo, D.own_hi, D.base, D.nloc, D.nglob, self.bc, self.regions, self.region_normal,
                     D.origin3, D.h3, dt, gravity, self.damping, self.mass_eps, self.gm, self.gmv,
                     self.gf, self.gvel, self.gdv, momentum_only)
 
@@ -117,13 +121,19 @@ class Stepper:
         self.timers[phase] += t - t0
         return t
 
-    def step(self, dt: float, gravity: np.ndarray) -> float:
-        """Advance this rank's particles by ``dt`` (collective: every rank calls it); returns the
-        largest ``c + |v|`` over all ranks for the next CFL step."""
+    def step(self, dt: float, gravity: np.ndarray, time_now: float = 0.0) -> float:
+        """Advance this rank's particles from ``time_now`` by ``dt`` (collective: every rank
+        calls it); returns the largest ``c + |v|`` over all ranks for the next CFL step."""
         P, plan = self.P, self.plan
         args = self._args()
         t = time.perf_counter()
-        p2g(*args, P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress,
+        bforce = self._bforce[:0]
+        if self.forcing is not None:
+            if self._bforce.shape[0] != P.n:
+                self._bforce = np.zeros((P.n, P.dim))
+            bforce = self._bforce
+            self.forcing(time_now, P, bforce)
+        p2g(*args, P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress, bforce,
             self.gm, self.gmv, self.gf, self.err)
         self._check("p2g")
         t = self._lap("p2g", t)

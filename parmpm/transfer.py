@@ -5,8 +5,9 @@ Every kernel walks patches in order and each patch's particles in their stored o
 so each patch's partial sums are a deterministic function of its own particles.
 
 * ``p2g``: ``m_i = Σ φ_ip m_p``, ``(mv)_i = Σ φ_ip m_p v_p``,
-  ``f_i = −Σ V_p σ_p ∇φ_ip`` with ``V_p = J_p V0_p`` (the material volume, never the scaled CPDI
-  domain's);
+  ``f_i = −Σ V_p σ_p ∇φ_ip (+ Σ φ_ip m_p b_p)`` with ``V_p = J_p V0_p`` (the material volume, never
+  the scaled CPDI domain's) and ``b_p`` a per-particle body force when one is given (an empty
+  ``bforce`` means none; gravity is added on the grid);
 * ``p2g_momentum``: the MUSL re-map of particle momentum;
 * ``g2p``: FLIP/PIC velocity ``v_p ← α(v_p + Σ φ Δv_i) + (1−α) Σ φ v_i``, position
   ``x_p += Δt Σ φ v_i``, velocity gradient ``L_p = Σ v_i ⊗ ∇φ_ip``, ``F ← (I + Δt L) F`` and stress.
@@ -40,8 +41,9 @@ def _scratch(nloc, d):
 
 @kernel
 def p2g(method, d, lcr, start, base, nloc, nglob, origin, inv_h,
-        x, v, F, r0, lh0, mass, vol0, stress, gm, gmv, gf, err):
+        x, v, F, r0, lh0, mass, vol0, stress, bforce, gm, gmv, gf, err):
     R, C, xi, nk, jk, wk, dwk, idx, w, g = _scratch(nloc, d)
+    forced = bforce.shape[0] > 0
     gm[:] = 0.0
     gmv[:] = 0.0
     gf[:] = 0.0
@@ -68,6 +70,8 @@ def p2g(method, d, lcr, start, base, nloc, nglob, origin, inv_h,
                     for b in range(d):
                         s += stress[i, a, b] * g[e, b]
                     gf[p, node, a] -= V * s
+                    if forced:
+                        gf[p, node, a] += mw * bforce[i, a]
 
 
 @kernel

@@ -40,7 +40,7 @@ def test_scene_block_and_margin(dim):
         assert body["min"][k] >= 4 * h - 1e-12
         assert data["grid"]["cells"][k] * h - body["max"][k] >= 4 * h - 1e-12
     assert data["gravity"]["g"] == [0.0] * dim
-    assert all(v == "free" for k, v in data["boundary"].items() if k != "fixed_regions")
+    assert all(v == "free" for k, v in data["boundary"].items() if not k.endswith("_regions"))
     assert not data["boundary"]["fixed_regions"]
     assert not data["output"]["snapshots"] and not data["output"]["figure"]
     assert build_bench_scene(dim, "cpdi", 5000, 2, 4).lcr == pytest.approx(2 * h)

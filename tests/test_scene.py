@@ -75,7 +75,8 @@ def test_hanging_bar_resolved():
     assert d["grid"] == {"origin": [-0.5, -3.0], "cell_size": [0.1, 0.1], "cells": [20, 32],
                          "patch_size": [8, 8], "ghost": "auto"}
     assert d["boundary"] == {"x_min": "free", "x_max": "free", "y_min": "free", "y_max": "free",
-                             "fixed_regions": [{"min": [-0.5, 0.0], "max": [1.5, 0.2]}]}
+                             "fixed_regions": [{"min": [-0.5, 0.0], "max": [1.5, 0.2]}],
+                             "slip_regions": []}
     assert d["materials"]["bar"]["model"] == "neo_hookean"
     assert d["bodies"][0]["ppc"] == [3, 3]
     assert d["bodies"][0]["vibration"] is None
@@ -93,11 +94,11 @@ def test_other_builtins_resolved():
     bar1 = load_scene("hanging_bar_1d").data
     assert bar1["bodies"][0]["min"] == [-1.0] and bar1["bodies"][0]["max"] == [0.0]
     assert bar1["boundary"] == {"x_min": "free", "x_max": "free",
-                                "fixed_regions": [{"min": [0.0], "max": [0.2]}]}
+                                "fixed_regions": [{"min": [0.0], "max": [0.2]}], "slip_regions": []}
     assert bar1["metrics"]["axis"] == 0
     bar3 = load_scene("hanging_bar_3d").data
     assert bar3["grid"]["cells"] == [9, 16, 9] and bar3["metrics"]["axis"] == 1
-    assert bar3["boundary"]["fixed_regions"][0]["min"][1] == 0.0 and len(bar3["boundary"]) == 7
+    assert bar3["boundary"]["fixed_regions"][0]["min"][1] == 0.0 and len(bar3["boundary"]) == 8
     vib = load_scene("vibrating_bar").data
     assert vib["materials"]["bar"]["poisson_ratio"] == 0.0
     assert vib["bodies"][0]["vibration"] == {"amplitude": 0.1, "mode": 1, "axis": 0}
@@ -165,7 +166,8 @@ def test_disk_and_sphere(tmp_path):
     scene = load_scene(_write(tmp_path, text))
     assert scene.data["bodies"][0] == {
         "shape": "disk", "center": [2.0, 2.0], "radius": 0.5, "material": "rubber",
-        "ppc": [2, 2], "velocity": [0.0, 0.0], "vibration": None}
+        "ppc": [2, 2], "velocity": [0.0, 0.0], "vibration": None,
+        "angular_velocity": None}
     assert _round_trip(scene, tmp_path).data == scene.data
     scene = load_scene("hanging_bar_3d", ['bodies.0={shape = "sphere", center = [0.5, -0.5, 0.5], '
                                           'radius = 0.5, material = "bar"}'])

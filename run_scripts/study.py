@@ -1,0 +1,222 @@
+"""What every study script shares: MPI-aware case runs, CSV rows, figures, argument defaults.
+
+A study is a loop over cases (scene + overrides); each case is one collective
+:class:`parmpm.Simulation` run on all ranks of ``COMM_WORLD`` (so ``mpirun -n 2 python
+run_scripts/<study>.py`` gives results identical to one rank: the solver is bit-identical on any
+rank count). Only rank 0 writes the CSV and the PNGs. Any exception on any rank aborts every
+rank (``main_guard``), so a study never hangs under mpirun.
+
+Outputs: ``--out`` (default ``run_scripts/out/<study>``) gets the CSV; figures go to
+``docs/figures`` for a full run and next to the CSV in ``--quick`` mode (so the smoke tests never
+touch the committed figures).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+import tempfile
+import time
+import traceback
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+FIGURES = ROOT / "docs" / "figures"
+
+
+def world():
+    from decomposition import world as _world
+    return _world()
+
+
+def is_root(comm) -> bool:
+    return comm.Get_rank() == 0
+
+
+def parser(doc: str) -> argparse.ArgumentParser:
+    """Arguments every study takes: ``--quick`` (small and fast, what the tests run), ``--out``
+    (CSV folder) and ``--figures`` (PNG folder)."""
+    p = argparse.ArgumentParser(description=doc.strip().splitlines()[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--quick", action="store_true", help="small grids and few cases (seconds)")
+    p.add_argument("--out", type=Path, default=None, help="folder for the CSV (default run_scripts/out/<study>)")
+    p.add_argument("--figures", type=Path, default=None,
+                   help="folder for the PNGs (default docs/figures; with --quick: --out)")
+    return p
+
+
+def folders(args, study: str) -> tuple[Path, Path]:
+    """(csv folder, figure folder) for ``args`` (see the module docstring)."""
+    out = args.out or ROOT / "run_scripts" / "out" / study
+    figs = args.figures or (out if args.quick else FIGURES)
+    return Path(out), Path(figs)
+
+
+def run_case(scene, overrides=(), comm=None, observers=(), out_dir=None) -> tuple[dict, float]:
+    """Run one case on every rank of ``comm`` with output files off; returns (summary, wall s).
+    ``scene`` is a built-in name, a TOML path or a :class:`parmpm.Scene`."""
+    import parmpm
+
+    overrides = list(overrides) + ["output.snapshots=false", "output.figure=false"]
+    if not isinstance(scene, parmpm.Scene):
+        scene = parmpm.load_scene(scene, overrides)
+    comm = comm if comm is not None else world()
+    tmp = None
+    if out_dir is None:
+        tmp = comm.bcast(tempfile.mkdtemp(prefix="parmpm-study-") if is_root(comm) else None)
+        out_dir = tmp
+    sim = parmpm.Simulation(scene, out_dir, quiet=True, comm=comm)
+    sim.observers.extend(observers)
+    comm.Barrier()
+    t0 = time.perf_counter()
+    summary = sim.run()
+    wall = time.perf_counter() - t0
+    from decomposition import allreduce_max
+    return summary, float(allreduce_max(comm, np.array([wall]))[0])
+
+
+def write_csv(path: Path, rows: list[dict], comm=None) -> None:
+    """Rank 0 writes ``rows`` (dicts with the same keys) as CSV; floats with full precision."""
+    if comm is not None and not is_root(comm):
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    keys = list(rows[0]) if rows else []
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: _cell(v) for k, v in r.items()})
+
+
+def _cell(v):
+    if isinstance(v, float):
+        return "" if not math.isfinite(v) else repr(v)
+    if v is None:
+        return ""
+    return v
+
+
+def read_csv(path: Path) -> list[dict]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def figure(nrows=1, ncols=1, size=(6.4, 4.8)):
+    """(fig, axes) on an Agg canvas (no pyplot state, headless)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size, dpi=130)
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(nrows, ncols, squeeze=False)
+    return fig, axes
+
+
+def save(fig, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, format="png")
+    return path
+
+
+def observed_orders(h, err) -> list[float]:
+    """``log2``-style observed orders ``log(e_i/e_{i+1}) / log(h_i/h_{i+1})`` between successive
+    resolutions (Firedrake's convergence tests)."""
+    h, err = np.asarray(h, float), np.asarray(err, float)
+    return [float(np.log(err[i] / err[i + 1]) / np.log(h[i] / h[i + 1])) for i in range(len(h) - 1)]
+
+
+def pareto_front(cost, err) -> np.ndarray:
+    """Indices of the points no other point beats in both cost and error (sorted by cost)."""
+    cost, err = np.asarray(cost, float), np.asarray(err, float)
+    order = np.lexsort((err, cost))
+    front, best = [], math.inf
+    for i in order:
+        if err[i] < best:
+            front.append(int(i))
+            best = err[i]
+    return np.asarray(front, int)
+
+
+def main_guard(main) -> None:
+    """Run ``main()``; an exception on any rank prints its traceback and aborts every rank."""
+    comm = world()
+    try:
+        code = main()
+    except SystemExit:
+        raise
+    except BaseException:
+        traceback.print_exc()
+        sys.stderr.flush()
+        if comm.Get_size() > 1:
+            comm.Abort(1)
+        sys.exit(1)
+    sys.exit(code or 0)
+
+
+def manufactured_scene(dim: int, cells: int, interpolator: str = "cpdi", update: str = "auto",
+                       ppc: int = 2, amplitude: float = 0.05, cfl: float = 0.2,
+                       periods: float = 1.0, lcr: str = "none", patch_size: int | None = None):
+    """The axis-aligned manufactured solution (the built-in ``manufactured`` scene, any
+    dimension): unit cube of ``cells`` cells per axis plus two cells of room on each side,
+    symmetry planes on its faces, Uintah's parameters (E = 1e4, ν = 0.3, ρ0 = 1: period 0.02 s)."""
+    from parmpm.scene import scene_from_toml
+
+    h = 1.0 / cells
+    axes = "xyz"[:dim]
+
+    def vec(v):
+        return "[" + ", ".join(repr(float(c)) for c in v) + "]"
+
+    planes = []
+    for k, a in enumerate(axes):
+        for lo_face in (True, False):
+            lo, hi = [-10.0] * dim, [10.0] * dim
+            if lo_face:
+                hi[k] = 0.0
+            else:
+                lo[k] = 1.0
+            planes.append(f'{{ min = {vec(lo)}, max = {vec(hi)}, normal = "{a}" }}')
+    n = cells + 4
+    ps = patch_size or max(4, (n + 1) // 2)
+    lcr_line = f'lcr = "{lcr}"\n' if interpolator == "cpdi" else ""
+    text = f"""
+name = "manufactured_{dim}d"
+dim = {dim}
+[grid]
+origin = {-2 * h!r}
+cell_size = {h!r}
+cells = {n}
+patch_size = {ps}
+[materials.block]
+model = "neo_hookean"
+density = 1.0
+youngs_modulus = 1.0e4
+poisson_ratio = 0.3
+[[bodies]]
+shape = "box"
+min = {vec([0.0] * dim)}
+max = {vec([1.0] * dim)}
+material = "block"
+ppc = {ppc}
+[manufactured]
+amplitude = {amplitude!r}
+[method]
+interpolator = "{interpolator}"
+update = "{update}"
+{lcr_line}[boundary]
+slip_regions = [{", ".join(planes)}]
+[time]
+end = {0.02 * periods!r}
+cfl = {cfl!r}
+[output]
+every = {0.02 * periods / 20!r}
+snapshots = false
+figure = false
+[metrics]
+kind = "manufactured"
+"""
+    return scene_from_toml(text, f"<manufactured {dim}D, {cells} cells>")
