@@ -1,7 +1,8 @@
 """Rank-count independence, bit for bit (DESIGN.md §5): the same scene on 1, 2, 3 and 4 ranks
 gives the identical final particle state (x, v, F, stress matched by global id) and identical
-summary metrics — for 1D, 2D and 3D, every interpolator, USL and MUSL, unscaled CPDI, and a scene
-whose particles cross patch and rank boundaries many times and that re-balances.
+summary metrics — for 1D, 2D and 3D, every interpolator, USL and MUSL, unscaled CPDI, a scene
+whose particles cross patch and rank boundaries many times and that re-balances, the
+manufactured solution (per-particle body force, slip regions) and a spinning disk.
 
 Each rank count is one ``mpirun`` subprocess (with a timeout, so a hang fails) running every case
 through ``tests/mpi_driver.py``.
@@ -38,6 +39,12 @@ def _cases() -> dict:
     cases["1d_cpdi_idle_ranks"] = ["hanging_bar_1d", ["grid.patch_size=16", "time.steps=30"]]
     for m in ("cpdi", "mpm", "ugimp"):
         cases[f"crossing_{m}"] = [CROSSING, [f"method.interpolator={m}"]]
+    # per-particle body force and slip regions (manufactured solution); a spinning body
+    cases["2d_manufactured_cpgimp"] = ["manufactured", OFF + ["method.interpolator=cpgimp",
+                                                              "method.lcr=none", "grid.patch_size=5",
+                                                              "time.steps=40"]]
+    cases["2d_spinning_cpdi"] = ["spinning_disk", OFF + ["grid.patch_size=6", "time.steps=60",
+                                                         "metrics.every_steps=5"]]
     return cases
 
 
