@@ -25,8 +25,10 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   ``[bodies.vibration]`` (box only): ``amplitude`` (required), ``mode`` (default 1), ``axis``
   (default 0): initial velocity along ``axis`` is ``amplitude·sin(β_n (X − min[axis]))`` with
   ``β_n = (2n − 1)π / (2L)``, ``L`` the box length along ``axis`` (the first mode of a bar fixed
-  at ``min[axis]`` and free at ``max[axis]``; Sulsky et al. 1995, Bardenhagen 2002). Every
-  body's bounding box lies inside the grid.
+  at ``min[axis]`` and free at ``max[axis]``; Sulsky et al. 1995, Bardenhagen 2002);
+  ``angular_velocity`` (2D: a number, rad/s counter-clockwise; 3D: a vector; default none): adds
+  the rigid spin ``ω × (x − centre)`` about the body's centre. Every body's bounding box lies
+  inside the grid.
 * ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi", default "cpdi"), ``lcr``
   (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none"; default "2dx" for cpdi,
   "none" otherwise, and any other value is an error with another interpolator), ``update``
@@ -34,14 +36,21 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
 * ``[gravity]``: ``g`` (default 0), ``ramp_time`` (>= 0 s, default 0: applied suddenly).
 * ``[damping]``: ``coefficient`` (>= 0 1/s, default 0).
 * ``[boundary]``: ``x_min`` ... ``z_max`` for the scene's axes only: "fixed" | "slip" | "free"
-  (default "free"); the resolved table has all ``2·dim`` keys.
+  (default "free"); the resolved table has all ``2·dim`` keys. ``fixed_regions`` (list of
+  ``{min, max}``: every node inside has ``v = 0``, e.g. a grip) and ``slip_regions`` (list of
+  ``{min, max, normal}`` with ``normal`` "x" | "y" | "z": every node inside has zero velocity
+  along ``normal``, a symmetry plane inside the grid); both default to none.
+* ``[manufactured]`` (optional): ``amplitude`` (> 0 m, required): drive the scene with the
+  axis-aligned manufactured solution (``parmpm.manufactured``; one neo-Hookean material; particles
+  start on the exact field and get its body force every step).
 * ``[time]``: ``end`` (> 0 s) and/or ``steps`` (int > 0), at least one; the run stops at
   whichever comes first (a missing one resolves to None). ``cfl`` (0 < cfl < 1, default 0.4),
   ``dt_max`` (> 0 s, default None).
 * ``[output]``: ``every`` (simulated seconds) and/or ``every_steps``; a snapshot is due whenever
   either schedule fires. If neither is given: ``every_steps = max(1, steps // 20)`` when
   ``time.steps`` is set, else ``every = end / 20``. ``snapshots``, ``figure`` (bools, default true).
-* ``[metrics]``: ``kind`` ("hanging_bar" | "vibrating_bar" | "none", default "none"),
+* ``[metrics]``: ``kind`` ("hanging_bar" | "vibrating_bar" | "manufactured" | "rotation" |
+  "none", default "none"; see ``parmpm.metrics``),
   ``every_steps`` (default 1), ``axis`` (default: the first vibration axis for vibrating_bar,
   else ``dim − 1``, the axis along which a hanging bar's gravity acts).
 * ``[decomposition]``: ``rebalance_threshold`` (>= 0, default 0.1: re-partition the patches when
@@ -69,7 +78,7 @@ from parmpm.scene_schema import lcr_length, one_line, resolve, toml_key, toml_va
 __all__ = ["Scene", "load_scene", "scene_from_toml", "builtin_scenes", "parse_lcr"]
 
 _SECTION_ORDER = ("grid", "materials", "bodies", "method", "gravity", "damping", "boundary",
-                  "time", "output", "metrics", "decomposition", "checkpoint")
+                  "manufactured", "time", "output", "metrics", "decomposition", "checkpoint")
 
 
 class Scene:
