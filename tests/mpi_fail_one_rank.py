@@ -16,13 +16,13 @@ original = stepper.Stepper.step
 calls = {"n": 0}
 
 
-def failing_step(self, dt, gravity):
+def failing_step(self, dt, gravity, *rest):
     calls["n"] += 1
     if self.patches.rank == 1 and calls["n"] == 5:
         if kind == "user":
             raise SimulationError("injected failure on rank 1 only")
         raise RuntimeError("injected bug on rank 1 only")
-    return original(self, dt, gravity)
+    return original(self, dt, gravity, *rest)
 
 
 stepper.Stepper.step = failing_step

@@ -1,0 +1,58 @@
+"""Regenerate every README figure: run each study in full mode, one after the other.
+
+    python run_scripts/make_figures.py                 # all studies, one rank each
+    python run_scripts/make_figures.py --np 2          # each under mpirun -n 2 (same numbers)
+    python run_scripts/make_figures.py gallery rotation
+
+(``make figures`` runs the first line.) Each study writes its PNGs into ``docs/figures/`` and its
+CSV into ``run_scripts/out/<study>/``. Runtime on a 2-core machine: ~20–30 minutes in all, most of
+it the stability gallery's 3D bars and the convergence study's 3D resolutions. The speed-accuracy
+chart times the solver: run it on a quiet machine.
+"""
+import argparse
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+STUDIES = {
+    "gallery": "stability_gallery.py",
+    "convergence": "convergence.py",
+    "update_order": "update_order.py",
+    "rotation": "rotation.py",
+    "speed_accuracy": "speed_accuracy.py",
+}
+
+
+def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("studies", nargs="*", help=f"which of {', '.join(STUDIES)} (default: all)")
+    p.add_argument("--np", type=int, default=1, help="MPI ranks per study (default 1)")
+    args = p.parse_args()
+    names = args.studies or list(STUDIES)
+    unknown = [n for n in names if n not in STUDIES]
+    if unknown:
+        p.error(f"unknown study {unknown[0]!r} (expected one of {', '.join(STUDIES)})")
+    launcher = []
+    if args.np > 1:
+        mpirun = Path(sys.executable).parent / "mpirun"
+        mpirun = str(mpirun) if mpirun.exists() else shutil.which("mpirun")
+        if mpirun is None:
+            print("make_figures: --np needs mpirun (install parmpm[mpich])", file=sys.stderr)
+            return 2
+        launcher = [mpirun, "-n", str(args.np)]
+    for name in names:
+        t0 = time.perf_counter()
+        print(f"== {name}", flush=True)
+        proc = subprocess.run(launcher + [sys.executable, str(HERE / STUDIES[name])])
+        if proc.returncode != 0:
+            print(f"make_figures: {name} failed (exit {proc.returncode})", file=sys.stderr)
+            return proc.returncode
+        print(f"== {name}: {time.perf_counter() - t0:.0f} s", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
