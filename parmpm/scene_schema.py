@@ -558,7 +558,7 @@ def _metrics(c: _Checker, raw: Any, dim: int, bodies: list) -> dict:
     if axis is None:
         vibrating = [b["vibration"]["axis"] for b in bodies if b["vibration"] is not None]
         axis = vibrating[0] if kind == "vibrating_bar" and vibrating else dim - 1
-    return {
+    out = {
         "kind": kind,
         "every_steps": c.integer("metrics.every_steps", t.get("every_steps", 1),
                                  "an integer >= 1", lambda n: n >= 1),
@@ -567,3 +567,7 @@ def _metrics(c: _Checker, raw: Any, dim: int, bodies: list) -> dict:
         "stop_on_separation": c.boolean("metrics.stop_on_separation",
                                         t.get("stop_on_separation", False)),
     }
+    if out["stop_on_separation"] and kind != "hanging_bar":
+        c.fail("metrics.stop_on_separation", f'only the "hanging_bar" metrics track separation, '
+                                             f'got metrics.kind "{kind}"')
+    return out

@@ -218,13 +218,14 @@ class Simulation:
         return global_components(self.comm, int(k), pairs)
 
     def sample_metrics(self) -> int:
-        """Sample the scene's metrics; returns the number of connected pieces of material."""
+        """Sample the scene's metrics; returns the number of connected pieces of material (1 when
+        the metric does not look at separation: counting them costs about a time step)."""
         if self.metrics is None:
             return 1
         from parmpm.metrics import patch_sums
 
         P = self.particles
-        pieces = self.components()
+        pieces = self.components() if self.metrics.needs_components else 1
         sums, maxes = self.metrics.terms(P.gid, P.x, P.v, P.F, t=self.t, particles=P,
                                          method=self.disc.method, lcr=self.disc.lcr)
         per_patch = patch_sums(P.start, np.ascontiguousarray(sums))

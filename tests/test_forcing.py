@@ -142,3 +142,11 @@ def test_manufactured_restart_is_bit_identical(tmp_path):
     assert again["metrics"] == full["metrics"] and again["final"] == full["final"]
     order_a, order_b = np.argsort(a.particles.gid), np.argsort(b.particles.gid)
     np.testing.assert_array_equal(a.particles.x[order_a], b.particles.x[order_b])
+
+
+def test_only_separation_metrics_count_pieces_and_stop_on_separation():
+    from parmpm.metrics import METRICS
+
+    assert {k for k, cls in METRICS.items() if cls.needs_components} == {"hanging_bar"}
+    with pytest.raises(SceneError, match='metrics.stop_on_separation: only the "hanging_bar"'):
+        parmpm.load_scene("manufactured", ["metrics.stop_on_separation=true"])

@@ -225,9 +225,11 @@ def _to_plain(value):
 
 
 class _History:
-    """Checkpointing of a metric's history: the attributes named in ``_STATE``."""
+    """Checkpointing of a metric's history: the attributes named in ``_STATE``. A metric that
+    records separation sets ``needs_components`` (the run then counts connected pieces)."""
 
     _STATE: tuple[str, ...] = ()
+    needs_components = False
 
     def state(self) -> dict:
         """The history so far (JSON-ready), for checkpoints."""

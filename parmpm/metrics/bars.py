@@ -228,6 +228,7 @@ class VibratingBarMetrics(_History):
         }
 
 
+HangingBarMetrics.needs_components = True
 HangingBarMetrics._STATE = ("times", "tip_history", "max_stretch_history", "components_history",
                             "separation_time", "stretch_at_separation")
 VibratingBarMetrics._STATE = ("times", "com_velocity", "com_velocity_exact")
