@@ -2,10 +2,11 @@
 survive large rotation?
 
 Body 0 spins about its centre with the angular velocity ω of its ``angular_velocity`` key
-(2D, no gravity, free boundaries). Exactly, it turns through ``θ = ω t`` with constant kinetic
-energy and angular momentum; its domains keep their size; and its stress stays of the order of
-the centrifugal scale ``ρ0 ω² R²`` (R: the largest distance of a particle from the centre). Each
-sample records:
+(2D, no gravity, free boundaries). Exactly, it keeps its angular momentum and turns through about
+``θ = ω t``; started unstressed, it "breathes" (expands radially and oscillates about the
+centrifugally stretched state), so its kinetic energy dips periodically by a little, and its
+stress stays of the order of the centrifugal scale ``ρ0 ω² R²`` (R: the largest distance of a
+particle from the centre); its domains keep their size. Each sample records:
 
 * ``area_ratio``: total domain size over its initial value (:func:`parmpm.domains.domain_sizes`:
   cpGIMP's ``l0·|F_kk|`` boxes shrink as ``cos² θ`` towards 90°; CPDI's ``R = F·R0`` keeps its
