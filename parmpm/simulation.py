@@ -24,7 +24,8 @@ from parmpm.materials import material_table
 from parmpm.particles import Particles, bodies_to_particles, locate_patches
 from parmpm.progress import Progress
 from parmpm.shapes import CPDI, INTERPOLATORS
-from parmpm.stepper import PHASES, Discretisation, Stepper, fmt_vec, reach_message
+from parmpm.stepper import (PHASES, Discretisation, Stepper, fmt_vec, reach_message,
+                            support_reach)
 from parmpm.transfer import max_speed, support_nodes
 
 log = get_logger(__name__)
@@ -201,11 +202,14 @@ class Simulation:
         err = np.full(1, -1, np.int64)
         support_nodes(D.method, D.dim, D.lcr, P.start, D.base, D.nloc, D.nglob, D.origin3,
                       D.inv_h3, P.x, P.F, P.r0, P.lh0, nodes, count, err)
-        # a support past the ghost layer would cut a particle's node list short and fake a
-        # separation: stop with the reach error (the next step's p2g would raise it anyway)
-        if int(err[0]) >= 0 and self.stepper.error is None:
+        # A support past the ghost layer (inside the grid) would leave that particle without
+        # nodes and fake a separation: stop with the reach error (the next p2g would raise it).
+        # A support leaving the grid belongs to material on its way out: it counts as a piece of
+        # its own, and the next step stops the run unless the separation stops it first.
+        bad = int(err[0]) >= 0 and support_reach(self.stepper, int(err[0]))[1]
+        if bad and self.stepper.error is None:
             self.stepper.error = reach_message(self.stepper, int(err[0]), "the separation check")
-        failed = allreduce_max(self.comm, np.array([self.rank + 1.0 if int(err[0]) >= 0 else 0.0]))[0]
+        failed = allreduce_max(self.comm, np.array([self.rank + 1.0 if bad else 0.0]))[0]
         if failed > 0:
             raise SimulationError(self.comm.bcast(self.stepper.error, root=int(failed) - 1))
         compact, n_nodes = compact_nodes(nodes, count)

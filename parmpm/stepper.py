@@ -242,14 +242,13 @@ def fmt_vec(v) -> str:
     return "(" + ", ".join(f"{float(c):.4g}" for c in np.atleast_1d(v)) + ")"
 
 
-def reach_message(stepper: Stepper, i: int, phase: str) -> str:
-    """The one-line explanation of a particle whose support leaves its patch's ghost layer."""
+def support_reach(stepper: Stepper, i: int) -> tuple[float, bool]:
+    """(Longest reach of particle ``i``'s support from its centre, is the support on the grid?)."""
     from parmpm.shapes import CPDI, CPGIMP
     from parmpm.shapes.scaling import longest_corner
     from parmpm.shapes.support import domain_matrix
 
     D, P = stepper.disc, stepper.P
-    g, dmin = D.layout.ghost, float(D.h.min())
     if D.method == CPDI:
         R = np.zeros((3, 3))
         domain_matrix(D.dim, D.method, D.lcr, P.F[i], P.r0[i], R)
@@ -260,6 +259,15 @@ def reach_message(stepper: Stepper, i: int, phase: str) -> str:
         reach = float(np.max(P.lh0[i]))
     x = P.x[i]
     inside = np.all(x - reach >= D.origin) and np.all(x + reach <= D.origin + D.h * D.layout.cells)
+    return reach, bool(inside)
+
+
+def reach_message(stepper: Stepper, i: int, phase: str) -> str:
+    """The one-line explanation of a particle whose support leaves its patch's ghost layer."""
+    D, P = stepper.disc, stepper.P
+    g, dmin = D.layout.ghost, float(D.h.min())
+    reach, inside = support_reach(stepper, i)
+    x = P.x[i]
     where = "beyond the ghost layer of its patch" if inside else "outside the grid"
     hint = (f"use method.lcr <= {g}dx ({g * dmin:.4g} m) or a larger grid.ghost"
             if inside else "enlarge the grid")

@@ -58,11 +58,14 @@ def folders(args, study: str) -> tuple[Path, Path]:
 
 def run_case(scene, overrides=(), comm=None, observers=(), out_dir=None) -> tuple[dict, float]:
     """Run one case on every rank of ``comm`` with output files off; returns (summary, wall s).
-    ``scene`` is a built-in name, a TOML path or a :class:`parmpm.Scene`."""
+    ``scene`` is a built-in name, a TOML path or a :class:`parmpm.Scene`; ``overrides`` apply to
+    any of them."""
     import parmpm
 
     overrides = list(overrides) + ["output.snapshots=false", "output.figure=false"]
-    if not isinstance(scene, parmpm.Scene):
+    if isinstance(scene, parmpm.Scene):
+        scene = scene_with(scene, overrides)
+    else:
         scene = parmpm.load_scene(scene, overrides)
     comm = comm if comm is not None else world()
     tmp = None
@@ -229,8 +232,8 @@ kind = "manufactured"
 
 def scene_with(scene, overrides=()):
     """``scene`` (a :class:`parmpm.Scene`, e.g. from :func:`manufactured_scene`) with
-    ``section.key=value`` overrides applied on top (:func:`run_case` applies its overrides only
-    to scenes it loads by name or path); the round trip is ``Scene.to_toml`` → ``scene_from_toml``."""
+    ``section.key=value`` overrides applied on top; the round trip is ``Scene.to_toml`` →
+    ``scene_from_toml``."""
     from parmpm.scene import scene_from_toml
 
     return scene_from_toml(scene.to_toml(), scene.source, list(overrides), default_name=scene.name)
