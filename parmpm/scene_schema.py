@@ -567,6 +567,8 @@ def _metrics(c: _Checker, raw: Any, dim: int, bodies: list) -> dict:
         "stop_on_separation": c.boolean("metrics.stop_on_separation",
                                         t.get("stop_on_separation", False)),
     }
+    if kind == "none":  # no metrics, nothing to stop on (e.g. --set metrics.kind=none)
+        out["stop_on_separation"] = False
     if out["stop_on_separation"] and kind != "hanging_bar":
         c.fail("metrics.stop_on_separation", f'only the "hanging_bar" metrics track separation, '
                                              f'got metrics.kind "{kind}"')
