@@ -79,15 +79,13 @@ ranks (only ``wall_seconds`` differs)::
 from __future__ import annotations
 
 import math
-import shutil
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-from study import (figure, folders, is_root, main_guard, manufactured_scene, observed_orders, parser,
-                   run_case, save, scene_with, world, write_csv)
+from study import (figure, folders, is_root, main_guard, manufactured_scene, observed_orders,
+                   parser, run_case, save, scene_with, scratch_folder, world, write_csv, wrote)
 
 GROUPS = ("manufactured-1d", "manufactured-2d", "manufactured-3d", "vibrating-bar",
           "hanging-static", "hanging-dynamic")
@@ -426,12 +424,11 @@ def main() -> int:
     comm = world()
     root = is_root(comm)
     out, figs = folders(args, "convergence")
-    scratch = Path(comm.bcast(tempfile.mkdtemp(prefix="parmpm-convergence-") if root else None))
     say = (lambda *a: print(*a, flush=True)) if root else (lambda *a: None)
     mrows, vrows, srows, drows = [], [], [], []
     vib, dyn, profile, seconds = {}, {}, None, {}
     t_start = time.perf_counter()
-    try:
+    with scratch_folder(comm, "parmpm-convergence-") as scratch:
         for d in (1, 2, 3):
             if f"manufactured-{d}d" not in groups:
                 continue
@@ -473,9 +470,6 @@ def main() -> int:
                 say(f"hanging bar dynamic {m:6s} {u:4s} {n:3d} cells: tip history error {r['error']:.3e}, "
                     f"peak {r['numerical']:.4e} m (exact {r['exact']:.4e})")
             seconds["hanging-dynamic"] = time.perf_counter() - t0
-    finally:
-        if root:
-            shutil.rmtree(scratch, ignore_errors=True)
     total = time.perf_counter() - t_start
 
     series_orders(mrows, ("problem", "dim", "method", "update"))
@@ -503,7 +497,7 @@ def main() -> int:
         say(f"\n{len(mrows) + len(vbs)} runs in {total:.0f} s on {comm.Get_size()} rank(s) ("
             + ", ".join(f"{k} {v:.0f} s" for k, v in seconds.items()) + ")")
         for p in written:
-            say(f"wrote {p}" + (f" ({p.stat().st_size // 1024} KB)" if p.suffix == ".png" else ""))
+            say(wrote(p))
     return 0
 
 

@@ -65,16 +65,14 @@ Runtime, one core: full (12 runs) ~75 s (the Δx = 0.025 m runs ~15 s each); ``-
 from __future__ import annotations
 
 import math
-import shutil
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from study import (compact_png, figure, folders, is_root, main_guard, parser, run_case, save, world,
-                   write_csv)
+from study import (compact_png, figure, folders, is_root, main_guard, parser, run_case, save,
+                   scratch_folder, world, write_csv, wrote)
 
 METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
 TITLES = {"mpm": "MPM (nominal box)", "ugimp": "uGIMP", "cpgimp": "cpGIMP", "cpdi": "CPDI"}
@@ -251,10 +249,9 @@ def main() -> int:
     comm = world()
     root = is_root(comm)
     out, figs = folders(args, "rotation")
-    scratch = Path(comm.bcast(tempfile.mkdtemp(prefix="parmpm-rotation-") if root else None))
     rows, hist = [], []
     t0 = time.perf_counter()
-    try:
+    with scratch_folder(comm, "parmpm-rotation-") as scratch:
         for case in cases(args.quick, methods):
             row, h = run_one(case, comm, scratch)
             rows.append(row)
@@ -266,16 +263,13 @@ def main() -> int:
                       f"{row['energy_ratio_final']:.3f}, momentum {row['momentum_ratio_final']:.3f}; "
                       f"{row['particles']} particles, {row['steps']} steps, {row['wall_seconds']:.1f} s",
                       flush=True)
-    finally:
-        if root:
-            shutil.rmtree(scratch, ignore_errors=True)
     write_csv(out / "rotation.csv", rows, comm)
     write_csv(out / "rotation_history.csv", hist, comm)
     if root:
         path = chart(rows, hist, figs / "rotation.png")
         print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s on {comm.Get_size()} rank(s)")
         print(f"wrote {out / 'rotation.csv'} and rotation_history.csv")
-        print(f"wrote {path} ({path.stat().st_size // 1024} KB)")
+        print(wrote(path))
     return 0
 
 

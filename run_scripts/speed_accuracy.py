@@ -71,10 +71,7 @@ Errors and particle-steps are identical on any number of ranks::
 """
 from __future__ import annotations
 
-import fnmatch
 import math
-import shutil
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -82,8 +79,9 @@ from pathlib import Path
 import numpy as np
 
 from study import (ManufacturedError, compact_png, figure, folders, is_root, main_guard,
-                   manufactured_sampling, manufactured_scene, observed_orders, pareto_front, parser,
-                   run_case, save, scene_with, world, write_csv)
+                   manufactured_sampling, manufactured_scene, observed_orders, pareto_front,
+                   parser, run_case, save, scene_with, scratch_folder, select_cases, world,
+                   write_csv, wrote)
 
 METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
 TITLES = {"mpm": "MPM", "ugimp": "uGIMP", "cpgimp": "cpGIMP", "cpdi": "CPDI"}
@@ -314,15 +312,10 @@ def main() -> int:
     root = is_root(comm)
     out, figs = folders(args, "speed_accuracy")
     cases = quick_cases() if args.quick else full_cases()
-    if args.cases:
-        pats = [p.strip() for p in args.cases.split(",") if p.strip()]
-        cases = [c for c in cases if any(fnmatch.fnmatchcase(c.id, p) for p in pats)]
-    if not cases:
-        raise SystemExit(f"no case matches --cases {args.cases!r}")
-    scratch = Path(comm.bcast(tempfile.mkdtemp(prefix="parmpm-speed-") if root else None))
+    cases = select_cases(cases, args.cases)
     rows = []
     t0 = time.perf_counter()
-    try:
+    with scratch_folder(comm, "parmpm-speed-") as scratch:
         for case in cases:
             r = run_one(case, comm, scratch, max(1, args.repeat))
             rows.append(r)
@@ -331,9 +324,6 @@ def main() -> int:
                 print(f"{case.id:34s} error {err:>10s}  {r['particles']:6d} particles × "
                       f"{r['steps']:5d} steps  step {r['step_seconds']:.3g} s, "
                       f"run {r['run_seconds']:.3g} s", flush=True)
-    finally:
-        if root:
-            shutil.rmtree(scratch, ignore_errors=True)
     mark_fronts(rows)
     write_csv(out / "speed_accuracy.csv", rows, comm)
     if root:
@@ -341,7 +331,7 @@ def main() -> int:
         path = chart(rows, figs / "speed_accuracy.png")
         print(f"{len(rows)} cases in {time.perf_counter() - t0:.0f} s on {comm.Get_size()} rank(s)")
         print(f"wrote {out / 'speed_accuracy.csv'}")
-        print(f"wrote {path} ({path.stat().st_size // 1024} KB)")
+        print(wrote(path))
     return 0
 
 

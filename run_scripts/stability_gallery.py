@@ -83,18 +83,16 @@ mpm, ugimp, cpgimp, cpdi at ppc 2 and 3, cpdi with l_cr = 5.0, 1.8, 1.2·Δx/3 a
 """
 from __future__ import annotations
 
-import fnmatch
 import math
 import re
-import shutil
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from study import figure, folders, is_root, main_guard, parser, run_case, save, world, write_csv
+from study import (figure, folders, is_root, main_guard, parser, run_case, save, scratch_folder,
+                   select_cases, world, write_csv, wrote)
 
 END = 0.3             # s, the seed's end time
 FRAME_EVERY = 0.0025  # s between observer calls (frames for the figures, the support check)
@@ -437,15 +435,10 @@ def main() -> int:
     root = is_root(comm)
     out, figs = folders(args, "stability_gallery")
     cases = quick_cases() if args.quick else full_cases()
-    if args.cases:
-        pats = [p.strip() for p in args.cases.split(",") if p.strip()]
-        cases = [c for c in cases if any(fnmatch.fnmatchcase(c.id, p) for p in pats)]
-    if not cases:
-        raise SystemExit(f"no case matches --cases {args.cases!r}")
-    scratch = Path(comm.bcast(tempfile.mkdtemp(prefix="parmpm-gallery-") if root else None))
+    cases = select_cases(cases, args.cases)
     rows, panels, by_dim = [], {}, {}
     t_start = time.perf_counter()
-    try:
+    with scratch_folder(comm, "parmpm-gallery-") as scratch:
         for case in cases:
             want_frames = case.dim == 2 and case.cell == min(c.cell for c in cases if c.dim == 2)
             summary, wall, watch = run_one(case, comm, scratch, want_frames)
@@ -459,9 +452,6 @@ def main() -> int:
                     frames = [(watch.t[i], watch.corners[i], watch.stretch[i], tag)
                               for i, tag in watch.pick(r["separation_time"])]
                     panels.setdefault(case.method.label, {})[case.ppc] = (r, frames)
-    finally:
-        if root:
-            shutil.rmtree(scratch, ignore_errors=True)
     total = time.perf_counter() - t_start
     write_csv(out / "gallery.csv", rows, comm)
     if root:
@@ -476,7 +466,7 @@ def main() -> int:
               + ", ".join(f"{d}D {s:.0f} s" for d, s in sorted(by_dim.items())) + ")")
         print(f"wrote {out / 'gallery.csv'}")
         for p in written:
-            print(f"wrote {p} ({p.stat().st_size // 1024} KB)")
+            print(wrote(p))
     return 0
 
 

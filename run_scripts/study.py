@@ -13,6 +13,7 @@ touch the committed figures).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import math
 import shutil
@@ -56,6 +57,36 @@ def folders(args, study: str) -> tuple[Path, Path]:
     return Path(out), Path(figs)
 
 
+@contextlib.contextmanager
+def scratch_folder(comm, prefix: str):
+    """A temporary folder shared by every rank (rank 0 makes it and removes it afterwards)."""
+    path = Path(comm.bcast(tempfile.mkdtemp(prefix=prefix) if is_root(comm) else None))
+    try:
+        yield path
+    finally:
+        if is_root(comm):
+            shutil.rmtree(path, ignore_errors=True)
+
+
+def select_cases(cases: list, patterns: str | None) -> list:
+    """The cases whose ``id`` matches one of the comma-separated glob ``patterns`` (all when
+    None); a pattern list matching nothing is an error."""
+    import fnmatch
+
+    if patterns:
+        pats = [p.strip() for p in patterns.split(",") if p.strip()]
+        cases = [c for c in cases if any(fnmatch.fnmatchcase(c.id, p) for p in pats)]
+    if not cases:
+        raise SystemExit(f"no case matches --cases {patterns!r}")
+    return cases
+
+
+def wrote(path: Path) -> str:
+    """``wrote PATH`` (with its size for a PNG), for a study's last lines."""
+    path = Path(path)
+    return f"wrote {path}" + (f" ({path.stat().st_size // 1024} KB)" if path.suffix == ".png" else "")
+
+
 def run_case(scene, overrides=(), comm=None, observers=(), out_dir=None) -> tuple[dict, float]:
     """Run one case on every rank of ``comm`` with output files off; returns (summary, wall s).
     ``scene`` is a built-in name, a TOML path or a :class:`parmpm.Scene`; ``overrides`` apply to
@@ -68,20 +99,15 @@ def run_case(scene, overrides=(), comm=None, observers=(), out_dir=None) -> tupl
     else:
         scene = parmpm.load_scene(scene, overrides)
     comm = comm if comm is not None else world()
-    tmp = None
-    if out_dir is None:
-        tmp = comm.bcast(tempfile.mkdtemp(prefix="parmpm-study-") if is_root(comm) else None)
-        out_dir = tmp
-    try:
+    with contextlib.ExitStack() as stack:
+        if out_dir is None:
+            out_dir = stack.enter_context(scratch_folder(comm, "parmpm-study-"))
         sim = parmpm.Simulation(scene, out_dir, quiet=True, comm=comm)
         sim.observers.extend(observers)
         comm.Barrier()
         t0 = time.perf_counter()
         summary = sim.run()
         wall = time.perf_counter() - t0
-    finally:
-        if tmp is not None and is_root(comm):
-            shutil.rmtree(tmp, ignore_errors=True)
     from decomposition import allreduce_max
     return summary, float(allreduce_max(comm, np.array([wall]))[0])
 

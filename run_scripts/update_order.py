@@ -89,8 +89,6 @@ identical on any number of ranks (only ``wall_seconds`` differs)::
 from __future__ import annotations
 
 import math
-import shutil
-import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -99,7 +97,7 @@ import numpy as np
 
 from study import (ManufacturedError, compact_png, figure, folders, is_root, main_guard,
                    manufactured_sampling, manufactured_scene, parser, run_case, save, scene_with,
-                   world, write_csv)
+                   scratch_folder, world, write_csv, wrote)
 
 METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
 UPDATES = ("usl", "musl")
@@ -488,10 +486,9 @@ def main() -> int:
     comm = world()
     root = is_root(comm)
     out, figs = folders(args, "update_order")
-    scratch = Path(comm.bcast(tempfile.mkdtemp(prefix="parmpm-update-") if root else None))
     rows, histories = [], {}
     t0 = time.perf_counter()
-    try:
+    with scratch_folder(comm, "parmpm-update-") as scratch:
         for case in cases(args.quick):
             r = run_one(case, comm, scratch)
             hist = r.pop("_history", None)
@@ -509,9 +506,6 @@ def main() -> int:
                 if r["failure"]:
                     what += f" ({r['failure'][:50]})"
                 print(f"{case.id:50s} {what}", flush=True)
-    finally:
-        if root:
-            shutil.rmtree(scratch, ignore_errors=True)
     rows += cfl_limits(rows)
     write_csv(out / "update_order.csv", rows, comm)
     if root:
@@ -524,7 +518,7 @@ def main() -> int:
         path = chart(rows, histories, figs / "update_order.png")
         print(f"{len(rows)} rows in {time.perf_counter() - t0:.0f} s on {comm.Get_size()} rank(s)")
         print(f"wrote {out / 'update_order.csv'}")
-        print(f"wrote {path} ({path.stat().st_size // 1024} KB)")
+        print(wrote(path))
     return 0
 
 

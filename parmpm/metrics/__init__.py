@@ -225,11 +225,19 @@ def _to_plain(value):
 
 
 class _History:
-    """Checkpointing of a metric's history: the attributes named in ``_STATE``. A metric that
-    records separation sets ``needs_components`` (the run then counts connected pieces)."""
+    """Base of the metrics classes: checkpointing of a metric's history (the attributes named in
+    ``_STATE``) and :meth:`sample`. A metric that records separation sets ``needs_components``
+    (the run then counts connected pieces)."""
 
     _STATE: tuple[str, ...] = ()
     needs_components = False
+
+    def sample(self, t, x, v, F, components, v_time=None) -> None:
+        """Record one sample from arrays of *all* particles in global-id order (for metrics
+        whose :meth:`terms` need no particle context beyond x, v, F and t)."""
+        n = self.x0.shape[0]
+        sums, maxes = self.terms(np.arange(n), x, v, F, t=t)
+        self.record(t, sums.sum(axis=0), maxes, components, v_time)
 
     def state(self) -> dict:
         """The history so far (JSON-ready), for checkpoints."""

@@ -117,12 +117,6 @@ class HangingBarMetrics(_History):
             self.separation_time = float(t)
             self.stretch_at_separation = max_stretch
 
-    def sample(self, t, x, v, F, components, v_time=None) -> None:
-        """Record one sample from arrays of *all* particles in global-id order."""
-        n = self.mass.shape[0]
-        sums, maxes = self.terms(np.arange(n), x, v, F)
-        self.record(t, sums.sum(axis=0), maxes, components, v_time)
-
     def result(self) -> dict:
         """JSON-ready dict (see the class docstring for the definitions)."""
         stretches = np.asarray(self.max_stretch_history)
@@ -205,12 +199,6 @@ class VibratingBarMetrics(_History):
         self.times.append(float(t))
         self.com_velocity.append(vbar)
         self.com_velocity_exact.append(exact)
-
-    def sample(self, t, x, v, F, components, v_time=None) -> None:
-        """Record one sample from arrays of *all* particles in global-id order."""
-        n = self.mass.shape[0]
-        sums, maxes = self.terms(np.arange(n), x, v, F)
-        self.record(t, sums.sum(axis=0), maxes, components, v_time)
 
     def result(self) -> dict:
         """JSON-ready dict: ``com_velocity_rel_l2_error``, ``samples``, ``period``, ..."""

@@ -48,12 +48,6 @@ class ManufacturedMetrics(_History):
         self.rms.append(math.sqrt(float(sums[0]) / float(sums[1])) if sums[1] > 0 else math.nan)
         self.linf.append(float(maxes[0]))
 
-    def sample(self, t, x, v, F, components, v_time=None) -> None:
-        """Record one sample from arrays of *all* particles in global-id order."""
-        n = self.x0.shape[0]
-        sums, maxes = self.terms(np.arange(n), x, v, F, t=t)
-        self.record(t, sums.sum(axis=0), maxes, components, v_time)
-
     def result(self) -> dict:
         rms, linf = np.asarray(self.rms), np.asarray(self.linf)
         return {
