@@ -22,7 +22,9 @@ import numpy as np
 from decomposition import (PatchLayout, PatchSet, accumulate, allreduce_max, exchange, fill,
                            is_parallel, migrate)
 from parmpm.errors import SimulationError
-from parmpm.grid import grid_update
+from parmpm.grid import grid_block, grid_update
+from parmpm.kernels2d import KERNELS_2D
+from parmpm.kernels2d.cells import usable_cells
 from parmpm.particles import Particles, locate_patches
 from parmpm.transfer import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL, g2p, p2g, p2g_momentum
 
@@ -58,6 +60,7 @@ class Discretisation:
         hi = np.where(coords == lay.patches_per_axis - 1, lay.global_nodes3, lo + lay.psize3)
         self.own_lo = (lo - self.base).astype(np.int64)
         self.own_hi = (hi - self.base).astype(np.int64)
+        self.jlo, self.jhi = usable_cells(self.base, self.nloc, self.nglob)
 
 
 class Stepper:
@@ -85,6 +88,8 @@ class Stepper:
         self._new_patch = np.zeros(0, np.int64)
         self.forcing = None                 # f(t, particles, out): per-particle body force
         self._bforce = np.zeros((0, particles.dim))
+        #: hand-specialised (p2g, p2g_momentum, g2p) when there are any (2D mpm, cpdi)
+        self.kernels2d = KERNELS_2D.get(disc.method) if disc.dim == 2 else None
         self._patches_changed(force=True)
 
     # --- patch set ------------------------------------------------------------------------------
@@ -94,8 +99,13 @@ class Stepper:
         D.set_patches(ps.local_ids)
         n, nn, d = ps.n_local, D.layout.n_local_nodes, D.dim
         self.plan = ps.plan
-        self.gm = np.zeros((n, nn, 1))
-        self.gmv, self.gf, self.gvel, self.gdv = (np.zeros((n, nn, d)) for _ in range(4))
+        # two blocks (see parmpm.grid.grid_block): P2G sums (m, mv, f) and grid-update results
+        # (v, Δv); the kernels in parmpm.kernels2d take the blocks, all else the node-major views
+        self.gsum_block, self.gsum = grid_block(n, 1 + 2 * d, nn)
+        self.gnew_block, self.gnew = grid_block(n, 2 * d, nn)
+        self.gm, self.gmv, self.gf = (self.gsum[:, :, :1], self.gsum[:, :, 1:1 + d],
+                                      self.gsum[:, :, 1 + d:])
+        self.gvel, self.gdv = self.gnew[:, :, :d], self.gnew[:, :, d:]
         P.group_by_patch(P.patch, ps.slot_of, n, force=True)
 
     # --- the step -------------------------------------------------------------------------------
@@ -121,11 +131,40 @@ class Stepper:
         self.timers[phase] += t - t0
         return t
 
+    def _p2g(self, bforce: np.ndarray) -> None:
+        P, D = self.P, self.disc
+        if self.kernels2d is not None:
+            self.kernels2d[0](*self._args2d(), P.x, P.v, P.F, P.r0, P.mass, P.vol0, P.stress,
+                              bforce, self.gsum_block, self.err)
+        else:
+            p2g(*self._args(), P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress, bforce,
+                self.gm, self.gmv, self.gf, self.err)
+        self._check("p2g")
+
+    def _p2g_momentum(self) -> None:
+        P = self.P
+        if self.kernels2d is not None:
+            self.kernels2d[1](*self._args2d(), P.x, P.v, P.F, P.r0, P.mass, self.gsum_block, self.err)
+        else:
+            p2g_momentum(*self._args(), P.x, P.v, P.F, P.r0, P.lh0, P.mass, self.gmv, self.err)
+        self._check("p2g")
+
+    def _g2p(self, mode: int, dt: float) -> float:
+        P = self.P
+        if self.kernels2d is not None:
+            return self.kernels2d[2](mode, *self._args2d(), dt, self.flip, P.x, P.v, P.F, P.r0,
+                                     P.stress, P.dx, P.mat, self.params, self.gnew_block, self.err)
+        return g2p(mode, *self._args(), dt, self.flip, P.x, P.v, P.F, P.r0, P.lh0, P.stress, P.dx,
+                   P.mat, self.params, P.damage, self.gvel, self.gdv, self.err)
+
+    def _args2d(self):
+        D = self.disc
+        return (D.lcr, self.P.start, D.base, D.jlo, D.jhi, int(D.nloc[0]), D.origin3, D.inv_h3)
+
     def step(self, dt: float, gravity: np.ndarray, time_now: float = 0.0) -> float:
         """Advance this rank's particles from ``time_now`` by ``dt`` (collective: every rank
         calls it); returns the largest ``c + |v|`` over all ranks for the next CFL step."""
         P, plan = self.P, self.plan
-        args = self._args()
         t = time.perf_counter()
         bforce = self._bforce[:0]
         if self.forcing is not None:
@@ -133,25 +172,21 @@ class Stepper:
                 self._bforce = np.zeros((P.n, P.dim))
             bforce = self._bforce
             self.forcing(time_now, P, bforce)
-        p2g(*args, P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress, bforce,
-            self.gm, self.gmv, self.gf, self.err)
-        self._check("p2g")
+        self._p2g(bforce)
         t = self._lap("p2g", t)
-        accumulate(plan, self.gm, self.gmv, self.gf)
+        accumulate(plan, self.gsum)
         t = self._lap("accumulate", t)
         self._grid_update(dt, gravity, momentum_only=False)
         t = self._lap("grid", t)
-        fill(plan, self.gvel, self.gdv)
+        fill(plan, self.gnew)
         t = self._lap("fill", t)
-        g2p_tail = (P.x, P.v, P.F, P.r0, P.lh0, P.stress, P.dx, P.mat, self.params, P.damage,
-                    self.gvel, self.gdv, self.err)
         if self.update == "usl":
-            vmax = g2p(G2P_USL, *args, dt, self.flip, *g2p_tail)
+            vmax = self._g2p(G2P_USL, dt)
         else:
-            g2p(G2P_MUSL_MOTION, *args, dt, self.flip, *g2p_tail)
+            self._g2p(G2P_MUSL_MOTION, dt)
+            self._check("g2p")
             t = self._lap("g2p", t)
-            p2g_momentum(*args, P.x, P.v, P.F, P.r0, P.lh0, P.mass, self.gmv, self.err)
-            self._check("p2g")
+            self._p2g_momentum()
             t = self._lap("p2g", t)
             accumulate(plan, self.gmv)
             t = self._lap("accumulate", t)
@@ -159,7 +194,7 @@ class Stepper:
             t = self._lap("grid", t)
             fill(plan, self.gvel)
             t = self._lap("fill", t)
-            vmax = g2p(G2P_MUSL_DEFORM, *args, dt, self.flip, *g2p_tail)
+            vmax = self._g2p(G2P_MUSL_DEFORM, dt)
         self._check("g2p")
         t = self._lap("g2p", t)
         self.migrate()

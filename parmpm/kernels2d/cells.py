@@ -1,0 +1,57 @@
+"""Locate points in the cells of a patch's node box (the 2D kernels' building block).
+
+Same rule as :func:`parmpm.shapes.hat.hat_axis`, as scalar functions: a point at grid coordinate
+``ξ`` lies in cell ``j = ⌊ξ⌋`` at fraction ``f = ξ − j``; round-off on the first or last usable
+node moves it into the cell inside. Usable cells are ``jlo ≤ j ≤ jhi`` with ``jlo = max(0, base)``
+and ``jhi = min(nglob − 1, base + nloc − 1) − 1``: inside the grid and inside the patch's
+ghost-inclusive box. Cells are returned *local to the box* (``j − base``); ``-1`` marks a point
+whose nodes leave the box.
+"""
+import math
+
+import numpy as np
+
+from parmpm.jit import inline_kernel
+from parmpm.shapes.hat import SNAP
+
+
+@inline_kernel
+def cell_of(xi, base, jlo, jhi):
+    """(local cell, fraction) of one point along one axis, or ``(-1, 0)``."""
+    c = math.floor(xi)
+    f = xi - c
+    j = int(c)
+    if j > jhi and f < SNAP:
+        j -= 1
+        f = 1.0
+    elif j < jlo and f > 1.0 - SNAP:
+        j += 1
+        f = 0.0
+    if j < jlo or j > jhi:
+        return -1, 0.0
+    return j - base, f
+
+
+@inline_kernel
+def cells_of4(c0, c1, c2, c3, base, jlo, jhi):
+    """:func:`cell_of` for a CPDI particle's four corners along one axis: the local cells, the
+    fractions and whether all four are usable. The common case (every floor already usable, so
+    :func:`cell_of` would change nothing) takes one combined sign test."""
+    j0, j1, j2, j3 = int(math.floor(c0)), int(math.floor(c1)), int(math.floor(c2)), int(math.floor(c3))
+    if ((j0 - jlo) | (j1 - jlo) | (j2 - jlo) | (j3 - jlo)
+            | (jhi - j0) | (jhi - j1) | (jhi - j2) | (jhi - j3)) >= 0:
+        return (j0 - base, j1 - base, j2 - base, j3 - base,
+                c0 - j0, c1 - j1, c2 - j2, c3 - j3, True)
+    k0, f0 = cell_of(c0, base, jlo, jhi)
+    k1, f1 = cell_of(c1, base, jlo, jhi)
+    k2, f2 = cell_of(c2, base, jlo, jhi)
+    k3, f3 = cell_of(c3, base, jlo, jhi)
+    return k0, k1, k2, k3, f0, f1, f2, f3, min(k0, k1, k2, k3) >= 0
+
+
+def usable_cells(base, nloc, nglob):
+    """(jlo, jhi) per slot and axis for :func:`cell_of` from the patch boxes (numpy, at set-up)."""
+    base = np.asarray(base, np.int64)
+    jlo = np.maximum(0, base)
+    jhi = np.minimum(np.asarray(nglob) - 1, base + np.asarray(nloc) - 1) - 1
+    return jlo.astype(np.int64), jhi.astype(np.int64)

@@ -1,0 +1,147 @@
+"""2D standard-MPM transfers: the bilinear hat at the particle centre.
+
+With ``ξ = (x_p − origin)/Δx`` in cell ``(j_x, j_y)`` at fractions ``(f_x, f_y)`` the four nodes
+get ``φ = S_x S_y`` (``S = 1 − f`` or ``f``) and ``∇φ = (S'_x S_y, S_x S'_y)`` with
+``S' = ∓1/Δx``. P2G scatters ``φ m_p``, ``φ m_p v_p`` and ``−V_p σ_p ∇φ (+ φ m_p b_p)``; G2P
+gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇φ``
+(:mod:`parmpm.transfer` has the full step).
+"""
+import math
+
+from parmpm.jit import kernel
+from parmpm.kernels2d.cells import cell_of
+from parmpm.kernels2d.cpdi import G2P_MUSL_DEFORM, G2P_USL
+from parmpm.kernels2d.material import stress_and_speed
+
+
+@kernel
+def p2g_hat(lcr, start, base, jlo, jhi, L0, origin, inv_h, x, v, F, r0, mass, vol0, stress,
+            bforce, gsum, err):
+    """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` and
+    ``r0`` unused: the signature is the CPDI kernel's)."""
+    forced = bforce.shape[0] > 0
+    gsum[:] = 0.0
+    ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
+    for p in range(start.size - 1):
+        g = gsum[p]
+        bx, by = base[p, 0], base[p, 1]
+        jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
+        for i in range(start[p], start[p + 1]):
+            jx, fx = cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
+            jy, fy = cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
+            if jx < 0 or jy < 0:
+                if err[0] < 0:
+                    err[0] = i
+                continue
+            V = (F[i, 0, 0] * F[i, 1, 1] - F[i, 0, 1] * F[i, 1, 0]) * vol0[i]
+            t00, t01 = V * stress[i, 0, 0], V * stress[i, 0, 1]
+            t10, t11 = V * stress[i, 1, 0], V * stress[i, 1, 1]
+            m = mass[i]
+            mvx, mvy = m * v[i, 0], m * v[i, 1]
+            bfx = m * bforce[i, 0] if forced else 0.0
+            bfy = m * bforce[i, 1] if forced else 0.0
+            n0 = jx + L0 * jy
+            for e in range(4):
+                sx = fx if e & 1 else 1.0 - fx
+                sy = fy if e & 2 else 1.0 - fy
+                gx = (ihx if e & 1 else -ihx) * sy
+                gy = sx * (ihy if e & 2 else -ihy)
+                S = sx * sy
+                node = n0 + (e & 1) + (L0 if e & 2 else 0)
+                g[0, node] += m * S
+                g[1, node] += mvx * S
+                g[2, node] += mvy * S
+                g[3, node] += bfx * S - (t00 * gx + t01 * gy)
+                g[4, node] += bfy * S - (t10 * gx + t11 * gy)
+
+
+@kernel
+def p2g_momentum_hat(lcr, start, base, jlo, jhi, L0, origin, inv_h, x, v, F, r0, mass, gsum, err):
+    """The MUSL re-map: momentum only, into ``gsum[..., 1:3]``."""
+    gsum[:, 1:3, :] = 0.0
+    ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
+    for p in range(start.size - 1):
+        g = gsum[p]
+        bx, by = base[p, 0], base[p, 1]
+        jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
+        for i in range(start[p], start[p + 1]):
+            jx, fx = cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
+            jy, fy = cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
+            if jx < 0 or jy < 0:
+                if err[0] < 0:
+                    err[0] = i
+                continue
+            mvx, mvy = mass[i] * v[i, 0], mass[i] * v[i, 1]
+            n0 = jx + L0 * jy
+            for e in range(4):
+                S = (fx if e & 1 else 1.0 - fx) * (fy if e & 2 else 1.0 - fy)
+                node = n0 + (e & 1) + (L0 if e & 2 else 0)
+                g[1, node] += mvx * S
+                g[2, node] += mvy * S
+
+
+@kernel
+def g2p_hat(mode, lcr, start, base, jlo, jhi, L0, origin, inv_h, dt, flip,
+            x, v, F, r0, stress, dx, mat, params, gnew, err):
+    """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
+    updated."""
+    vmax = 0.0
+    ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
+    for p in range(start.size - 1):
+        g = gnew[p]
+        bx, by = base[p, 0], base[p, 1]
+        jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
+        for i in range(start[p], start[p + 1]):
+            xx, xy = x[i, 0], x[i, 1]
+            jx, fx = cell_of((xx - ox) * ihx, bx, jlx, jhx)
+            jy, fy = cell_of((xy - oy) * ihy, by, jly, jhy)
+            if jx < 0 or jy < 0:
+                if err[0] < 0:
+                    err[0] = i
+                continue
+            n0 = jx + L0 * jy
+            vx = vy = dvx = dvy = 0.0
+            l00 = l01 = l10 = l11 = 0.0
+            for e in range(4):
+                sx = fx if e & 1 else 1.0 - fx
+                sy = fy if e & 2 else 1.0 - fy
+                gx = (ihx if e & 1 else -ihx) * sy
+                gy = sx * (ihy if e & 2 else -ihy)
+                S = sx * sy
+                node = n0 + (e & 1) + (L0 if e & 2 else 0)
+                nvx, nvy = g[0, node], g[1, node]
+                vx += S * nvx
+                vy += S * nvy
+                dvx += S * g[2, node]
+                dvy += S * g[3, node]
+                l00 += nvx * gx
+                l01 += nvx * gy
+                l10 += nvy * gx
+                l11 += nvy * gy
+            if mode != G2P_MUSL_DEFORM:
+                vpx, vpy = v[i, 0], v[i, 1]
+                v[i, 0] = flip * (vpx + dvx) + (1.0 - flip) * vx
+                v[i, 1] = flip * (vpy + dvy) + (1.0 - flip) * vy
+                if mode == G2P_USL:
+                    x[i, 0] = xx + dt * vx
+                    x[i, 1] = xy + dt * vy
+                else:
+                    dx[i, 0] = dt * vx
+                    dx[i, 1] = dt * vy
+                    continue
+            else:
+                x[i, 0] = xx + dx[i, 0]
+                x[i, 1] = xy + dx[i, 1]
+            f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
+            l00, l01, l10, l11 = dt * l00, dt * l01, dt * l10, dt * l11
+            n00 = f00 + (l00 * f00 + l01 * f10)
+            n01 = f01 + (l00 * f01 + l01 * f11)
+            n10 = f10 + (l10 * f00 + l11 * f10)
+            n11 = f11 + (l10 * f01 + l11 * f11)
+            F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1] = n00, n01, n10, n11
+            s00, s01, s11, c = stress_and_speed(params, mat[i], n00, n01, n10, n11)
+            stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1] = s00, s01, s01, s11
+            s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
+            if not (s <= vmax):
+                vmax = s if s == s else math.inf
+    return vmax

@@ -1,0 +1,35 @@
+"""Plane-strain stress and wave speed of one particle, from the four entries of ``F`` and its
+material's row of the parameter table.
+
+The same models as :mod:`parmpm.materials` (neo-Hookean ``σ = [μ(b − I) + λ ln J I]/J``; small
+strain ``σ = λ tr ε I + 2με``) and the same CFL speed as :func:`parmpm.materials.wave_speed`, with
+``ln J`` computed once for both. Returns ``(σ_xx, σ_xy, σ_yy, c)``.
+"""
+import math
+
+from parmpm.jit import inline_kernel
+from parmpm.materials import LINEAR_ELASTIC
+
+
+@inline_kernel
+def stress_and_speed(params, row, f00, f01, f10, f11):
+    J = f00 * f11 - f01 * f10
+    b00 = f00 * f00 + f01 * f01
+    b01 = f00 * f10 + f01 * f11
+    b11 = f10 * f10 + f11 * f11
+    bmax = max(abs(b00) + abs(b01), abs(b01) + abs(b11))
+    lam, mu = params[row, 4], params[row, 5]
+    if int(params[row, 0]) == LINEAR_ELASTIC:
+        e00, e11 = f00 - 1.0, f11 - 1.0
+        e01 = 0.5 * (f01 + f10)
+        tr = e00 + e11
+        c = math.sqrt(params[row, 6] * max(1.0, bmax)) if J > 0.0 else math.inf
+        return 2.0 * mu * e00 + lam * tr, 2.0 * mu * e01, 2.0 * mu * e11 + lam * tr, c
+    if J > 0.0:
+        lnJ = math.log(J)
+        p = lam * lnJ
+        c = math.sqrt((mu * (bmax + 1.0) + lam * max(1.0, 1.0 - lnJ)) / params[row, 1])
+    else:
+        p = -math.inf
+        c = math.inf
+    return (mu * (b00 - 1.0) + p) / J, mu * b01 / J, (mu * (b11 - 1.0) + p) / J, c
