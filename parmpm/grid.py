@@ -61,44 +61,84 @@ def _apply_regions(d, gidx, origin, h, regions, normal, vel):
             vel[normal[r]] = 0.0
 
 
+def region_node_ranges(regions: np.ndarray, origin: np.ndarray, h: np.ndarray, d: int) -> np.ndarray:
+    """Global node-index ranges ``[lo, hi]`` (per region and axis, one node wider on each side
+    than the box) that hold every node :func:`_apply_regions` could constrain: a cheap integer
+    pre-filter, the exact test stays in :func:`_apply_regions`."""
+    out = np.zeros((regions.shape[0], 2, 3), np.int64)
+    out[:, 0, :], out[:, 1, :] = -(2**40), 2**40
+    for k in range(d):
+        out[:, 0, k] = np.floor((regions[:, 0, k] - origin[k]) / h[k]).astype(np.int64) - 1
+        out[:, 1, k] = np.ceil((regions[:, 1, k] - origin[k]) / h[k]).astype(np.int64) + 1
+    return out
+
+
 @kernel
-def grid_update(d, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, origin, h, dt, gvec, damping,
-                mass_eps, gm, gmv, gf, gvel, gdv, from_momentum_only):
-    """Owned-node update. With ``from_momentum_only`` (the MUSL re-map) only ``gvel = mv/m`` with
-    boundary conditions is formed."""
+def _near_region(gi0, gi1, gi2, ranges):
+    for r in range(ranges.shape[0]):
+        if (ranges[r, 0, 0] <= gi0 <= ranges[r, 1, 0] and ranges[r, 0, 1] <= gi1 <= ranges[r, 1, 1]
+                and ranges[r, 0, 2] <= gi2 <= ranges[r, 1, 2]):
+            return True
+    return False
+
+
+@kernel
+def grid_update(d, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, ranges, origin, h, dt,
+                gvec, damping, mass_eps, gsum, gnew, from_momentum_only):
+    """Owned-node update from the P2G block ``gsum[slot] = (m, mv, f)`` rows into the block
+    ``gnew[slot] = (v, Δv)`` rows (:func:`grid_block` layout). With ``from_momentum_only`` (the
+    MUSL re-map) only ``v = mv/m`` with boundary conditions is formed. Constraints are applied
+    only on nodes of a constrained grid face or near a region (``ranges``)."""
     vold = np.zeros(3)
     vnew = np.zeros(3)
     gidx = np.zeros(3, np.int64)
     L0, L1 = nloc[0], nloc[1]
-    for p in range(gm.shape[0]):
+    face = np.zeros((3, 2), np.bool_)  # constrained global faces
+    for k in range(d):
+        for side in range(2):
+            face[k, side] = bc[k, side] != FREE
+    nreg = ranges.shape[0]
+    for p in range(gsum.shape[0]):
+        G = gsum[p]
+        W = gnew[p]
         for i2 in range(own_lo[p, 2], own_hi[p, 2]):
+            g2 = base[p, 2] + i2
             for i1 in range(own_lo[p, 1], own_hi[p, 1]):
+                g1 = base[p, 1] + i1
+                row_edge = ((face[1, 0] and g1 == 0) or (face[1, 1] and g1 == nglob[1] - 1)
+                            or (face[2, 0] and g2 == 0) or (face[2, 1] and g2 == nglob[2] - 1))
+                row0 = L0 * (i1 + L1 * i2)
                 for i0 in range(own_lo[p, 0], own_hi[p, 0]):
-                    node = i0 + L0 * (i1 + L1 * i2)
-                    gidx[0], gidx[1], gidx[2] = base[p, 0] + i0, base[p, 1] + i1, base[p, 2] + i2
-                    m = gm[p, node, 0]
+                    node = row0 + i0
+                    g0 = base[p, 0] + i0
+                    m = G[0, node]
                     if m > mass_eps:
                         for a in range(d):
-                            vold[a] = gmv[p, node, a] / m
+                            vold[a] = G[1 + a, node] / m
                             if not from_momentum_only:
-                                vnew[a] = vold[a] + dt * (gf[p, node, a] / m + gvec[a] - damping * vold[a])
+                                vnew[a] = vold[a] + dt * (G[1 + d + a, node] / m + gvec[a]
+                                                          - damping * vold[a])
                     else:
                         for a in range(d):
                             vold[a] = 0.0
                             vnew[a] = 0.0
-                    _apply_bc(d, gidx, nglob, bc, vold)
-                    if regions.shape[0]:
-                        _apply_regions(d, gidx, origin, h, regions, normal, vold)
+                    if (row_edge or (face[0, 0] and g0 == 0) or (face[0, 1] and g0 == nglob[0] - 1)
+                            or (nreg > 0 and _near_region(g0, g1, g2, ranges))):
+                        gidx[0], gidx[1], gidx[2] = g0, g1, g2
+                        _apply_bc(d, gidx, nglob, bc, vold)
+                        if nreg:
+                            _apply_regions(d, gidx, origin, h, regions, normal, vold)
+                        if not from_momentum_only:
+                            _apply_bc(d, gidx, nglob, bc, vnew)
+                            if nreg:
+                                _apply_regions(d, gidx, origin, h, regions, normal, vnew)
                     if from_momentum_only:
                         for a in range(d):
-                            gvel[p, node, a] = vold[a]
-                        continue
-                    _apply_bc(d, gidx, nglob, bc, vnew)
-                    if regions.shape[0]:
-                        _apply_regions(d, gidx, origin, h, regions, normal, vnew)
-                    for a in range(d):
-                        gvel[p, node, a] = vnew[a]
-                        gdv[p, node, a] = vnew[a] - vold[a]
+                            W[a, node] = vold[a]
+                    else:
+                        for a in range(d):
+                            W[a, node] = vnew[a]
+                            W[d + a, node] = vnew[a] - vold[a]
 
 
 def grid_block(slots: int, rows: int, nodes: int) -> tuple[np.ndarray, np.ndarray]:

@@ -70,8 +70,8 @@ class Simulation:
         self.metrics = make_metrics(data, x0_all, mass_all)
         D = self.disc
         where = np.zeros(self.n_total, np.int64)
-        bad = locate_patches(d, x_all, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
-                             layout.patches_per_axis, where, where)
+        bad, _ = locate_patches(d, x_all, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
+                                layout.patches_per_axis, where, where)
         if bad >= 0:
             raise SimulationError(f"particle {bad} at {fmt_vec(x_all[bad])} is outside the grid")
         dec = data["decomposition"]

@@ -22,7 +22,7 @@ import numpy as np
 from decomposition import (PatchLayout, PatchSet, accumulate, allreduce_max, exchange, fill,
                            is_parallel, migrate)
 from parmpm.errors import SimulationError
-from parmpm.grid import grid_block, grid_update
+from parmpm.grid import grid_block, grid_update, region_node_ranges
 from parmpm.kernels2d import KERNELS_2D
 from parmpm.kernels2d.cells import usable_cells
 from parmpm.particles import Particles, locate_patches
@@ -74,6 +74,7 @@ class Stepper:
         self.region_normal = (np.full(regions.shape[0], -1, np.int64) if region_normal is None
                               else np.asarray(region_normal, np.int64))
         self.update, self.flip, self.damping = update, flip, damping
+        self.region_ranges = region_node_ranges(regions, disc.origin3, disc.h3, disc.dim)
         self.comm = patches.comm
         self.n_total = n_total
         self.err = np.full(1, -1, np.int64)
@@ -122,9 +123,9 @@ class Stepper:
 
     def _grid_update(self, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
         D = self.disc
-        grid_update(D.dim, D.own_lo, D.own_hi, D.base, D.nloc, D.nglob, self.bc, self.regions, self.region_normal,
-                    D.origin3, D.h3, dt, gravity, self.damping, self.mass_eps, self.gm, self.gmv,
-                    self.gf, self.gvel, self.gdv, momentum_only)
+        grid_update(D.dim, D.own_lo, D.own_hi, D.base, D.nloc, D.nglob, self.bc, self.regions,
+                    self.region_normal, self.region_ranges, D.origin3, D.h3, dt, gravity,
+                    self.damping, self.mass_eps, self.gsum_block, self.gnew_block, momentum_only)
 
     def _lap(self, phase: str, t0: float) -> float:
         t = time.perf_counter()
@@ -211,8 +212,12 @@ class Stepper:
         if self._new_patch.size != P.n:
             self._new_patch = np.zeros(P.n, np.int64)
         new = self._new_patch
-        bad = locate_patches(D.dim, P.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
-                             lay.patches_per_axis, P.patch, new)
+        bad, moved = locate_patches(D.dim, P.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
+                                    lay.patches_per_axis, P.patch, new)
+        parallel = is_parallel(self.comm)
+        if moved == 0 and not parallel:  # nothing to regroup, nothing to send
+            self._occupancy_changed = False
+            return
         if bad >= 0 and self.error is None:
             self.error = (f"particle {P.gid[bad]} at {fmt_vec(P.x[bad])} left the grid "
                           f"(origin {fmt_vec(D.origin)}, extent {fmt_vec(D.origin + D.h * lay.cells)}); "
@@ -228,7 +233,7 @@ class Stepper:
             dest[lost] = ps.rank
         occupied_before = np.diff(P.start) > 0
         keep, received = None, None
-        if is_parallel(self.comm):
+        if parallel:
             self.migrated += int(np.count_nonzero(dest != ps.rank))
             fields = P.fields()
             fields["patch"] = new
