@@ -111,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
         "bench", help="time steps of a synthetic block (time per step, phases, halo share)",
         description="Benchmark the time-step loop on a translating neo-Hookean block of about "
         "--particles particles; print time per step and its phases (rank 0). Run under mpirun "
-        "for several ranks; run_scripts/mpi_scaling.py compares rank counts.")
+        "for several ranks; run_scripts/scaling.py compares rank counts.")
     from parmpm.bench import add_arguments  # light: the solver is imported only when it runs
     add_arguments(bench)
     return parser
@@ -189,9 +189,9 @@ def _cmd_restart(args: argparse.Namespace, rank: int, comm) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace, rank: int, comm) -> int:
-    from parmpm.bench import run_bench
+    from parmpm.bench import run_benches
 
-    run_bench(args, comm)  # rank 0 prints the table
+    run_benches(args, comm)  # rank 0 prints the tables
     return 0
 
 

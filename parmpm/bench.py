@@ -3,7 +3,7 @@
 Why a separate command: a physics scene mixes solver cost with output, metrics and scene-specific
 set-up, and its particle count is fixed. The benchmark block isolates the time-step loop at a
 chosen size, so that time per step and parallel efficiency ``E(P) = T1 / (P · T_P)`` can be
-measured at 1, 2, 4, ... ranks (``run_scripts/mpi_scaling.py`` drives it).
+measured at 1, 2, 4, ... ranks (``run_scripts/scaling.py`` drives it).
 
 The scene: a neo-Hookean block (E = 1 MPa, ν = 0.3, ρ = 1050 kg/m³; the hanging bar's material)
 of ``ppc`` particles per cell per axis on a grid of 0.01 m cells, square (cube) in 2D (3D) and
@@ -16,10 +16,18 @@ so in a short run only the particles right at a boundary migrate; ``--speed 100`
 about 0.3Δx per step.
 
     python -m parmpm bench --dim 2 --method cpdi --particles 1e6 --steps 10
+    python -m parmpm bench --dim all --method all --particles 1e5 --csv bench.csv
     mpirun -n 2 python -m parmpm bench --particles 1e6 --json bench_2.json
 
-The first step (JIT compilation) is excluded from every timing by ``Simulation``; it is reported
-as ``jit_warmup_seconds`` together with the set-up time.
+Each case first runs a tiny block of the same dimension and method (``jit_warmup_seconds``: the
+kernels compiled, or loaded from numba's on-disk cache), then the measured block, whose first step
+is excluded from the timings too. Phases (seconds per step; ``reduce`` is the one end-of-step
+``Allreduce`` that agrees on the next Δt, errors and patch changes; ``sort`` regroups particles
+into (patch, id) order after some changed patch; the stress update is fused into ``g2p`` and
+reported beside it as the time the same work takes on its own). Memory per particle is the
+growth of this process's resident set from just before the block is built to its peak (grid,
+particles and every buffer; the interpreter and compiled code excluded), divided by the
+particles on the rank.
 """
 from __future__ import annotations
 
@@ -33,24 +41,31 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 from parmpm.errors import ParmpmError
 from parmpm.scene import Scene, scene_from_toml
 
-__all__ = ["build_bench_scene", "run_bench", "add_arguments", "format_result"]
+__all__ = ["build_bench_scene", "run_bench", "run_benches", "add_arguments", "format_result"]
 
 CELL = 0.01            # m
 MARGIN = 4             # empty cells on every side, before the travel allowance
 CFL = 0.4
 VELOCITY = (1.0, 0.5, 0.25)  # m/s, times --speed
 METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
+UPDATES = ("auto", "usl", "musl")
+WARMUP_PARTICLES = {1: 200, 2: 2000, 3: 4000}
 HALO_PHASES = ("accumulate", "fill")
 
 
 def build_bench_scene(dim: int, method: str = "cpdi", particles: int = 1_000_000, ppc: int = 2,
-                      steps: int = 10, patch_size: int | None = None, speed: float = 1.0) -> Scene:
+                      steps: int = 10, patch_size: int | None = None, speed: float = 1.0,
+                      update: str = "auto") -> Scene:
     """The benchmark block holding ``(n·ppc)^dim ≈ particles`` particles, n cells per axis."""
     if dim not in (1, 2, 3):
         raise ParmpmError(f"bench: --dim must be 1, 2 or 3, got {dim}")
+    if update not in UPDATES:
+        raise ParmpmError(f"bench: --update must be one of {', '.join(UPDATES)}, got {update!r}")
     for flag, value, least in (("particles", particles, 1), ("ppc", ppc, 1), ("steps", steps, 2)):
         if value < least:
             why = " (the first step is JIT warm-up, not timed)" if flag == "steps" else ""
@@ -82,6 +97,7 @@ ppc = {ppc}
 velocity = {vel}
 [method]
 interpolator = "{method}"
+update = "{update}"
 [time]
 steps = {steps}
 cfl = {CFL}
@@ -105,10 +121,31 @@ def _particle_count(text: str) -> int:
     return int(round(value))
 
 
+def _choices(allowed, cast=str):
+    """A comma-separated list of ``allowed`` values, or ``all``."""
+    def parse(text: str) -> list:
+        if text.strip() == "all":
+            return list(allowed)
+        try:
+            values = [cast(t.strip()) for t in text.split(",") if t.strip()]
+        except ValueError:
+            values = []
+        bad = [v for v in values if v not in allowed]
+        if not values or bad:
+            raise argparse.ArgumentTypeError(
+                f"expected 'all' or a comma-separated list of {', '.join(map(str, allowed))}, got {text!r}")
+        return values
+    return parse
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The bench options (shared by ``parmpm bench`` and anything that wraps it)."""
-    parser.add_argument("--dim", type=int, choices=(1, 2, 3), default=2, help="dimension (default 2)")
-    parser.add_argument("--method", choices=METHODS, default="cpdi", help="interpolator (default cpdi)")
+    parser.add_argument("--dim", type=_choices((1, 2, 3), int), default=[2],
+                        help="dimension(s): 1, 2, 3, a list such as 2,3, or all (default 2)")
+    parser.add_argument("--method", type=_choices(METHODS), default=["cpdi"],
+                        help="interpolator(s): a list such as mpm,cpdi, or all (default cpdi)")
+    parser.add_argument("--update", choices=UPDATES, default="auto",
+                        help="USL or MUSL (default auto: usl for cpdi, musl for the others)")
     parser.add_argument("--particles", type=_particle_count, default=1_000_000, metavar="N",
                         help="about how many particles (default 1e6)")
     parser.add_argument("--ppc", type=int, default=2, help="particles per cell per axis (default 2)")
@@ -119,55 +156,160 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--speed", type=float, default=1.0,
                         help="scale of the block velocity (1, 0.5, 0.25) m/s (default 1)")
     parser.add_argument("--json", type=Path, default=None, metavar="FILE",
-                        help="write the result as JSON (rank 0)")
+                        help="write the result as JSON (rank 0; a list when several cases run)")
+    parser.add_argument("--csv", type=Path, default=None, metavar="FILE",
+                        help="write one CSV row per case (rank 0)")
     parser.add_argument("-o", "--out", type=Path, default=None, metavar="DIR",
                         help="folder for summary.json (default: a temporary folder, removed)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no info messages")
 
 
-def run_bench(args: argparse.Namespace, comm=None) -> dict:
-    """Run the benchmark on every rank of ``comm`` (collective); every rank returns the result.
+def run_benches(args: argparse.Namespace, comm=None) -> list[dict]:
+    """Every (dim, method) case of ``args`` in turn (collective); rank 0 prints each table, a
+    summary when there are several, and writes ``--json`` / ``--csv``."""
+    from decomposition import SerialComm
+    from parmpm.io.summary import to_jsonable
 
-    Rank 0 prints the table and writes ``args.json`` if given.
-    """
+    comm = comm if comm is not None else SerialComm()
+    dims = args.dim if isinstance(args.dim, list) else [args.dim]
+    methods = args.method if isinstance(args.method, list) else [args.method]
+    results = []
+    for dim in dims:
+        for method in methods:
+            one = argparse.Namespace(**vars(args))
+            one.dim, one.method, one.json, one.csv = dim, method, None, None
+            results.append(run_bench(one, comm))
+    if comm.Get_rank() == 0:
+        if len(results) > 1:
+            print(format_summary(results), flush=True)
+        if args.json is not None:
+            args.json.parent.mkdir(parents=True, exist_ok=True)
+            data = results[0] if len(results) == 1 else results
+            args.json.write_text(json.dumps(to_jsonable(data), indent=2) + "\n", encoding="utf-8")
+        if args.csv is not None:
+            write_csv(args.csv, results)
+    return results
+
+
+def run_bench(args: argparse.Namespace, comm=None) -> dict:
+    """Run one benchmark case on every rank of ``comm`` (collective); every rank returns the
+    result. Rank 0 prints the table and writes ``args.json`` if given."""
     from decomposition import SerialComm
     from parmpm.io.summary import to_jsonable
     from parmpm.simulation import Simulation
 
     comm = comm if comm is not None else SerialComm()
     rank = comm.Get_rank()
+    args = argparse.Namespace(**vars(args))
+    for key in ("dim", "method"):  # one case: a one-element list from the parser is fine
+        value = getattr(args, key)
+        if isinstance(value, list):
+            if len(value) != 1:
+                raise ParmpmError(f"bench: run_bench takes one --{key}, got {value}; use run_benches")
+            setattr(args, key, value[0])
+    update = getattr(args, "update", "auto")
     scene = build_bench_scene(args.dim, args.method, args.particles, args.ppc, args.steps,
-                              args.patch_size, getattr(args, "speed", 1.0))
+                              args.patch_size, getattr(args, "speed", 1.0), update)
+    warmup = _warm_up(args.dim, args.method, update, comm)
     tmp = tempfile.mkdtemp(prefix="parmpm-bench-") if args.out is None and rank == 0 else None
     out_dir = Path(tmp) if tmp else args.out
     try:
+        _reset_peak_rss()
+        rss0 = _rss_mb()
         comm.Barrier()
         t0 = time.perf_counter()
         sim = Simulation(scene, out_dir, quiet=True, comm=comm)
         setup = time.perf_counter() - t0
         summary = sim.run()
+        stress = _time_stress(sim)
+        grown = max(0.0, _peak_rss_mb() - rss0) * 2**20 / max(1, sim.particles.n)
     finally:
         if tmp:
             shutil.rmtree(tmp, ignore_errors=True)
-    rows = comm.allgather((setup, sim.stepper.migrated, _peak_rss_mb()))
+    rows = comm.allgather((setup, sim.stepper.migrated, _peak_rss_mb(), grown, stress))
     result = summarise(summary, max(r[0] for r in rows), sum(r[1] for r in rows),
                        max(r[2] for r in rows))
+    result.update(jit_warmup_seconds=warmup, bytes_per_particle=max(r[3] for r in rows),
+                  stress_in_g2p_seconds_per_step=max(r[4] for r in rows), ppc=args.ppc,
+                  speed=getattr(args, "speed", 1.0))
     if rank == 0:
         print(format_result(result), flush=True)
-        if args.json is not None:
+        if getattr(args, "json", None) is not None:
             args.json.parent.mkdir(parents=True, exist_ok=True)
             args.json.write_text(json.dumps(to_jsonable(result), indent=2) + "\n", encoding="utf-8")
     return result
 
 
+def _warm_up(dim: int, method: str, update: str, comm) -> float:
+    """Wall time (slowest rank) of a tiny run of the same case: JIT compilation, or loading the
+    compiled kernels from numba's cache, which the measured run then no longer pays."""
+    from parmpm.simulation import Simulation
+
+    tmp = tempfile.mkdtemp(prefix="parmpm-warmup-")
+    try:
+        comm.Barrier()
+        t0 = time.perf_counter()
+        scene = build_bench_scene(dim, method, WARMUP_PARTICLES[dim], 2, 3, update=update)
+        Simulation(scene, tmp, quiet=True, comm=comm).run()
+        wall = time.perf_counter() - t0
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return max(comm.allgather(wall))
+
+
+def _time_stress(sim, repeats: int = 3) -> float:
+    """Seconds one stress update of this rank's particles takes on its own (fastest of
+    ``repeats``), on a copy of the stress so the run's state is untouched."""
+    P, st = sim.particles, sim.stepper
+    out = np.empty_like(P.stress)
+    if st.kernels2d is not None:
+        from parmpm.kernels2d.material import stress_pass
+        run = lambda: stress_pass(P.F, P.mat, st.params, out)  # noqa: E731
+    else:
+        from parmpm.transfer import stress_pass
+        run = lambda: stress_pass(P.dim, P.F, P.mat, st.params, P.damage, out)  # noqa: E731
+    run()
+    best = math.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        run()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def _rss_mb() -> float:
+    """Current resident memory of this process in MiB (Linux; 0 elsewhere)."""
+    try:
+        with open("/proc/self/statm", encoding="ascii") as f:
+            return int(f.read().split()[1]) * resource.getpagesize() / 2**20
+    except OSError:
+        return 0.0
+
+
+def _reset_peak_rss() -> None:
+    """Reset the kernel's peak-RSS mark (Linux ≥ 4.0), so each case measures its own peak."""
+    try:
+        with open("/proc/self/clear_refs", "w", encoding="ascii") as f:
+            f.write("5")
+    except OSError:
+        pass
+
+
 def _peak_rss_mb() -> float:
-    """Peak resident memory of this process in MiB (ru_maxrss: KiB on Linux, bytes on macOS)."""
+    """Peak resident memory in MiB since the last reset (VmHWM), else since the process began."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 2**10
+    except OSError:
+        pass
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return rss / 2**20 if sys.platform == "darwin" else rss / 2**10
 
 
 def summarise(summary: dict, setup_seconds: float, migrated: int, peak_rss_mb: float) -> dict:
-    """The bench result from a run summary: the timed steps exclude the first (JIT) step."""
+    """The bench result from a run summary: the timed steps exclude the first step."""
     rate = summary["particle_steps_per_second"]
     phases = summary["phase_seconds_per_step"]
     if not rate or not phases:
@@ -182,12 +324,13 @@ def summarise(summary: dict, setup_seconds: float, migrated: int, peak_rss_mb: f
         "particles": n, "steps": summary["steps"], "timed_steps": timed,
         "seconds_per_step": per_step,
         "particle_steps_per_second": rate,
+        "ns_per_particle_step": 1e9 * per_step * summary["ranks"] / n,
         "phase_seconds_per_step": dict(phases, halo=sum(phases[k] for k in HALO_PHASES)),
         "phase_share": share,
         "halo_share": share["halo"], "migrate_share": share["migrate"],
         "particles_migrated": migrated,
         "setup_seconds": setup_seconds,
-        "jit_warmup_seconds": max(0.0, summary["wall_seconds"] - timed * per_step),
+        "first_step_seconds": max(0.0, summary["wall_seconds"] - timed * per_step),
         "wall_seconds": summary["wall_seconds"],
         "peak_rss_mb_per_rank": peak_rss_mb,
         "grid": summary["grid"],
@@ -198,6 +341,7 @@ def summarise(summary: dict, setup_seconds: float, migrated: int, peak_rss_mb: f
 def format_result(r: dict) -> str:
     """The human-readable table of a bench result."""
     dec = r["decomposition"]
+    stress = r.get("stress_in_g2p_seconds_per_step")
     lines = [
         f"parmpm bench: {r['dim']}D {r['method']} ({r['update']}), {r['particles']:,} particles, "
         f"{r['ranks']} rank(s), {r['timed_steps']} timed steps",
@@ -205,15 +349,64 @@ def format_result(r: dict) -> str:
         f"{' x '.join(map(str, r['grid']['patch_size']))}: {dec['patches']} occupied of "
         f"{dec['patches_dense']}, ghost {dec['ghost']}",
         f"  time per step        {r['seconds_per_step']:.4g} s",
-        f"  particle-steps / s   {r['particle_steps_per_second']:.4g}",
-        f"  set-up; first step   {r['setup_seconds']:.3g} s; {r['jit_warmup_seconds']:.3g} s (JIT)",
-        f"  peak memory / rank   {r['peak_rss_mb_per_rank']:.0f} MiB",
+        f"  particle-steps / s   {r['particle_steps_per_second']:.4g} "
+        f"({r['ns_per_particle_step']:.1f} ns per particle-step and core)",
+        f"  JIT warm-up          {r.get('jit_warmup_seconds', float('nan')):.3g} s "
+        f"(set-up {r['setup_seconds']:.3g} s, first step {r['first_step_seconds']:.3g} s)",
+        f"  memory               {r.get('bytes_per_particle', float('nan')):.0f} B per particle "
+        f"(peak {r['peak_rss_mb_per_rank']:.0f} MiB per rank, interpreter included)",
         f"  imbalance            {dec['imbalance']:.3f} (particles per rank {dec['particles_per_rank']})",
         f"  halo traffic         {dec['halo_bytes_per_step'] / 2**20:.3g} MiB/step; "
         f"migrated {r['particles_migrated']} particles; rebalances {dec['rebalances']}",
         "  phase         s/step      share",
     ]
+    per_step = r["seconds_per_step"]
     for name, sec in r["phase_seconds_per_step"].items():
         label = "halo (a+f)" if name == "halo" else name
         lines.append(f"  {label:<12} {sec:10.4g}  {100 * r['phase_share'][name]:6.1f} %")
+        if name == "g2p" and stress is not None:
+            lines.append(f"   (stress)    {stress:10.4g}  {100 * stress / per_step:6.1f} %  "
+                         "inside g2p, timed on its own")
+    return "\n".join(lines)
+
+
+SUMMARY_COLUMNS = ("dim", "method", "update", "ranks", "particles", "ppc", "steps",
+                   "seconds_per_step", "particle_steps_per_second", "ns_per_particle_step",
+                   "bytes_per_particle", "jit_warmup_seconds", "setup_seconds",
+                   "stress_in_g2p_seconds_per_step", "halo_bytes_per_step")
+
+
+def _row(r: dict) -> dict:
+    row = {k: r.get(k) for k in SUMMARY_COLUMNS}
+    row["halo_bytes_per_step"] = r["decomposition"]["halo_bytes_per_step"]
+    for k, v in r["phase_seconds_per_step"].items():
+        row[f"phase_{k}"] = v
+    return row
+
+
+def write_csv(path: Path, results: list[dict]) -> None:
+    """One row per case: the summary columns and every phase's seconds per step."""
+    import csv
+
+    rows = [_row(r) for r in results]
+    names = list(dict.fromkeys(k for row in rows for k in row))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="", encoding="utf-8") as f:
+        writer = csv.DictWriter(f, fieldnames=names)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def format_summary(results: list[dict]) -> str:
+    """One line per case: rate, cost per particle-step and its two big phases, memory, warm-up."""
+    lines = ["", f"{'case':<16} {'particles':>10} {'p-steps/s':>10} {'ns/p-step':>9} "
+             f"{'p2g ns':>7} {'g2p ns':>7} {'B/particle':>10} {'warm-up s':>9}"]
+    for r in results:
+        n = r["particles"] / r["ranks"]
+        ph = r["phase_seconds_per_step"]
+        lines.append(f"{r['dim']}D {r['method']} {r['update']:<5}".ljust(16)
+                     + f" {r['particles']:>10,} {r['particle_steps_per_second']:>10.3e} "
+                     f"{r['ns_per_particle_step']:>9.1f} {1e9 * ph['p2g'] / n:>7.1f} "
+                     f"{1e9 * ph['g2p'] / n:>7.1f} {r['bytes_per_particle']:>10.0f} "
+                     f"{r['jit_warmup_seconds']:>9.2f}")
     return "\n".join(lines)

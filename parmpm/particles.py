@@ -51,15 +51,16 @@ class Particles:
             setattr(self, name, arr)
 
     def permute(self, perm: np.ndarray) -> None:
-        """Reorder (or select) every field by ``perm``."""
-        for name, arr in self.fields().items():
-            setattr(self, name, np.take(arr, perm, axis=0))
+        """Reorder (or select) every field by ``perm``, one field at a time (so at most one
+        field's worth of extra memory is held: the old array goes as soon as it is replaced)."""
+        for name in INT_FIELDS + FLOAT_FIELDS:
+            setattr(self, name, np.take(getattr(self, name), perm, axis=0))
 
     def merge(self, fields: dict[str, np.ndarray], keep: np.ndarray, received: dict | None,
               slot_of: np.ndarray, n_slots: int) -> None:
         """After a migration: the kept rows ``fields[keep]`` and the ``received`` ones, sorted by
         (slot, gid) and written once into fresh arrays (one copy per field, no intermediates).
-        ``fields['patch']`` holds the kept rows' new global patch ids."""
+        ``fields['patch']`` holds the kept rows' new global patch ids; ``fields`` is emptied."""
         k = keep.size
         patch = fields["patch"][keep]
         gid = self.gid[keep]
@@ -69,13 +70,15 @@ class Particles:
         slot = slot_of[patch]
         order = np.argsort(slot * (int(gid.max(initial=0)) + 1) + gid, kind="stable")
         n = order.size
-        for name, a in fields.items():
+        for name in list(fields):  # popped, so each old array goes once its new one is written
+            a = fields.pop(name)
             out = np.empty((n,) + a.shape[1:], a.dtype)
             r = received[name] if received is not None else a[:0]
             w = int(np.prod(a.shape[1:], dtype=np.int64))
             _merge_rows(out.reshape(n, w), a.reshape(a.shape[0], w), r.reshape(r.shape[0], w),
                         keep, order, k)
             setattr(self, name, out)
+            del a
         counts = np.bincount(slot, minlength=n_slots)
         self.start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
 

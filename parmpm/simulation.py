@@ -79,8 +79,10 @@ class Simulation:
                                 threshold=dec["rebalance_threshold"],
                                 cooldown=dec["rebalance_cooldown"])
         mine = np.flatnonzero(self.patches.rank_of[where] == self.rank)
+        del x_all, x0_all, mass_all  # no second reference to the seeded arrays while they move
         if checkpoint is None:
-            P.permute(mine)
+            if mine.size != P.n:
+                P.permute(mine)
         else:  # collective: a damaged block found by one rank stops every rank
             problem = None
             try:

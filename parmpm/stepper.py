@@ -28,7 +28,7 @@ from parmpm.kernels2d.cells import usable_cells
 from parmpm.particles import Particles, locate_patches
 from parmpm.transfer import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL, g2p, p2g, p2g_momentum
 
-PHASES = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "reduce")
+PHASES = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "sort", "reduce")
 
 
 @dataclass
@@ -198,8 +198,10 @@ class Stepper:
             vmax = self._g2p(G2P_MUSL_DEFORM, dt)
         self._check("g2p")
         t = self._lap("g2p", t)
-        self.migrate()
+        moves = self.locate_and_send()
         t = self._lap("migrate", t)
+        self.regroup(*moves)
+        t = self._lap("sort", t)
         vmax = self.finish(vmax)
         self._lap("reduce", t)
         return vmax
@@ -207,6 +209,11 @@ class Stepper:
     # --- migration --------------------------------------------------------------------------------
     def migrate(self) -> None:
         """Send every particle to the patch (on whichever rank) that holds its new position."""
+        self.regroup(*self.locate_and_send())
+
+    def locate_and_send(self):
+        """Find every particle's new patch and exchange the particles that change rank; returns
+        what :meth:`regroup` needs (None when no particle changed patch on a single rank)."""
         D, P, ps = self.disc, self.P, self.patches
         lay = D.layout
         if self._new_patch.size != P.n:
@@ -216,8 +223,7 @@ class Stepper:
                                     lay.patches_per_axis, P.patch, new)
         parallel = is_parallel(self.comm)
         if moved == 0 and not parallel:  # nothing to regroup, nothing to send
-            self._occupancy_changed = False
-            return
+            return None, None, None, None
         if bad >= 0 and self.error is None:
             self.error = (f"particle {P.gid[bad]} at {fmt_vec(P.x[bad])} left the grid "
                           f"(origin {fmt_vec(D.origin)}, extent {fmt_vec(D.origin + D.h * lay.cells)}); "
@@ -231,13 +237,22 @@ class Stepper:
                               "in one step; reduce time.cfl")
             new[lost] = P.patch[lost]
             dest[lost] = ps.rank
-        occupied_before = np.diff(P.start) > 0
-        keep, received = None, None
+        keep, received, fields = None, None, None
         if parallel:
             self.migrated += int(np.count_nonzero(dest != ps.rank))
             fields = P.fields()
             fields["patch"] = new
             keep, received = exchange(fields, dest, self.comm, ps.peers)
+        return new, fields, keep, received
+
+    def regroup(self, new, fields, keep, received) -> None:
+        """Sort the particles into (patch, id) order after :meth:`locate_and_send` (merging the
+        kept and received rows after an exchange); notes whether a patch became (un)occupied."""
+        P, ps = self.P, self.patches
+        if new is None:
+            self._occupancy_changed = False
+            return
+        occupied_before = np.diff(P.start) > 0
         if keep is not None and (received is not None or keep.size != P.n):  # some left or came
             P.merge(fields, keep, received, ps.slot_of, ps.n_local)
             self._new_patch = np.zeros(0, np.int64)

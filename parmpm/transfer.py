@@ -199,3 +199,15 @@ def support_nodes(method, d, lcr, start, base, nloc, nglob, origin, inv_h, x, F,
                 nodes[i, c] = (base[p, 0] + i0) + nglob[0] * ((base[p, 1] + i1) + nglob[1] * (base[p, 2] + i2))
                 c += 1
             count[i] = c
+
+
+@kernel
+def stress_pass(d, F, mat, params, damage, stress):
+    """Stress and wave speed of every particle on their own (G2P fuses them into its loop; the
+    benchmark times this to report the stress update's share)."""
+    vmax = 0.0
+    for i in range(F.shape[0]):
+        prm = params[mat[i]]
+        cauchy_stress(d, prm, F[i], damage[i], stress[i])
+        vmax = max(vmax, wave_speed(d, prm, F[i]))
+    return vmax

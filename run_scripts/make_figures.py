@@ -5,9 +5,10 @@
     python run_scripts/make_figures.py gallery rotation
 
 (``make figures`` runs the first line.) Each study writes its PNGs into ``docs/figures/`` and its
-CSV into ``run_scripts/out/<study>/``. Runtime on a 2-core machine: ~20–30 minutes in all, most of
+CSV into ``run_scripts/out/<study>/``. Runtime on a 2-core machine: ~25–35 minutes in all, most of
 it the stability gallery's 3D bars and the convergence study's 3D resolutions. The speed-accuracy
-chart times the solver: run it on a quiet machine.
+and scaling charts time the solver: run them on a quiet machine. ``scaling`` launches
+``mpirun -n 1`` and ``-n 2`` itself, so ``--np`` does not apply to it.
 """
 import argparse
 import shutil
@@ -23,7 +24,10 @@ STUDIES = {
     "update_order": "update_order.py",
     "rotation": "rotation.py",
     "speed_accuracy": "speed_accuracy.py",
+    "scaling": "scaling.py",
 }
+#: studies that launch mpirun themselves (one bench per rank count): never wrapped in --np
+LAUNCHERS = {"scaling"}
 
 
 def main() -> int:
@@ -46,7 +50,8 @@ def main() -> int:
     for name in names:
         t0 = time.perf_counter()
         print(f"== {name}", flush=True)
-        proc = subprocess.run(launcher + [sys.executable, str(HERE / STUDIES[name])])
+        wrap = [] if name in LAUNCHERS else launcher
+        proc = subprocess.run(wrap + [sys.executable, str(HERE / STUDIES[name])])
         if proc.returncode != 0:
             print(f"make_figures: {name} failed (exit {proc.returncode})", file=sys.stderr)
             return proc.returncode

@@ -1,25 +1,19 @@
-"""``parmpm bench`` and ``run_scripts/mpi_scaling.py``: the benchmark scene, the result's keys and
-their consistency (shares of the step in [0, 1], particle counts), and the scaling script's smoke
-mode under ``mpirun -n 1`` and ``-n 2`` (skipped without an ``mpirun`` next to this Python)."""
+"""``parmpm bench``: the benchmark scene, the result's keys and their consistency (shares of the
+step in [0, 1], particle counts). The scaling study that drives it under ``mpirun -n 1`` and
+``-n 2`` (``run_scripts/scaling.py --quick``) is tested in ``tests/test_scaling.py``."""
 
 from __future__ import annotations
 
 import argparse
 import csv
 import json
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 
-from parmpm.bench import add_arguments, build_bench_scene, run_bench
+from parmpm.bench import add_arguments, build_bench_scene, run_bench, run_benches
 from parmpm.errors import ParmpmError
 
-REPO = Path(__file__).resolve().parents[1]
-MPIRUN = Path(sys.executable).parent / "mpirun"
-PHASES = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "reduce")
+PHASES = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "sort", "reduce")
 
 
 def bench_args(*argv: str) -> argparse.Namespace:
@@ -48,9 +42,12 @@ def test_scene_block_and_margin(dim):
 
 def test_parse_particles_and_bad_values():
     assert bench_args("--particles", "1e6").particles == 1_000_000
-    assert bench_args().particles == 1_000_000 and bench_args().method == "cpdi"
-    with pytest.raises(SystemExit):
-        bench_args("--particles", "lots")
+    assert bench_args().particles == 1_000_000 and bench_args().method == ["cpdi"]
+    assert bench_args("--dim", "all").dim == [1, 2, 3] and bench_args("--dim", "3,1").dim == [3, 1]
+    assert bench_args("--method", "mpm,cpdi").method == ["mpm", "cpdi"]
+    for bad in (("--particles", "lots"), ("--dim", "4"), ("--method", "sph"), ("--update", "x")):
+        with pytest.raises(SystemExit):
+            bench_args(*bad)
     with pytest.raises(ParmpmError, match="--steps"):
         build_bench_scene(2, "cpdi", 1000, 2, steps=1)
 
@@ -63,7 +60,7 @@ def test_parse_particles_and_bad_values():
 def test_run_bench_serial(argv, tmp_path, capsys):
     args = bench_args(*argv, "--json", str(tmp_path / "bench.json"), "--out", str(tmp_path / "out"))
     r = run_bench(args, None)
-    assert r["ranks"] == 1 and r["dim"] == args.dim and r["method"] == args.method
+    assert r["ranks"] == 1 and [r["dim"]] == args.dim and [r["method"]] == args.method
     assert r["steps"] == 3 and r["timed_steps"] == 2
     assert r["particles"] == sum(r["decomposition"]["particles_per_rank"])
     assert abs(r["particles"] - args.particles) / args.particles < 0.3
@@ -78,25 +75,27 @@ def test_run_bench_serial(argv, tmp_path, capsys):
     assert json.loads((tmp_path / "bench.json").read_text())["particles"] == r["particles"]
     assert (tmp_path / "out" / "summary.json").is_file()
     assert "time per step" in capsys.readouterr().out
+    assert r["jit_warmup_seconds"] > 0 and r["bytes_per_particle"] >= 0
+    assert 0 < r["stress_in_g2p_seconds_per_step"]
+    assert r["ns_per_particle_step"] == pytest.approx(1e9 / r["particle_steps_per_second"])
 
 
-@pytest.mark.mpi
-@pytest.mark.skipif(not MPIRUN.is_file(), reason="no mpirun next to sys.executable")
-def test_mpi_scaling_quick(tmp_path):
-    out = tmp_path / "scaling.csv"
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])))
-    proc = subprocess.run([sys.executable, str(REPO / "run_scripts" / "mpi_scaling.py"), "--quick",
-                           "--ranks", "1,2", "--csv", str(out)],
-                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    rows = list(csv.DictReader(out.open()))
-    assert [int(r["ranks"]) for r in rows] == [1, 2]
-    assert len({r["particles"] for r in rows}) == 1
-    assert float(rows[0]["efficiency"]) == pytest.approx(1.0)
-    for r in rows:
-        assert float(r["seconds_per_step"]) > 0
-        assert 0.0 <= float(r["halo_share"]) <= 1.0 and 0.0 <= float(r["migrate_share"]) <= 1.0
-    assert "eff." in proc.stdout
+def test_sweep_writes_csv_and_json(tmp_path, capsys):
+    """``--dim 1,2 --method mpm,cpdi``: four cases, one CSV row each with every phase, the JSON
+    a list in the same order, and the summary table."""
+    args = bench_args("--dim", "1,2", "--method", "mpm,cpdi", "--particles", "400", "--steps", "3",
+                      "--update", "usl", "--csv", str(tmp_path / "b.csv"),
+                      "--json", str(tmp_path / "b.json"))
+    results = run_benches(args, None)
+    assert [(r["dim"], r["method"], r["update"]) for r in results] == [
+        (1, "mpm", "usl"), (1, "cpdi", "usl"), (2, "mpm", "usl"), (2, "cpdi", "usl")]
+    rows = list(csv.DictReader((tmp_path / "b.csv").open()))
+    assert [int(r["dim"]) for r in rows] == [1, 1, 2, 2]
+    for row, r in zip(rows, results):
+        assert float(row["particle_steps_per_second"]) == pytest.approx(r["particle_steps_per_second"])
+        assert all(f"phase_{p}" in row for p in PHASES)
+    assert [r["method"] for r in json.loads((tmp_path / "b.json").read_text())] == ["mpm", "cpdi"] * 2
+    assert "B/particle" in capsys.readouterr().out
 
 
 def test_cli_bench_error_is_one_line(capsys):

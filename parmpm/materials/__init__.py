@@ -1,8 +1,8 @@
 """Material registry and the stress kernel's single dispatch.
 
 Each material is a row of a float64 parameter table (see ``PARAM``) so kernels need no objects:
-``[model code, ρ0, E, ν, λ, μ, c²]`` with ``c² = (λ + 2μ)/ρ0`` the P-wave speed squared used for the
-CFL time step. ``cauchy_stress`` is where a damage model plugs in: it receives the particle's
+``[model code, ρ0, E, ν, λ, μ, c², 1/ρ0]`` with ``c² = (λ + 2μ)/ρ0`` the P-wave speed squared used
+for the CFL time step (``1/ρ0`` spares the hot loop a division). ``cauchy_stress`` is where a damage model plugs in: it receives the particle's
 damage state (unused by the elastic models) and may scale or replace the elastic stress.
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ from parmpm.materials.neo_hookean import det_d, neo_hookean_stress
 
 LINEAR_ELASTIC, NEO_HOOKEAN = 0, 1
 MODELS = {"linear_elastic": LINEAR_ELASTIC, "neo_hookean": NEO_HOOKEAN}
-PARAM = {"model": 0, "density": 1, "E": 2, "nu": 3, "lam": 4, "mu": 5, "c2": 6}
+PARAM = {"model": 0, "density": 1, "E": 2, "nu": 3, "lam": 4, "mu": 5, "c2": 6, "inv_density": 7}
 N_PARAMS = 8
 
 
@@ -33,8 +33,8 @@ def material_table(materials: dict) -> tuple[np.ndarray, list[str]]:
     for row, name in enumerate(names):
         m = materials[name]
         lam, mu = lame(m["youngs_modulus"], m["poisson_ratio"])
-        table[row, :7] = [MODELS[m["model"]], m["density"], m["youngs_modulus"],
-                          m["poisson_ratio"], lam, mu, (lam + 2 * mu) / m["density"]]
+        table[row, :] = [MODELS[m["model"]], m["density"], m["youngs_modulus"],
+                         m["poisson_ratio"], lam, mu, (lam + 2 * mu) / m["density"], 1 / m["density"]]
     return table, names
 
 
