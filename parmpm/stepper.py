@@ -24,9 +24,13 @@ from decomposition import (PatchLayout, PatchSet, accumulate, allreduce_max, exc
 from parmpm.errors import SimulationError
 from parmpm.grid import grid_block, grid_update, region_node_ranges
 from parmpm.kernels2d import KERNELS_2D
+from parmpm.kernels3d import KERNELS_3D
 from parmpm.kernels2d.cells import usable_cells
 from parmpm.particles import Particles, locate_patches
 from parmpm.transfer import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL, g2p, p2g, p2g_momentum
+
+#: dimension → {interpolator code → (p2g, p2g_momentum, g2p)} of the hand-specialised kernels
+SPECIALISED = {2: KERNELS_2D, 3: KERNELS_3D}
 
 PHASES = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "sort", "reduce")
 
@@ -89,8 +93,8 @@ class Stepper:
         self._new_patch = np.zeros(0, np.int64)
         self.forcing = None                 # f(t, particles, out): per-particle body force
         self._bforce = np.zeros((0, particles.dim))
-        #: hand-specialised (p2g, p2g_momentum, g2p) when there are any (2D mpm, cpdi)
-        self.kernels2d = KERNELS_2D.get(disc.method) if disc.dim == 2 else None
+        #: hand-specialised (p2g, p2g_momentum, g2p) for this dimension and method, if any
+        self.kernels = SPECIALISED.get(disc.dim, {}).get(disc.method)
         self._patches_changed(force=True)
 
     # --- patch set ------------------------------------------------------------------------------
@@ -134,8 +138,8 @@ class Stepper:
 
     def _p2g(self, bforce: np.ndarray) -> None:
         P, D = self.P, self.disc
-        if self.kernels2d is not None:
-            self.kernels2d[0](*self._args2d(), P.x, P.v, P.F, P.r0, P.mass, P.vol0, P.stress,
+        if self.kernels is not None:
+            self.kernels[0](*self._args_fast(), P.x, P.v, P.F, P.r0, P.mass, P.vol0, P.stress,
                               bforce, self.gsum_block, self.err)
         else:
             p2g(*self._args(), P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress, bforce,
@@ -144,23 +148,23 @@ class Stepper:
 
     def _p2g_momentum(self) -> None:
         P = self.P
-        if self.kernels2d is not None:
-            self.kernels2d[1](*self._args2d(), P.x, P.v, P.F, P.r0, P.mass, self.gsum_block, self.err)
+        if self.kernels is not None:
+            self.kernels[1](*self._args_fast(), P.x, P.v, P.F, P.r0, P.mass, self.gsum_block, self.err)
         else:
             p2g_momentum(*self._args(), P.x, P.v, P.F, P.r0, P.lh0, P.mass, self.gmv, self.err)
         self._check("p2g")
 
     def _g2p(self, mode: int, dt: float) -> float:
         P = self.P
-        if self.kernels2d is not None:
-            return self.kernels2d[2](mode, *self._args2d(), dt, self.flip, P.x, P.v, P.F, P.r0,
+        if self.kernels is not None:
+            return self.kernels[2](mode, *self._args_fast(), dt, self.flip, P.x, P.v, P.F, P.r0,
                                      P.stress, P.dx, P.mat, self.params, self.gnew_block, self.err)
         return g2p(mode, *self._args(), dt, self.flip, P.x, P.v, P.F, P.r0, P.lh0, P.stress, P.dx,
                    P.mat, self.params, P.damage, self.gvel, self.gdv, self.err)
 
-    def _args2d(self):
+    def _args_fast(self):
         D = self.disc
-        return (D.lcr, self.P.start, D.base, D.jlo, D.jhi, int(D.nloc[0]), D.origin3, D.inv_h3)
+        return (D.lcr, self.P.start, D.base, D.jlo, D.jhi, D.nloc, D.origin3, D.inv_h3)
 
     def step(self, dt: float, gravity: np.ndarray, time_now: float = 0.0) -> float:
         """Advance this rank's particles from ``time_now`` by ``dt`` (collective: every rank

@@ -65,19 +65,19 @@ CASES = [("cpdi", "none"), ("cpdi", 0.025), ("mpm", "none")]
 @pytest.mark.parametrize("forced", [False, True])
 def test_p2g_matches_generic(method, lcr, forced, tmp_path):
     sim, st, P = deformed_stepper(method, lcr, tmp=tmp_path)
-    assert st.kernels2d is KERNELS_2D[st.disc.method]
+    assert st.kernels is KERNELS_2D[st.disc.method]
     bforce = np.random.default_rng(2).normal(0, 5.0, (P.n, 2)) if forced else np.zeros((0, 2))
     st._p2g(bforce)
     fast = st.gsum.copy()
-    st.kernels2d = None
+    st.kernels = None
     st._p2g(bforce)
     assert np.max(st.gsum[:, :, 0]) > 0 and st.error is None
     close(fast, st.gsum)
-    st.kernels2d = KERNELS_2D[st.disc.method]
+    st.kernels = KERNELS_2D[st.disc.method]
     st._p2g_momentum()
     fast_mv = st.gmv.copy()
     st.gsum[:] = 0.0
-    st.kernels2d = None
+    st.kernels = None
     st._p2g_momentum()
     close(fast_mv, st.gmv)
 
@@ -94,7 +94,7 @@ def test_g2p_matches_generic(method, lcr, mode, model, tmp_path):
     dt, results = 1e-4, []
     for kern in (KERNELS_2D[st.disc.method], None):
         restore(P, before)
-        st.kernels2d = kern
+        st.kernels = kern
         vmax = st._g2p(mode, dt)
         results.append((snapshot(P), vmax))
     (fast, vf), (gen, vg) = results
@@ -109,7 +109,7 @@ def test_reach_past_ghost_layer_is_caught_like_generic(tmp_path):
     sim, st, P = deformed_stepper("cpdi", "none", tmp=tmp_path)
     P.F[7] = np.diag([30.0, 1.0])  # a domain 5 cells long: past the 2-cell ghost layer
     for kern in (KERNELS_2D[st.disc.method], None):
-        st.kernels2d = kern
+        st.kernels = kern
         st.err[0] = -1
         st._p2g(np.zeros((0, 2)))
         assert st.err[0] == -1 and st.error is not None and "reaches" in st.error
@@ -135,7 +135,7 @@ def test_kernels_through_py_func(tmp_path):
     D = st.disc
     s = int(np.flatnonzero(np.diff(P.start) > 0)[0])
     one = slice(s, s + 1)
-    args = (D.lcr, P.start[s:s + 2], D.base[one], D.jlo[one], D.jhi[one], int(D.nloc[0]),
+    args = (D.lcr, P.start[s:s + 2], D.base[one], D.jlo[one], D.jhi[one], D.nloc,
             D.origin3, D.inv_h3)
     fields = (P.x, P.v, P.F, P.r0, P.mass, P.vol0, P.stress, np.zeros((0, 2)))
     p2g = KERNELS_2D[D.method][0]

@@ -124,12 +124,13 @@ def gather4(g, L0, jx, jy, fx, fy):
 
 
 @kernel
-def p2g_cpdi(lcr, start, base, jlo, jhi, L0, origin, inv_h, x, v, F, r0, mass, vol0, stress,
+def p2g_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, vol0, stress,
              bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
     forced = bforce.shape[0] > 0
     gsum[:] = 0.0
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
+    L0 = nloc[0]
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by = base[p, 0], base[p, 1]
@@ -162,10 +163,11 @@ def p2g_cpdi(lcr, start, base, jlo, jhi, L0, origin, inv_h, x, v, F, r0, mass, v
 
 
 @kernel
-def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, L0, origin, inv_h, x, v, F, r0, mass, gsum, err):
+def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, gsum, err):
     """The MUSL re-map: momentum rows (1, 2) of ``gsum`` only."""
     gsum[:, 1:3, :] = 0.0
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
+    L0 = nloc[0]
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by = base[p, 0], base[p, 1]
@@ -189,13 +191,14 @@ def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, L0, origin, inv_h, x, v, F, r0
 
 
 @kernel
-def g2p_cpdi(mode, lcr, start, base, jlo, jhi, L0, origin, inv_h, dt, flip,
+def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
              x, v, F, r0, stress, dx, mat, params, gnew, err):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v_x, v_y, Δv_x, Δv_y)`` rows; returns the largest ``c_p + |v_p|`` in the
     modes that update the stress."""
     vmax = 0.0
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
+    L0 = nloc[0]
     for p in range(start.size - 1):
         g = gnew[p]
         bx, by = base[p, 0], base[p, 1]

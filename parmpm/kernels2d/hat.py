@@ -15,13 +15,14 @@ from parmpm.kernels2d.material import stress_and_speed
 
 
 @kernel
-def p2g_hat(lcr, start, base, jlo, jhi, L0, origin, inv_h, x, v, F, r0, mass, vol0, stress,
+def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, vol0, stress,
             bforce, gsum, err):
     """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` and
     ``r0`` unused: the signature is the CPDI kernel's)."""
     forced = bforce.shape[0] > 0
     gsum[:] = 0.0
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
+    L0 = nloc[0]
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by = base[p, 0], base[p, 1]
@@ -56,10 +57,11 @@ def p2g_hat(lcr, start, base, jlo, jhi, L0, origin, inv_h, x, v, F, r0, mass, vo
 
 
 @kernel
-def p2g_momentum_hat(lcr, start, base, jlo, jhi, L0, origin, inv_h, x, v, F, r0, mass, gsum, err):
+def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, gsum, err):
     """The MUSL re-map: momentum only, into ``gsum[..., 1:3]``."""
     gsum[:, 1:3, :] = 0.0
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
+    L0 = nloc[0]
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by = base[p, 0], base[p, 1]
@@ -81,12 +83,13 @@ def p2g_momentum_hat(lcr, start, base, jlo, jhi, L0, origin, inv_h, x, v, F, r0,
 
 
 @kernel
-def g2p_hat(mode, lcr, start, base, jlo, jhi, L0, origin, inv_h, dt, flip,
+def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             x, v, F, r0, stress, dx, mat, params, gnew, err):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
     updated."""
     vmax = 0.0
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
+    L0 = nloc[0]
     for p in range(start.size - 1):
         g = gnew[p]
         bx, by = base[p, 0], base[p, 1]
