@@ -7,12 +7,17 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
 from parmpm.bench import add_arguments, build_bench_scene, run_bench, run_benches
 from parmpm.errors import ParmpmError
 
+REPO = Path(__file__).resolve().parents[1]
 PHASES = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "sort", "reduce")
 
 
@@ -104,3 +109,26 @@ def test_cli_bench_error_is_one_line(capsys):
     assert cli.main(["bench", "--steps", "1", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("parmpm: error: bench: --steps must be >= 2")
+
+
+def test_throughput_study_quick(tmp_path):
+    """``run_scripts/throughput.py --quick`` with a stand-in yardstick (prints a fixed rate): one
+    row per case, the ratio is parmpm's rate over the yardstick's, and the phases add up to the
+    step's cost per particle-step (one rank)."""
+    fake = tmp_path / "ref_step.py"
+    fake.write_text("print('RESULT impl=fake median=1.0e7 min=1 max=2')\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])))
+    proc = subprocess.run([sys.executable, str(REPO / "run_scripts" / "throughput.py"), "--quick",
+                           "--out", str(tmp_path), "--yardstick", str(fake)],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    rows = list(csv.DictReader((tmp_path / "throughput.csv").open()))
+    assert [(r["method"], r["update"]) for r in rows] == [("cpdi", "usl"), ("mpm", "usl"), ("mpm", "musl")]
+    for r in rows:
+        rate = float(r["parmpm_particle_steps_per_second"])
+        assert float(r["yardstick_particle_steps_per_second"]) == 1.0e7
+        assert float(r["ratio"]) == pytest.approx(rate / 1.0e7)
+        phases = sum(float(r[f"{k}_ns"]) for k in PHASES)
+        assert phases <= float(r["parmpm_ns_per_particle_step"]) * (1 + 1e-9)
+        assert phases > 0.8 * float(r["parmpm_ns_per_particle_step"])
+    assert (tmp_path / "throughput.png").stat().st_size > 10_000
