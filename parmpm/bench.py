@@ -262,8 +262,11 @@ def _time_stress(sim, repeats: int = 3) -> float:
     ``repeats``), on a copy of the stress so the run's state is untouched."""
     P, st = sim.particles, sim.stepper
     out = np.empty_like(P.stress)
-    if st.kernels is not None and P.dim == 2:
-        from parmpm.kernels2d.material import stress_pass
+    if st.kernels is not None and P.dim in (2, 3):
+        if P.dim == 2:
+            from parmpm.kernels2d.material import stress_pass
+        else:
+            from parmpm.kernels3d.material import stress_pass
         run = lambda: stress_pass(P.F, P.mat, st.params, out)  # noqa: E731
     else:
         from parmpm.transfer import stress_pass

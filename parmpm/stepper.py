@@ -105,7 +105,7 @@ class Stepper:
         n, nn, d = ps.n_local, D.layout.n_local_nodes, D.dim
         self.plan = ps.plan
         # two blocks (see parmpm.grid.grid_block): P2G sums (m, mv, f) and grid-update results
-        # (v, Δv); the kernels in parmpm.kernels2d take the blocks, all else the node-major views
+        # (v, Δv); the specialised kernels (kernels2d/3d) take the blocks, all else the node-major views
         self.gsum_block, self.gsum = grid_block(n, 1 + 2 * d, nn)
         self.gnew_block, self.gnew = grid_block(n, 2 * d, nn)
         self.gm, self.gmv, self.gf = (self.gsum[:, :, :1], self.gsum[:, :, 1:1 + d],

@@ -1,6 +1,27 @@
-"""Hand-specialised 3D transfer kernels (none yet: every 3D run uses :mod:`parmpm.transfer`)."""
+"""Hand-specialised 3D transfer kernels: the 3D counterpart of :mod:`parmpm.kernels2d`.
+
+The dimension-generic kernels in :mod:`parmpm.transfer` build every particle's (node, weight,
+gradient) list in scratch arrays (64 entries for a 3D CPDI particle) and loop over a runtime
+``d``. These compute the same sums with every loop bound known to the compiler, scattering each
+CPDI corner (or the MPM centre) straight into its cell's eight nodes and gathering the same way,
+with per-particle state held in scalars. They implement exactly the equations documented in
+:mod:`parmpm.transfer`, :mod:`parmpm.shapes.cpdi`, :mod:`parmpm.shapes.scaling`,
+:mod:`parmpm.shapes.hat` and :mod:`parmpm.materials`, and the tests compare them with the generic
+kernels on random states.
+
+Grid fields come as two row blocks per patch slot (:func:`parmpm.grid.grid_block`):
+``gsum[s, :, node] = (m, mv_x, mv_y, mv_z, f_x, f_y, f_z)`` (P2G output) and
+``gnew[s, :, node] = (v_x, v_y, v_z, Δv_x, Δv_y, Δv_z)`` (grid update output, G2P input), with
+``node = i0 + L0 (i1 + L1 i2)`` in the patch's ghost-inclusive box.
+"""
+from parmpm.kernels3d.cpdi import g2p_cpdi, p2g_cpdi, p2g_momentum_cpdi
+from parmpm.kernels3d.hat import g2p_hat, p2g_hat, p2g_momentum_hat
+from parmpm.shapes import CPDI, MPM
 
 #: interpolator code → (p2g, p2g_momentum, g2p) specialised for 3D
-KERNELS_3D: dict = {}
+KERNELS_3D = {
+    CPDI: (p2g_cpdi, p2g_momentum_cpdi, g2p_cpdi),
+    MPM: (p2g_hat, p2g_momentum_hat, g2p_hat),
+}
 
 __all__ = ["KERNELS_3D"]

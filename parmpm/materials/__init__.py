@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from parmpm.jit import kernel
+from parmpm.jit import helper_kernel
 from parmpm.materials.linear_elastic import linear_elastic_stress
 from parmpm.materials.neo_hookean import det_d, neo_hookean_stress
 
@@ -38,7 +38,7 @@ def material_table(materials: dict) -> tuple[np.ndarray, list[str]]:
     return table, names
 
 
-@kernel
+@helper_kernel
 def cauchy_stress(d, params, F, damage, out):
     """Cauchy stress of one particle from its deformation gradient (leading d×d of 3×3 arrays)."""
     model = int(params[0])
@@ -48,7 +48,7 @@ def cauchy_stress(d, params, F, damage, out):
         neo_hookean_stress(d, F, params[4], params[5], out)
 
 
-@kernel
+@helper_kernel
 def wave_speed(d, params, F):
     """Largest wave speed in the *current* configuration, for the CFL step.
 

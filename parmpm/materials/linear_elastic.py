@@ -4,10 +4,10 @@ Total (not incremental) small strain, so the stress is a pure function of ``F``:
 restart needs no extra state. Valid for small strains and rotations only (the vibrating bar).
 In 2D this is plane strain, in 1D uniaxial strain (``σ = (λ+2μ) ε``).
 """
-from parmpm.jit import kernel
+from parmpm.jit import helper_kernel
 
 
-@kernel
+@helper_kernel
 def linear_elastic_stress(d, F, lam, mu, out):
     tr = 0.0
     for a in range(d):

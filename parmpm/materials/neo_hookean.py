@@ -5,10 +5,10 @@ The form most MPM codes use (e.g. Sadeghirad et al. 2011, Uintah's CompNeoHook);
 """
 import math
 
-from parmpm.jit import kernel
+from parmpm.jit import helper_kernel
 
 
-@kernel
+@helper_kernel
 def det_d(d, F):
     if d == 1:
         return F[0, 0]
@@ -19,7 +19,7 @@ def det_d(d, F):
             + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]))
 
 
-@kernel
+@helper_kernel
 def neo_hookean_stress(d, F, lam, mu, out):
     J = det_d(d, F)
     p = lam * math.log(J) if J > 0.0 else -math.inf

@@ -7,11 +7,11 @@ Domain vectors ``R = [r1 … rd]``; corners ``x_α = x_p + Σ_k s_αk r_k`` with
 ``(S_i(b) − S_i(a))/(b − a)``. Each corner scatters to its cell's 2^d nodes, so a particle yields
 4^d (node, weight, gradient) entries, some for the same node — sums are unaffected.
 """
-from parmpm.jit import kernel
+from parmpm.jit import helper_kernel
 from parmpm.shapes.hat import hat_axis
 
 
-@kernel
+@helper_kernel
 def cofactor(d, R, C):
     """``C = cof(R) = det(R)·R^-T`` for the leading d×d block (the rest of the 3×3 scratch is
     zeroed); returns det R."""
@@ -34,7 +34,7 @@ def cofactor(d, R, C):
     return R[0, 0] * C[0, 0] + R[1, 0] * C[1, 0] + R[2, 0] * C[2, 0]
 
 
-@kernel
+@helper_kernel
 def cpdi_support(d, xi, R, C, base, nloc, nglob, inv_h, L0, L1, jk, wk, dwk, idx, w, g):
     """(node, weight, gradient) entries of a CPDI particle at grid coordinates ``xi`` with domain
     ``R`` (physical units) and scratch ``C`` for its cofactor. Returns the entry count, or -1 if a

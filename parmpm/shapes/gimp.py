@@ -10,17 +10,17 @@ closed form assumes ``l ≤ Δx/2``). uGIMP keeps ``l = Δx/(2·ppc)``; cpGIMP u
 """
 import math
 
-from parmpm.jit import kernel
+from parmpm.jit import helper_kernel
 from parmpm.shapes.hat import SNAP
 
 
-@kernel
+@helper_kernel
 def _hat(s):
     a = abs(s)
     return 1.0 - a if a < 1.0 else 0.0
 
 
-@kernel
+@helper_kernel
 def _hat_average(a, b):
     """Mean of the hat over [a, b] (node-relative grid units), split at its kinks -1, 0, 1 so each
     piece is linear and integrates exactly as length × midpoint value: no cancellation when the
@@ -40,7 +40,7 @@ def _hat_average(a, b):
     return total / (b - a)
 
 
-@kernel
+@helper_kernel
 def _hat_slope_average(a, b):
     """Mean of the hat's derivative over [a, b]: ``(S(b) − S(a))/(b − a)``, or the slope of the
     piece when the domain is degenerate or lies within one linear piece."""
@@ -52,7 +52,7 @@ def _hat_slope_average(a, b):
     return (_hat(b) - _hat(a)) / (b - a)
 
 
-@kernel
+@helper_kernel
 def gimp_axis(xi, half, base, nloc, nglob, inv_h, jk, wk, dwk, a):
     """Row ``a`` of (jk, wk, dwk): nodes, weights and gradients along one axis for a top-hat of
     half-width ``half`` (grid units) centred at ``xi``. Returns the node count, or -1 if the

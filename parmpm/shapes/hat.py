@@ -6,12 +6,12 @@ a point in cell ``⌊ξ⌋`` touches nodes ``⌊ξ⌋`` and ``⌊ξ⌋ + 1`` wit
 """
 import math
 
-from parmpm.jit import kernel
+from parmpm.jit import helper_kernel
 
 SNAP = 1e-9  # grid units: round-off tolerance at the edge of the grid or of a patch's box
 
 
-@kernel
+@helper_kernel
 def hat_axis(xi, base, nloc, nglob, inv_h, jk, wk, dwk, a):
     """Fill row ``a`` of (jk, wk, dwk) with the two nodes of the point ``xi`` (grid units) along
     one axis: local indices, weights, gradients. Returns 2, or -1 if a node falls outside the

@@ -13,15 +13,15 @@ When no vector exceeds ``l_cr``, ``R`` is returned unchanged (bit for bit).
 """
 import math
 
-from parmpm.jit import kernel
+from parmpm.jit import helper_kernel
 
 
-@kernel
+@helper_kernel
 def _norm(v0, v1, v2):
     return math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
 
 
-@kernel
+@helper_kernel
 def scale_domain(d, R, lcr):
     """Scale the domain vectors (columns of the 3×3 array ``R``, first ``d`` used) in place so no
     center-to-corner vector is longer than ``lcr``. Returns True if anything changed."""
@@ -65,7 +65,7 @@ def scale_domain(d, R, lcr):
     return True
 
 
-@kernel
+@helper_kernel
 def longest_corner(d, R):
     """Length of the longest center-to-corner vector ``|Σ_k s_k r_k|`` of the domain ``R``."""
     longest = 0.0
@@ -80,7 +80,7 @@ def longest_corner(d, R):
     return longest
 
 
-@kernel
+@helper_kernel
 def _cap(v0, v1, v2, lcr):
     n = _norm(v0, v1, v2)
     if n > lcr:

@@ -9,7 +9,7 @@ Entries: ``idx[e]`` flat local node index in the patch's ghost-inclusive box, ``
 ``g[e, :] = ∇φ_ip`` (physical units). A return of -1 means the particle reaches a node outside the
 grid or beyond the patch's ghost layer.
 """
-from parmpm.jit import kernel
+from parmpm.jit import helper_kernel
 from parmpm.shapes.cpdi import cpdi_support
 from parmpm.shapes.gimp import gimp_axis
 from parmpm.shapes.hat import hat_axis
@@ -18,7 +18,7 @@ from parmpm.shapes.scaling import scale_domain
 MPM, UGIMP, CPGIMP, CPDI = 0, 1, 2, 3
 
 
-@kernel
+@helper_kernel
 def _tensor_entries(d, L0, L1, nk, jk, wk, dwk, idx, w, g):
     n1 = nk[1] if d > 1 else 1
     n2 = nk[2] if d > 2 else 1
@@ -42,7 +42,7 @@ def _tensor_entries(d, L0, L1, nk, jk, wk, dwk, idx, w, g):
     return n
 
 
-@kernel
+@helper_kernel
 def domain_matrix(d, method, lcr, F, r0, R):
     """CPDI domain ``R = F·R0`` (3×3 scratch, leading d×d block), then capped at ``lcr`` when
     ``lcr > 0`` (domain scaling). Other interpolators leave R untouched."""
@@ -61,7 +61,7 @@ def domain_matrix(d, method, lcr, F, r0, R):
         scale_domain(d, R, lcr)
 
 
-@kernel
+@helper_kernel
 def particle_support(method, d, xi, F, lh0, R, C, base, nloc, nglob, inv_h,
                      nk, jk, wk, dwk, idx, w, g):
     """Entries of one particle; ``xi`` grid coordinates, ``F`` its deformation gradient, ``lh0``

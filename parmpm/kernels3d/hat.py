@@ -1,0 +1,191 @@
+"""3D standard-MPM transfers: the trilinear hat at the particle centre.
+
+With ``ξ = (x_p − origin)/Δx`` in cell ``(j_x, j_y, j_z)`` at fractions ``(f_x, f_y, f_z)`` the
+eight nodes get ``φ = S_x S_y S_z`` (``S = 1 − f`` or ``f``) and
+``∇φ = (S'_x S_y S_z, S_x S'_y S_z, S_x S_y S'_z)`` with ``S' = ∓1/Δx``. P2G scatters ``φ m_p``,
+``φ m_p v_p`` and ``−V_p σ_p ∇φ (+ φ m_p b_p)`` (``V_p = J_p V0_p``); G2P gathers
+``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇φ`` (:mod:`parmpm.transfer` has the
+full step). Grid rows as in :mod:`parmpm.kernels3d.cpdi`; node ``i0 + L0 (i1 + L1 i2)``.
+"""
+import numpy as np
+
+from parmpm.jit import inline_kernel, kernel
+from parmpm.kernels2d.cells import cell_of
+from parmpm.kernels3d.cpdi import G2P_MUSL_DEFORM, G2P_USL
+from parmpm.kernels3d.material import update_F_stress
+
+
+@inline_kernel
+def nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz):
+    """The eight nodes of the cell whose first node is ``n0`` (x fastest): ``(node, φ, ∇φ)``;
+    unsigned node indices as in :func:`parmpm.kernels3d.cpdi.cell_nodes`."""
+    ax, ay, az = 1.0 - fx, 1.0 - fy, 1.0 - fz
+    w00, w10, w01, w11 = ay * az, fy * az, ay * fz, fy * fz   # S_y S_z
+    x00, x10, x01, x11 = ax * az, fx * az, ax * fz, fx * fz   # S_x S_z
+    v00, v10, v01, v11 = ax * ay, fx * ay, ax * fy, fx * fy   # S_x S_y
+    n0 = np.uint64(n0)
+    n2, n4, one = n0 + np.uint64(L0), n0 + np.uint64(L01), np.uint64(1)
+    n6 = n4 + np.uint64(L0)
+    return ((n0, ax * w00, -ihx * w00, -ihy * x00, -ihz * v00),
+            (n0 + one, fx * w00, ihx * w00, -ihy * x10, -ihz * v10),
+            (n2, ax * w10, -ihx * w10, ihy * x00, -ihz * v01),
+            (n2 + one, fx * w10, ihx * w10, ihy * x10, -ihz * v11),
+            (n4, ax * w01, -ihx * w01, -ihy * x01, ihz * v00),
+            (n4 + one, fx * w01, ihx * w01, -ihy * x11, ihz * v10),
+            (n6, ax * w11, -ihx * w11, ihy * x01, ihz * v01),
+            (n6 + one, fx * w11, ihx * w11, ihy * x11, ihz * v11))
+
+
+@inline_kernel
+def scatter_node(g, e, a, t):
+    """P2G into one node ``e = (node, φ, ∇φ)`` of ``a = (m, m v, m b)`` and ``t = V σ`` (row by
+    row): ``φ m``, ``φ m v``, ``φ m b − t ∇φ``."""
+    node, S, gx, gy, gz = e
+    m, mvx, mvy, mvz, bfx, bfy, bfz = a
+    t00, t01, t02, t10, t11, t12, t20, t21, t22 = t
+    g[0, node] += m * S
+    g[1, node] += mvx * S
+    g[2, node] += mvy * S
+    g[3, node] += mvz * S
+    g[4, node] += bfx * S - (t00 * gx + t01 * gy + t02 * gz)
+    g[5, node] += bfy * S - (t10 * gx + t11 * gy + t12 * gz)
+    g[6, node] += bfz * S - (t20 * gx + t21 * gy + t22 * gz)
+
+
+@kernel
+def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, vol0, stress,
+            bforce, gsum, err):
+    """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` and
+    ``r0`` unused: the signature is the CPDI kernel's)."""
+    forced = bforce.shape[0] > 0
+    gsum[:] = 0.0
+    ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
+    L0 = nloc[0]
+    L01 = nloc[0] * nloc[1]
+    for p in range(start.size - 1):
+        g = gsum[p]
+        bx, by, bz = base[p, 0], base[p, 1], base[p, 2]
+        jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
+        jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
+        for i in range(start[p], start[p + 1]):
+            jx, fx = cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
+            jy, fy = cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
+            jz, fz = cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
+            if jx < 0 or jy < 0 or jz < 0:
+                if err[0] < 0:
+                    err[0] = i
+                continue
+            f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
+            f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
+            f20, f21, f22 = F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]
+            V = (f00 * (f11 * f22 - f12 * f21) - f01 * (f10 * f22 - f12 * f20)
+                 + f02 * (f10 * f21 - f11 * f20)) * vol0[i]
+            t = (V * stress[i, 0, 0], V * stress[i, 0, 1], V * stress[i, 0, 2],
+                 V * stress[i, 1, 0], V * stress[i, 1, 1], V * stress[i, 1, 2],
+                 V * stress[i, 2, 0], V * stress[i, 2, 1], V * stress[i, 2, 2])
+            m = mass[i]
+            bfx = m * bforce[i, 0] if forced else 0.0
+            bfy = m * bforce[i, 1] if forced else 0.0
+            bfz = m * bforce[i, 2] if forced else 0.0
+            a = (m, m * v[i, 0], m * v[i, 1], m * v[i, 2], bfx, bfy, bfz)
+            n0 = jx + L0 * jy + L01 * jz
+            e0, e1, e2, e3, e4, e5, e6, e7 = nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz)
+            scatter_node(g, e0, a, t)
+            scatter_node(g, e1, a, t)
+            scatter_node(g, e2, a, t)
+            scatter_node(g, e3, a, t)
+            scatter_node(g, e4, a, t)
+            scatter_node(g, e5, a, t)
+            scatter_node(g, e6, a, t)
+            scatter_node(g, e7, a, t)
+
+
+@kernel
+def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, gsum, err):
+    """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
+    gsum[:, 1:4, :] = 0.0
+    ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
+    L0 = nloc[0]
+    L01 = nloc[0] * nloc[1]
+    for p in range(start.size - 1):
+        g = gsum[p]
+        bx, by, bz = base[p, 0], base[p, 1], base[p, 2]
+        jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
+        jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
+        for i in range(start[p], start[p + 1]):
+            jx, fx = cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
+            jy, fy = cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
+            jz, fz = cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
+            if jx < 0 or jy < 0 or jz < 0:
+                if err[0] < 0:
+                    err[0] = i
+                continue
+            m = mass[i]
+            mvx, mvy, mvz = m * v[i, 0], m * v[i, 1], m * v[i, 2]
+            n0 = jx + L0 * jy + L01 * jz
+            for node, S, _, _, _ in nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz):
+                g[1, node] += mvx * S
+                g[2, node] += mvy * S
+                g[3, node] += mvz * S
+
+
+@kernel
+def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
+            x, v, F, r0, stress, dx, mat, params, gnew, err):
+    """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
+    updated."""
+    vmax = 0.0
+    ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
+    L0 = nloc[0]
+    L01 = nloc[0] * nloc[1]
+    for p in range(start.size - 1):
+        g = gnew[p]
+        bx, by, bz = base[p, 0], base[p, 1], base[p, 2]
+        jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
+        jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
+        for i in range(start[p], start[p + 1]):
+            xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
+            jx, fx = cell_of((xx - ox) * ihx, bx, jlx, jhx)
+            jy, fy = cell_of((xy - oy) * ihy, by, jly, jhy)
+            jz, fz = cell_of((xz - oz) * ihz, bz, jlz, jhz)
+            if jx < 0 or jy < 0 or jz < 0:
+                if err[0] < 0:
+                    err[0] = i
+                continue
+            n0 = jx + L0 * jy + L01 * jz
+            vx = vy = vz = dvx = dvy = dvz = 0.0
+            l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
+            for node, S, gx, gy, gz in nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz):
+                nvx, nvy, nvz = g[0, node], g[1, node], g[2, node]
+                if mode != G2P_MUSL_DEFORM:
+                    vx += S * nvx
+                    vy += S * nvy
+                    vz += S * nvz
+                    dvx += S * g[3, node]
+                    dvy += S * g[4, node]
+                    dvz += S * g[5, node]
+                l00 += nvx * gx
+                l01 += nvx * gy
+                l02 += nvx * gz
+                l10 += nvy * gx
+                l11 += nvy * gy
+                l12 += nvy * gz
+                l20 += nvz * gx
+                l21 += nvz * gy
+                l22 += nvz * gz
+            if mode != G2P_MUSL_DEFORM:
+                v[i, 0] = flip * (v[i, 0] + dvx) + (1.0 - flip) * vx
+                v[i, 1] = flip * (v[i, 1] + dvy) + (1.0 - flip) * vy
+                v[i, 2] = flip * (v[i, 2] + dvz) + (1.0 - flip) * vz
+                if mode != G2P_USL:
+                    dx[i, 0], dx[i, 1], dx[i, 2] = dt * vx, dt * vy, dt * vz
+                    continue
+                x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
+            else:
+                x[i, 0], x[i, 1], x[i, 2] = xx + dx[i, 0], xy + dx[i, 1], xz + dx[i, 2]
+            vmax = update_F_stress(vmax, i, dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
+                                   dt * l12, dt * l20, dt * l21, dt * l22,
+                                   F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
+                                   F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2],
+                                   v, F, stress, mat, params)
+    return vmax
