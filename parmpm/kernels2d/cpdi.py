@@ -16,7 +16,7 @@ scattered, so a particle that reaches past the ghost layer contributes nothing a
 """
 import math
 
-from parmpm.jit import inline_kernel, kernel
+from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import cells_of4
 from parmpm.kernels2d.material import stress_and_speed
 
@@ -123,7 +123,7 @@ def gather4(g, L0, jx, jy, fx, fy):
             s0 * g[3, n0] + s1 * g[3, n0 + 1] + s2 * g[3, n2] + s3 * g[3, n2 + 1])
 
 
-@kernel
+@loop_kernel
 def p2g_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, vol0, stress,
              bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
@@ -162,7 +162,7 @@ def p2g_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass,
             scatter5(g, L0, jx3, jy3, fx3, fy3, mq, mvx, mvy, bfx - tax, bfy - tay)
 
 
-@kernel
+@loop_kernel
 def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, gsum, err):
     """The MUSL re-map: momentum rows (1, 2) of ``gsum`` only."""
     gsum[:, 1:3, :] = 0.0
@@ -190,7 +190,7 @@ def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, 
             scatter_momentum(g, L0, jx3, jy3, fx3, fy3, mvx, mvy)
 
 
-@kernel
+@loop_kernel
 def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
              x, v, F, r0, stress, dx, mat, params, gnew, err):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from

@@ -8,13 +8,13 @@ gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇�
 """
 import math
 
-from parmpm.jit import kernel
+from parmpm.jit import loop_kernel
 from parmpm.kernels2d.cells import cell_of
 from parmpm.kernels2d.cpdi import G2P_MUSL_DEFORM, G2P_USL
 from parmpm.kernels2d.material import stress_and_speed
 
 
-@kernel
+@loop_kernel
 def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, vol0, stress,
             bforce, gsum, err):
     """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` and
@@ -56,7 +56,7 @@ def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, 
                 g[4, node] += bfy * S - (t10 * gx + t11 * gy)
 
 
-@kernel
+@loop_kernel
 def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, gsum, err):
     """The MUSL re-map: momentum only, into ``gsum[..., 1:3]``."""
     gsum[:, 1:3, :] = 0.0
@@ -82,7 +82,7 @@ def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r
                 g[2, node] += mvy * S
 
 
-@kernel
+@loop_kernel
 def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             x, v, F, r0, stress, dx, mat, params, gnew, err):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from parmpm.jit import inline_kernel, kernel
+from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels3d.cells import cells_of8
 from parmpm.kernels3d.material import update_F_stress
 
@@ -178,7 +178,7 @@ def sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gx, gy, gz):
             q * (s20 * gx + s21 * gy + s22 * gz))
 
 
-@kernel
+@loop_kernel
 def p2g_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, vol0, stress,
              bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
@@ -246,7 +246,7 @@ def p2g_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass,
                      bfx - tAx, bfy - tAy, bfz - tAz)
 
 
-@kernel
+@loop_kernel
 def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
     gsum[:, 1:4, :] = 0.0
@@ -286,7 +286,7 @@ def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, 
             scatter_momentum(g, L0, L01, jx7, jy7, jz7, fx7, fy7, fz7, mvx, mvy, mvz)
 
 
-@kernel
+@loop_kernel
 def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
              x, v, F, r0, stress, dx, mat, params, gnew, err):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from

@@ -9,7 +9,7 @@ full step). Grid rows as in :mod:`parmpm.kernels3d.cpdi`; node ``i0 + L0 (i1 + L
 """
 import numpy as np
 
-from parmpm.jit import inline_kernel, kernel
+from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import cell_of
 from parmpm.kernels3d.cpdi import G2P_MUSL_DEFORM, G2P_USL
 from parmpm.kernels3d.material import update_F_stress
@@ -52,7 +52,7 @@ def scatter_node(g, e, a, t):
     g[6, node] += bfz * S - (t20 * gx + t21 * gy + t22 * gz)
 
 
-@kernel
+@loop_kernel
 def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, vol0, stress,
             bforce, gsum, err):
     """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` and
@@ -100,7 +100,7 @@ def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, 
             scatter_node(g, e7, a, t)
 
 
-@kernel
+@loop_kernel
 def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
     gsum[:, 1:4, :] = 0.0
@@ -129,7 +129,7 @@ def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r
                 g[3, node] += mvz * S
 
 
-@kernel
+@loop_kernel
 def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             x, v, F, r0, stress, dx, mat, params, gnew, err):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
