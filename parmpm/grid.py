@@ -10,8 +10,11 @@ mass below ``mass_eps`` get zero velocity (they carry no material). Ghost nodes 
 ``fill``.
 """
 import numpy as np
+from numba import literal_unroll, literally
 
-from parmpm.jit import kernel
+from parmpm.jit import helper_kernel, kernel, loop_kernel
+
+DIMS = (1, 2, 3)
 
 #: row stride modulo 4 KiB (in doubles) of a grid block: 208 doubles = 1664 B puts the rows of a
 #: 5-row block 768 B or more apart modulo 4 KiB, so stores to one row never falsely depend on loads
@@ -22,7 +25,7 @@ FREE, SLIP, FIXED = 0, 1, 2
 BC_CODES = {"free": FREE, "slip": SLIP, "fixed": FIXED}
 
 
-@kernel
+@helper_kernel
 def _apply_bc(d, gidx, nglob, bc, vel):
     for k in range(d):
         side = -1
@@ -39,7 +42,7 @@ def _apply_bc(d, gidx, nglob, bc, vel):
             vel[k] = 0.0
 
 
-@kernel
+@helper_kernel
 def _apply_regions(d, gidx, origin, h, regions, normal, vel):
     """Constrain a node inside region boxes ``regions[r, 0] ≤ x ≤ regions[r, 1]``: all components
     (``normal[r] < 0``: a fixed region, e.g. a grip) or the ``normal[r]`` component only (a slip
@@ -73,7 +76,7 @@ def region_node_ranges(regions: np.ndarray, origin: np.ndarray, h: np.ndarray, d
     return out
 
 
-@kernel
+@helper_kernel
 def _near_region(gi0, gi1, gi2, ranges):
     for r in range(ranges.shape[0]):
         if (ranges[r, 0, 0] <= gi0 <= ranges[r, 1, 0] and ranges[r, 0, 1] <= gi1 <= ranges[r, 1, 1]
@@ -88,15 +91,28 @@ def grid_update(d, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, range
     """Owned-node update from the P2G block ``gsum[slot] = (m, mv, f)`` rows into the block
     ``gnew[slot] = (v, Δv)`` rows (:func:`grid_block` layout). With ``from_momentum_only`` (the
     MUSL re-map) only ``v = mv/m`` with boundary conditions is formed. Constraints are applied
-    only on nodes of a constrained grid face or near a region (``ranges``)."""
+    only on nodes of a constrained grid face or near a region (``ranges``). The node loop is
+    compiled once per dimension (as :mod:`parmpm.transfer`'s loops), without reference counting."""
     vold = np.zeros(3)
     vnew = np.zeros(3)
     gidx = np.zeros(3, np.int64)
-    L0, L1 = nloc[0], nloc[1]
     face = np.zeros((3, 2), np.bool_)  # constrained global faces
     for k in range(d):
         for side in range(2):
             face[k, side] = bc[k, side] != FREE
+    for dim in literal_unroll(DIMS):
+        if dim == d:
+            _grid_loop(dim, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, ranges, origin,
+                       h, dt, gvec, damping, mass_eps, gsum, gnew, from_momentum_only,
+                       vold, vnew, gidx, face)
+
+
+@loop_kernel
+def _grid_loop(dim, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, ranges, origin, h, dt,
+               gvec, damping, mass_eps, gsum, gnew, from_momentum_only, vold, vnew, gidx, face):
+    literally(dim)
+    d = dim * 1
+    L0, L1 = nloc[0], nloc[1]
     nreg = ranges.shape[0]
     for p in range(gsum.shape[0]):
         G = gsum[p]
@@ -139,7 +155,6 @@ def grid_update(d, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, range
                         for a in range(d):
                             W[a, node] = vnew[a]
                             W[d + a, node] = vnew[a] - vold[a]
-
 
 def grid_block(slots: int, rows: int, nodes: int) -> tuple[np.ndarray, np.ndarray]:
     """Zeroed storage for ``rows`` grid fields of every patch slot: ``(block, view)`` with
