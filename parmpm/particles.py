@@ -13,7 +13,11 @@ import math
 
 import numpy as np
 
-from parmpm.jit import kernel
+from numba import literal_unroll, literally
+
+from parmpm.jit import kernel, loop_kernel
+
+DIMS = (1, 2, 3)
 
 FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx")
 INT_FIELDS = ("gid", "mat", "patch")
@@ -182,12 +186,24 @@ def locate_patches(d, x, origin, inv_h, cells, psize, ppa, current, out):
     """Flat global patch id of each particle's cell into ``out``; a particle outside the grid
     keeps ``current``. Returns (the index of the first particle outside the grid or -1, how many
     particles changed patch). The patch index ``⌊c/s⌋`` of cell ``c`` uses a floating-point
-    reciprocal corrected by one integer test instead of an integer division (~4× faster)."""
-    first = -1
-    moved = 0
+    reciprocal corrected by one integer test instead of an integer division; the loop is
+    compiled per dimension without reference counting (together ~3× faster)."""
     inv_ps = np.zeros(3)
     for k in range(d):
         inv_ps[k] = 1.0 / psize[k]
+    result = (-1, 0)
+    for dim in literal_unroll(DIMS):
+        if dim == d:
+            result = _locate_loop(dim, x, origin, inv_h, cells, psize, ppa, current, out, inv_ps)
+    return result
+
+
+@loop_kernel
+def _locate_loop(dim, x, origin, inv_h, cells, psize, ppa, current, out, inv_ps):
+    literally(dim)
+    d = dim * 1
+    first = -1
+    moved = 0
     for i in range(x.shape[0]):
         pid = 0
         stride = 1

@@ -15,7 +15,7 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
 * top level: ``name`` (default: file stem / built-in name), ``description`` (default ""),
   ``dim`` (1, 2 or 3; required).
 * ``[grid]``: ``origin`` (default 0), ``cell_size`` (> 0, required), ``cells`` (ints > 0,
-  required), ``patch_size`` (ints > 0, default 32 in 1D/2D, 16 in 3D; clipped to ``cells``),
+  required), ``patch_size`` (ints > 0, default 64 in 1D/2D, 16 in 3D; clipped to ``cells``),
   ``ghost`` ("auto" or int >= 1, default "auto").
 * ``[materials.NAME]`` (at least one): ``model`` ("linear_elastic" | "neo_hookean"),
   ``density`` (> 0), ``youngs_modulus`` (> 0), ``poisson_ratio`` (-1 < nu < 0.5); all required.
