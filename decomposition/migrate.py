@@ -46,45 +46,51 @@ def migrate(records: dict[str, np.ndarray], dest: np.ndarray, comm, peers) -> di
     """Send each record to rank ``dest[i]``; return the records this rank now holds (the same
     dict object when nothing left or arrived). See :func:`exchange` for ``peers``."""
     keep, received = exchange(records, dest, comm, peers)
-    if received is None and keep.size == np.shape(dest)[0]:
+    if received is None and keep is None:
         return records
-    out = {name: a[keep] for name, a in records.items()}
+    out = {name: (a if keep is None else a[keep]) for name, a in records.items()}
     if received is not None:
         out = {name: np.concatenate([out[name], received[name]]) for name in records}
     return out
 
 
-def exchange(records: dict[str, np.ndarray], dest: np.ndarray, comm, peers):
+def exchange(records: dict[str, np.ndarray], dest: np.ndarray | None, comm, peers):
     """Send each record to rank ``dest[i]``; return ``(keep, received)``: the indices of the
-    records that stay here, and the arrived records (a dict like ``records``, or None).
-
-    Callers that re-sort anyway build their new arrays from both in one pass (no intermediate
-    copies). ``peers`` are the ranks that may exchange records with this one (the relation must
-    be symmetric); a ``dest`` outside ``peers`` and this rank is a ValueError raised *before*
-    anything is sent, so the caller decides how all ranks stop. ``peers=None`` means every rank.
+    records that stay here (None: all of them), and the arrived records (a dict like
+    ``records``, or None). ``dest=None`` says every record stays (the caller knows none moved);
+    the peers still get their (empty) messages. Callers that re-sort anyway build their new
+    arrays from both in one pass (no intermediate copies). ``peers`` are the ranks that may
+    exchange records with this one (the relation must be symmetric); a ``dest`` outside ``peers``
+    and this rank is a ValueError raised *before* anything is sent, so the caller decides how all
+    ranks stop. ``peers=None`` means every rank. Only the leaving records are sorted and packed:
+    a step in which few particles change rank costs one pass over ``dest``.
     """
-    dest = np.asarray(dest, dtype=np.int64)
     if not is_parallel(comm):
-        if np.any(dest != 0):
+        if dest is not None and np.any(np.asarray(dest) != 0):
             raise ValueError("records addressed to another rank in a one-rank run")
-        return np.arange(dest.size), None
+        return None, None
     from mpi4py import MPI
-
     me, size = comm.Get_rank(), comm.Get_size()
     peers = np.array([r for r in range(size) if r != me] if peers is None else peers, np.int64)
+    if dest is None:
+        leaving = np.zeros(0, np.int64)
+    else:
+        dest = np.asarray(dest, dtype=np.int64)
+        leaving = np.flatnonzero(dest != me)
+    to = dest[leaving] if leaving.size else np.zeros(0, np.int64)
     allowed = np.zeros(size, bool)
     allowed[peers] = True
-    allowed[me] = True
-    if np.any(~allowed[dest]):
-        bad = int(dest[~allowed[dest]][0])
+    if np.any(~allowed[to]):
+        bad = int(to[~allowed[to]][0])
         raise ValueError(f"record addressed to rank {bad}, which is not a neighbour of rank {me}")
-    order = np.argsort(dest, kind="stable")
-    bounds = np.searchsorted(dest[order], np.concatenate([peers, [me]]), side="left")
-    ends = np.searchsorted(dest[order], np.concatenate([peers, [me]]), side="right")
+    order = np.argsort(to, kind="stable")
+    to, leaving = to[order], leaving[order]
+    bounds = np.searchsorted(to, peers, side="left")
+    ends = np.searchsorted(to, peers, side="right")
     sends = []
     reqs = []
     for i, r in enumerate(peers):
-        buf = pack(records, order[bounds[i]:ends[i]])
+        buf = pack(records, leaving[bounds[i]:ends[i]])
         sends.append(buf)
         reqs.append(comm.Isend([buf, MPI.DOUBLE], dest=int(r), tag=TAG_MIGRATE))
     W = sum(_width(a) for a in records.values())
@@ -98,5 +104,5 @@ def exchange(records: dict[str, np.ndarray], dest: np.ndarray, comm, peers):
         if n:
             received.append(buf.reshape(-1, W))
     MPI.Request.Waitall(reqs)
-    keep = np.flatnonzero(dest == me)
+    keep = np.flatnonzero(dest == me) if leaving.size else None
     return keep, (unpack(np.concatenate(received), records) if received else None)

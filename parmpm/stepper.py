@@ -232,6 +232,10 @@ class Stepper:
             self.error = (f"particle {P.gid[bad]} at {fmt_vec(P.x[bad])} left the grid "
                           f"(origin {fmt_vec(D.origin)}, extent {fmt_vec(D.origin + D.h * lay.cells)}); "
                           "enlarge grid.cells or move grid.origin")
+        if moved == 0:  # every particle stays in its patch, so on this rank
+            keep, received = (exchange(P.fields(), None, self.comm, ps.peers) if parallel
+                              else (None, None))
+            return new, None, keep, received
         dest = ps.rank_of[new]
         lost = dest < 0
         if np.any(lost):  # moved past a neighbour patch in one step (CFL > 1): stay, and stop
@@ -257,8 +261,12 @@ class Stepper:
             self._occupancy_changed = False
             return
         occupied_before = np.diff(P.start) > 0
-        if keep is not None and (received is not None or keep.size != P.n):  # some left or came
-            P.merge(fields, keep, received, ps.slot_of, ps.n_local)
+        if keep is not None or received is not None:  # some left or came
+            if fields is None:
+                fields = P.fields()
+                fields["patch"] = new
+            P.merge(fields, np.arange(P.n) if keep is None else keep, received, ps.slot_of,
+                    ps.n_local)
             self._new_patch = np.zeros(0, np.int64)
         elif P.group_by_patch(new, ps.slot_of, ps.n_local):
             self._new_patch = np.zeros(0, np.int64)
