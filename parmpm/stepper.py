@@ -91,6 +91,9 @@ class Stepper:
         self.timers = dict.fromkeys(PHASES, 0.0)
         self.migrated = 0
         self._new_patch = np.zeros(0, np.int64)
+        self._located = None                # (first particle off the grid, moved) from G2P
+        lay = disc.layout
+        self._loc = np.array([lay.cells3, lay.psize3, lay.patches_per_axis], np.int64)
         self.forcing = None                 # f(t, particles, out): per-particle body force
         self._bforce = np.zeros((0, particles.dim))
         #: hand-specialised (p2g, p2g_momentum, g2p) for this dimension and method, if any
@@ -155,10 +158,20 @@ class Stepper:
         self._check("p2g")
 
     def _g2p(self, mode: int, dt: float) -> float:
+        """G2P; the specialised kernels also find each particle's next patch once its position
+        is final (``_located``: one pass over the particles fewer than :meth:`locate_and_send`)."""
         P = self.P
         if self.kernels is not None:
-            return self.kernels[2](mode, *self._args_fast(), dt, self.flip, P.x, P.v, P.F, P.r0,
-                                     P.stress, P.dx, P.mat, self.params, self.gnew_block, self.err)
+            if self._new_patch.size != P.n:
+                self._new_patch = np.zeros(P.n, np.int64)
+            lay = self.disc.layout
+            vmax, moved, first_out = self.kernels[2](
+                mode, *self._args_fast(), dt, self.flip, P.x, P.v, P.F, P.r0, P.stress, P.dx,
+                P.mat, self.params, self.gnew_block, self.err, self._loc, 1.0 / lay.psize3,
+                self.patches.local_ids, self._new_patch)
+            if mode != G2P_MUSL_MOTION:
+                self._located = (first_out, moved)
+            return vmax
         return g2p(mode, *self._args(), dt, self.flip, P.x, P.v, P.F, P.r0, P.lh0, P.stress, P.dx,
                    P.mat, self.params, P.damage, self.gvel, self.gdv, self.err)
 
@@ -223,8 +236,12 @@ class Stepper:
         if self._new_patch.size != P.n:
             self._new_patch = np.zeros(P.n, np.int64)
         new = self._new_patch
-        bad, moved = locate_patches(D.dim, P.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
-                                    lay.patches_per_axis, P.patch, new)
+        if self._located is not None:  # G2P did it
+            bad, moved = self._located
+            self._located = None
+        else:
+            bad, moved = locate_patches(D.dim, P.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
+                                        lay.patches_per_axis, P.patch, new)
         parallel = is_parallel(self.comm)
         if moved == 0 and not parallel:  # nothing to regroup, nothing to send
             return None, None, None, None

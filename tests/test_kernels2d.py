@@ -145,3 +145,23 @@ def test_kernels_through_py_func(tmp_path):
     p2g.py_func(*args, *fields, blocks[1], err)
     assert err[0] == -1 and blocks[0][0, 0].sum() > 0
     close(blocks[1], blocks[0], 1e-15)
+
+
+@pytest.mark.parametrize("method,lcr", CASES)
+def test_g2p_locates_the_next_patch_like_locate_patches(method, lcr, tmp_path):
+    """The specialised G2P finds each particle's next patch (the pass migration would otherwise
+    make): the same ids and moved count as :func:`parmpm.particles.locate_patches` on the new
+    positions, with particles pushed across patch boundaries."""
+    from parmpm.particles import locate_patches
+
+    sim, st, P = deformed_stepper(method, lcr, tmp=tmp_path)
+    st.gnew[:] = 0.0
+    st.gnew[:, :, 0] = 40.0   # every particle moves 40 m/s · 1e-3 s = 0.4 cells in x
+    st._g2p(G2P_USL, 1e-3)
+    first, moved = st._located
+    D, lay = st.disc, st.disc.layout
+    ref = np.zeros(P.n, np.int64)
+    bad, ref_moved = locate_patches(2, P.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
+                                    lay.patches_per_axis, P.patch, ref)
+    assert moved == ref_moved > 0 and first == bad
+    np.testing.assert_array_equal(st._new_patch, ref)

@@ -183,12 +183,16 @@ def test_kernels_through_py_func(tmp_path):
     close(blocks[1], blocks[0], 1e-15)
     gnew = np.random.default_rng(4).normal(0.0, 1.0, grid_block(1, 6, nodes)[0].shape)
     before, out = snapshot(P), []
+    lay = D.layout
+    loc = np.array([lay.cells3, lay.psize3, lay.patches_per_axis], np.int64)
     for f in (g2p, g2p.py_func):
         restore(P, before)
-        vmax = f(G2P_USL, *args, 1e-4, 0.9, P.x, P.v, P.F, P.r0, P.stress, P.dx, P.mat,
-                 st.params, gnew, err)
-        out.append((snapshot(P), vmax))
+        new = np.full(P.n, -7, np.int64)
+        located = f(G2P_USL, *args, 1e-4, 0.9, P.x, P.v, P.F, P.r0, P.stress, P.dx, P.mat,
+                    st.params, gnew, err, loc, 1.0 / lay.psize3, st.patches.local_ids[one], new)
+        out.append((snapshot(P), located, new))
     assert err[0] == -1
     for k in before:
         close(out[1][0][k], out[0][0][k], 1e-15)
-    assert out[1][1] == out[0][1] > 0
+    assert out[1][1] == out[0][1] and out[0][1][0] > 0
+    np.testing.assert_array_equal(out[1][2], out[0][2])

@@ -17,7 +17,7 @@ scattered, so a particle that reaches past the ghost layer contributes nothing a
 import math
 
 from parmpm.jit import inline_kernel, loop_kernel
-from parmpm.kernels2d.cells import cells_of4
+from parmpm.kernels2d.cells import cells_of4, patch_id2
 from parmpm.kernels2d.material import stress_and_speed
 
 G2P_USL, G2P_MUSL_MOTION, G2P_MUSL_DEFORM = 0, 1, 2
@@ -192,15 +192,19 @@ def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, 
 
 @loop_kernel
 def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
-             x, v, F, r0, stress, dx, mat, params, gnew, err):
+             x, v, F, r0, stress, dx, mat, params, gnew, err,
+             loc, inv_ps, slot_patch, new_patch):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v_x, v_y, Δv_x, Δv_y)`` rows; returns the largest ``c_p + |v_p|`` in the
     modes that update the stress."""
     vmax = 0.0
+    moved = 0
+    first_out = -1
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
     L0 = nloc[0]
     for p in range(start.size - 1):
         g = gnew[p]
+        sp = slot_patch[p]
         bx, by = base[p, 0], base[p, 1]
         jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
         for i in range(start[p], start[p + 1]):
@@ -215,6 +219,7 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             if not ok:
                 if err[0] < 0:
                     err[0] = i
+                new_patch[i] = sp
                 continue
             u0x, u0y, d0x, d0y = gather4(g, L0, jx0, jy0, fx0, fy0)
             u1x, u1y, d1x, d1y = gather4(g, L0, jx1, jy1, fx1, fy1)
@@ -234,6 +239,15 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             else:
                 x[i, 0] = xx + dx[i, 0]
                 x[i, 1] = xy + dx[i, 1]
+            pid = patch_id2(x[i, 0], x[i, 1], origin, inv_h, loc, inv_ps)  # where it goes next
+            if pid < 0:
+                new_patch[i] = sp
+                if first_out < 0:
+                    first_out = i
+            else:
+                new_patch[i] = pid
+                if pid != sp:
+                    moved += 1
             # L = (1/V) Σ v(x_α) ⊗ g_α with g = −ga, gb, −gb, ga for corners 0..3
             gax, gay = r2y - r1y, r1x - r2x
             gbx, gby = r2y + r1y, -r1x - r2x
@@ -254,4 +268,4 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
             if not (s <= vmax):
                 vmax = s if s == s else math.inf
-    return vmax
+    return vmax, moved, first_out

@@ -9,7 +9,7 @@ gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇�
 import math
 
 from parmpm.jit import loop_kernel
-from parmpm.kernels2d.cells import cell_of
+from parmpm.kernels2d.cells import cell_of, patch_id2
 from parmpm.kernels2d.cpdi import G2P_MUSL_DEFORM, G2P_USL
 from parmpm.kernels2d.material import stress_and_speed
 
@@ -84,14 +84,18 @@ def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r
 
 @loop_kernel
 def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
-            x, v, F, r0, stress, dx, mat, params, gnew, err):
+            x, v, F, r0, stress, dx, mat, params, gnew, err,
+             loc, inv_ps, slot_patch, new_patch):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
     updated."""
     vmax = 0.0
+    moved = 0
+    first_out = -1
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
     L0 = nloc[0]
     for p in range(start.size - 1):
         g = gnew[p]
+        sp = slot_patch[p]
         bx, by = base[p, 0], base[p, 1]
         jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
         for i in range(start[p], start[p + 1]):
@@ -101,6 +105,7 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             if jx < 0 or jy < 0:
                 if err[0] < 0:
                     err[0] = i
+                new_patch[i] = sp
                 continue
             n0 = jx + L0 * jy
             vx = vy = dvx = dvy = 0.0
@@ -135,6 +140,15 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             else:
                 x[i, 0] = xx + dx[i, 0]
                 x[i, 1] = xy + dx[i, 1]
+            pid = patch_id2(x[i, 0], x[i, 1], origin, inv_h, loc, inv_ps)  # where it goes next
+            if pid < 0:
+                new_patch[i] = sp
+                if first_out < 0:
+                    first_out = i
+            else:
+                new_patch[i] = pid
+                if pid != sp:
+                    moved += 1
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             l00, l01, l10, l11 = dt * l00, dt * l01, dt * l10, dt * l11
             n00 = f00 + (l00 * f00 + l01 * f10)
@@ -147,4 +161,4 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
             if not (s <= vmax):
                 vmax = s if s == s else math.inf
-    return vmax
+    return vmax, moved, first_out

@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
+from parmpm.kernels2d.cells import patch_id3
 from parmpm.kernels3d.cells import cells_of8
 from parmpm.kernels3d.material import update_F_stress
 
@@ -288,16 +289,20 @@ def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, 
 
 @loop_kernel
 def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
-             x, v, F, r0, stress, dx, mat, params, gnew, err):
+             x, v, F, r0, stress, dx, mat, params, gnew, err,
+             loc, inv_ps, slot_patch, new_patch):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v, Δv)`` rows (the deformation mode reads only ``v``); returns the largest
     ``c_p + |v_p|`` in the modes that update the stress."""
     vmax = 0.0
+    moved = 0
+    first_out = -1
     ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
     L0 = nloc[0]
     L01 = nloc[0] * nloc[1]
     for p in range(start.size - 1):
         g = gnew[p]
+        sp = slot_patch[p]
         bx, by, bz = base[p, 0], base[p, 1], base[p, 2]
         jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
         jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
@@ -319,6 +324,7 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             if not (okx and oky and okz):
                 if err[0] < 0:
                     err[0] = i
+                new_patch[i] = sp
                 continue
             if mode == G2P_MUSL_DEFORM:
                 u0x, u0y, u0z = gather3(g, L0, L01, jx0, jy0, jz0, fx0, fy0, fz0)
@@ -352,6 +358,15 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
                     dx[i, 0], dx[i, 1], dx[i, 2] = dt * vx, dt * vy, dt * vz
                     continue
                 x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
+            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], origin, inv_h, loc, inv_ps)
+            if pid < 0:
+                new_patch[i] = sp
+                if first_out < 0:
+                    first_out = i
+            else:
+                new_patch[i] = pid
+                if pid != sp:
+                    moved += 1
             # Δt L = Δt/V Σ v(x_α) ⊗ g_α, opposite corners paired (g: see p2g_cpdi)
             gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = cofactor(
                 R00, R01, R02, R10, R11, R12, R20, R21, R22)
@@ -372,4 +387,4 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             vmax = update_F_stress(vmax, i, l00, l01, l02, l10, l11, l12, l20, l21, l22,
                                    f00, f01, f02, f10, f11, f12, f20, f21, f22,
                                    v, F, stress, mat, params)
-    return vmax
+    return vmax, moved, first_out

@@ -10,7 +10,7 @@ full step). Grid rows as in :mod:`parmpm.kernels3d.cpdi`; node ``i0 + L0 (i1 + L
 import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
-from parmpm.kernels2d.cells import cell_of
+from parmpm.kernels2d.cells import cell_of, patch_id3
 from parmpm.kernels3d.cpdi import G2P_MUSL_DEFORM, G2P_USL
 from parmpm.kernels3d.material import update_F_stress
 
@@ -131,15 +131,19 @@ def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r
 
 @loop_kernel
 def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
-            x, v, F, r0, stress, dx, mat, params, gnew, err):
+            x, v, F, r0, stress, dx, mat, params, gnew, err,
+             loc, inv_ps, slot_patch, new_patch):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
     updated."""
     vmax = 0.0
+    moved = 0
+    first_out = -1
     ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
     L0 = nloc[0]
     L01 = nloc[0] * nloc[1]
     for p in range(start.size - 1):
         g = gnew[p]
+        sp = slot_patch[p]
         bx, by, bz = base[p, 0], base[p, 1], base[p, 2]
         jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
         jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
@@ -151,6 +155,7 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             if jx < 0 or jy < 0 or jz < 0:
                 if err[0] < 0:
                     err[0] = i
+                new_patch[i] = sp
                 continue
             n0 = jx + L0 * jy + L01 * jz
             vx = vy = vz = dvx = dvy = dvz = 0.0
@@ -183,9 +188,18 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
                 x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
             else:
                 x[i, 0], x[i, 1], x[i, 2] = xx + dx[i, 0], xy + dx[i, 1], xz + dx[i, 2]
+            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], origin, inv_h, loc, inv_ps)
+            if pid < 0:
+                new_patch[i] = sp
+                if first_out < 0:
+                    first_out = i
+            else:
+                new_patch[i] = pid
+                if pid != sp:
+                    moved += 1
             vmax = update_F_stress(vmax, i, dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
                                    dt * l12, dt * l20, dt * l21, dt * l22,
                                    F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
                                    F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2],
                                    v, F, stress, mat, params)
-    return vmax
+    return vmax, moved, first_out
