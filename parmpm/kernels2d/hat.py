@@ -108,24 +108,20 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
                 new_patch[i] = sp
                 continue
             n0 = jx + L0 * jy
-            vx = vy = dvx = dvy = 0.0
-            l00 = l01 = l10 = l11 = 0.0
-            for e in range(4):
-                sx = fx if e & 1 else 1.0 - fx
-                sy = fy if e & 2 else 1.0 - fy
-                gx = (ihx if e & 1 else -ihx) * sy
-                gy = sx * (ihy if e & 2 else -ihy)
-                S = sx * sy
-                node = n0 + (e & 1) + (L0 if e & 2 else 0)
-                nvx, nvy = g[0, node], g[1, node]
-                vx += S * nvx
-                vy += S * nvy
-                dvx += S * g[2, node]
-                dvy += S * g[3, node]
-                l00 += nvx * gx
-                l01 += nvx * gy
-                l10 += nvy * gx
-                l11 += nvy * gy
+            n2 = n0 + L0
+            ux0, ux1, ux2, ux3 = g[0, n0], g[0, n0 + 1], g[0, n2], g[0, n2 + 1]
+            uy0, uy1, uy2, uy3 = g[1, n0], g[1, n0 + 1], g[1, n2], g[1, n2 + 1]
+            gx, gy = 1.0 - fx, 1.0 - fy
+            s0, s1, s2, s3 = gx * gy, fx * gy, gx * fy, fx * fy
+            vx = s0 * ux0 + s1 * ux1 + s2 * ux2 + s3 * ux3
+            vy = s0 * uy0 + s1 * uy1 + s2 * uy2 + s3 * uy3
+            dvx = s0 * g[2, n0] + s1 * g[2, n0 + 1] + s2 * g[2, n2] + s3 * g[2, n2 + 1]
+            dvy = s0 * g[3, n0] + s1 * g[3, n0 + 1] + s2 * g[3, n2] + s3 * g[3, n2 + 1]
+            # L = Σ v_i ⊗ ∇φ_i with ∇φ = (±S_y/Δx, ±S_x/Δy), factored per axis
+            l00 = ihx * (gy * (ux1 - ux0) + fy * (ux3 - ux2))
+            l01 = ihy * (gx * (ux2 - ux0) + fx * (ux3 - ux1))
+            l10 = ihx * (gy * (uy1 - uy0) + fy * (uy3 - uy2))
+            l11 = ihy * (gx * (uy2 - uy0) + fx * (uy3 - uy1))
             if mode != G2P_MUSL_DEFORM:
                 vpx, vpy = v[i, 0], v[i, 1]
                 v[i, 0] = flip * (vpx + dvx) + (1.0 - flip) * vx
