@@ -34,7 +34,8 @@ TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method
             "damping", "boundary", "time", "output", "metrics", "decomposition", "checkpoint",
             "manufactured")
 GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost")
-MATERIAL_KEYS = ("model", "density", "youngs_modulus", "poisson_ratio")
+MATERIAL_KEYS = ("model", "density", "youngs_modulus", "poisson_ratio", "damage")
+DAMAGE_KEYS = ("criterion", "onset", "fracture", "softening", "freeze")
 BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration",
              "angular_velocity")
 SHAPE_KEYS = {"box": ("min", "max"), "disk": ("center", "radius"), "sphere": ("center", "radius")}
@@ -343,7 +344,29 @@ def _materials(c: _Checker, raw: Any) -> dict:
                 f"{key}.poisson_ratio", c.required(key, t, "poisson_ratio", "-1 < nu < 0.5"),
                 "a number with -1 < nu < 0.5", lambda x: -1 < x < 0.5),
         }
+        if t.get("damage") is not None:
+            out[name]["damage"] = _damage(c, f"{key}.damage", t["damage"])
     return out
+
+
+def _damage(c: _Checker, key: str, raw: Any) -> dict:
+    """``[materials.NAME.damage]``: the stretch-driven damage of :mod:`parmpm.materials.damage`."""
+    from parmpm.materials.damage import SOFTENING
+
+    t = c.table(key, raw, DAMAGE_KEYS)
+    onset = c.number(f"{key}.onset", c.required(key, t, "onset", "a stretch >= 1"),
+                     "a stretch >= 1 (largest principal stretch where damage starts)",
+                     lambda x: x >= 1.0)
+    return {
+        "criterion": c.choice(f"{key}.criterion", t.get("criterion", "max_principal_stretch"),
+                              ("max_principal_stretch",)),
+        "onset": onset,
+        "fracture": c.number(f"{key}.fracture", c.required(key, t, "fracture", f"a stretch > {onset}"),
+                             f"a stretch > onset ({onset:g})", lambda x: x > onset),
+        "softening": c.choice(f"{key}.softening", t.get("softening", "linear"), tuple(SOFTENING)),
+        "freeze": c.number(f"{key}.freeze", t.get("freeze", 1.0), "a damage 0 < D <= 1",
+                           lambda x: 0.0 < x <= 1.0),
+    }
 
 
 def _bodies(c: _Checker, raw: Any, dim: int, grid: dict, materials: dict) -> list:

@@ -167,7 +167,7 @@ class Stepper:
             lay = self.disc.layout
             vmax, moved, first_out = self.kernels[2](
                 mode, *self._args_fast(), dt, self.flip, P.x, P.v, P.F, P.r0, P.stress, P.dx,
-                P.mat, self.params, self.gnew_block, self.err, self._loc, 1.0 / lay.psize3,
+                P.mat, self.params, P.damage, self.gnew_block, self.err, self._loc, 1.0 / lay.psize3,
                 self.patches.local_ids, self._new_patch)
             if mode != G2P_MUSL_MOTION:
                 self._located = (first_out, moved)

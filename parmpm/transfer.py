@@ -28,6 +28,7 @@ from numba import literal_unroll, literally
 
 from parmpm.jit import kernel, loop_kernel
 from parmpm.materials import cauchy_stress, det_d, wave_speed
+from parmpm.materials.damage import damage_update
 from parmpm.shapes import domain_matrix, particle_support
 
 G2P_USL, G2P_MUSL_MOTION, G2P_MUSL_DEFORM = 0, 1, 2
@@ -198,6 +199,7 @@ def _g2p_loop(mode, method, dim, lcr, start, base, nloc, nglob, origin, inv_h, d
                 if mode == G2P_MUSL_DEFORM:
                     x[i, a] += dx[i, a]
             prm = params[mat[i]]
+            damage[i] = damage_update(d, prm, Fi, damage[i])
             cauchy_stress(d, prm, Fi, damage[i], stress[i])
             speed2 = 0.0
             for a in range(d):

@@ -25,7 +25,8 @@ def main() -> None:
         sim = Simulation(load_scene(scene, overrides), out / name, quiet=True, comm=comm)
         summary = sim.run()
         P = sim.particles
-        g = sim.gather({"gid": P.gid, "x": P.x, "v": P.v, "F": P.F, "stress": P.stress})
+        g = sim.gather({"gid": P.gid, "x": P.x, "v": P.v, "F": P.F, "stress": P.stress,
+                        "damage": P.damage})
         if comm.Get_rank() == 0:
             np.savez(out / f"{name}.npz", summary=json.dumps(summary), **g)
 

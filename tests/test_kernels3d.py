@@ -189,7 +189,7 @@ def test_kernels_through_py_func(tmp_path):
         restore(P, before)
         new = np.full(P.n, -7, np.int64)
         located = f(G2P_USL, *args, 1e-4, 0.9, P.x, P.v, P.F, P.r0, P.stress, P.dx, P.mat,
-                    st.params, gnew, err, loc, 1.0 / lay.psize3, st.patches.local_ids[one], new)
+                    st.params, P.damage, gnew, err, loc, 1.0 / lay.psize3, st.patches.local_ids[one], new)
         out.append((snapshot(P), located, new))
     assert err[0] == -1
     for k in before:

@@ -2,7 +2,8 @@
 gives the identical final particle state (x, v, F, stress matched by global id) and identical
 summary metrics — for 1D, 2D and 3D, every interpolator, USL and MUSL, unscaled CPDI, a scene
 whose particles cross patch and rank boundaries many times and that re-balances, the
-manufactured solution (per-particle body force, slip regions) and a spinning disk.
+manufactured solution (per-particle body force, slip regions), a spinning disk and a damaging
+material.
 
 Each rank count is one ``mpirun`` subprocess (with a timeout, so a hang fails) running every case
 through ``tests/mpi_driver.py``.
@@ -45,12 +46,18 @@ def _cases() -> dict:
                                                               "time.steps=40"]]
     cases["2d_spinning_cpdi"] = ["spinning_disk", OFF + ["grid.patch_size=6", "time.steps=60",
                                                          "metrics.every_steps=5"]]
+    # a damaging material (stretch-driven damage degrading the stress), specialised 2D kernels
+    # and the generic 1D ones
+    damage = "materials.bar.damage={onset=1.05, fracture=1.6}"
+    cases["2d_cpdi_damage"] = ["hanging_bar", OFF + [damage, "grid.patch_size=4", "time.steps=60"]]
+    cases["1d_cpdi_damage"] = ["hanging_bar_1d", OFF + [damage, "grid.patch_size=4",
+                                                        "time.steps=60"]]
     return cases
 
 
 CASES = _cases()
 RANKS = (1, 2, 3, 4)
-FIELDS = ("gid", "x", "v", "F", "stress")
+FIELDS = ("gid", "x", "v", "F", "stress", "damage")
 
 
 def mpirun() -> str | None:
@@ -95,6 +102,13 @@ def test_bit_identical_on_1_to_4_ranks(runs, case):
         assert summary["metrics"] == ref_summary["metrics"], f"{case}: metrics differ on {n} ranks"
         assert summary["final"] == ref_summary["final"], f"{case}: totals differ on {n} ranks"
         assert (summary["steps"], summary["time"]) == (ref_summary["steps"], ref_summary["time"])
+
+
+def test_damage_cases_damage(runs):
+    """The damage cases are not vacuous: particles are damaged by the end."""
+    for case in ("2d_cpdi_damage", "1d_cpdi_damage"):
+        ref, _ = _load(runs[1], case)
+        assert ref["damage"].max() > 0.01, case
 
 
 def test_crossing_scene_migrates_and_rebalances(runs):

@@ -18,7 +18,7 @@ import math
 
 from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import cells_of4, patch_id2
-from parmpm.kernels2d.material import stress_and_speed
+from parmpm.kernels2d.material import stress_damage_speed
 
 G2P_USL, G2P_MUSL_MOTION, G2P_MUSL_DEFORM = 0, 1, 2
 
@@ -192,7 +192,7 @@ def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, 
 
 @loop_kernel
 def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
-             x, v, F, r0, stress, dx, mat, params, gnew, err,
+             x, v, F, r0, stress, dx, mat, params, damage, gnew, err,
              loc, inv_ps, slot_patch, new_patch):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v_x, v_y, Δv_x, Δv_y)`` rows; returns the largest ``c_p + |v_p|`` in the
@@ -263,7 +263,7 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             n10 = f10 + (l10 * f00 + l11 * f10)
             n11 = f11 + (l10 * f01 + l11 * f11)
             F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1] = n00, n01, n10, n11
-            s00, s01, s11, c = stress_and_speed(params, mat[i], n00, n01, n10, n11)
+            s00, s01, s11, c = stress_damage_speed(params, mat[i], damage, i, n00, n01, n10, n11)
             stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1] = s00, s01, s01, s11
             s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
             if not (s <= vmax):

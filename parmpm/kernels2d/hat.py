@@ -11,7 +11,7 @@ import math
 from parmpm.jit import loop_kernel
 from parmpm.kernels2d.cells import cell_of, patch_id2
 from parmpm.kernels2d.cpdi import G2P_MUSL_DEFORM, G2P_USL
-from parmpm.kernels2d.material import stress_and_speed
+from parmpm.kernels2d.material import stress_damage_speed
 
 
 @loop_kernel
@@ -84,7 +84,7 @@ def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r
 
 @loop_kernel
 def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
-            x, v, F, r0, stress, dx, mat, params, gnew, err,
+            x, v, F, r0, stress, dx, mat, params, damage, gnew, err,
              loc, inv_ps, slot_patch, new_patch):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
     updated."""
@@ -152,7 +152,7 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             n10 = f10 + (l10 * f00 + l11 * f10)
             n11 = f11 + (l10 * f01 + l11 * f11)
             F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1] = n00, n01, n10, n11
-            s00, s01, s11, c = stress_and_speed(params, mat[i], n00, n01, n10, n11)
+            s00, s01, s11, c = stress_damage_speed(params, mat[i], damage, i, n00, n01, n10, n11)
             stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1] = s00, s01, s01, s11
             s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
             if not (s <= vmax):

@@ -9,6 +9,7 @@ import math
 
 from parmpm.jit import inline_kernel, kernel
 from parmpm.materials import LINEAR_ELASTIC
+from parmpm.materials.damage import COL_MODEL, damage_scalar, degrade_2d, max_stretch_2d
 
 
 @inline_kernel
@@ -34,6 +35,19 @@ def stress_and_speed(params, row, f00, f01, f10, f11):
         c = math.inf
     iJ = 1.0 / J
     return (mu * (b00 - 1.0) + p) * iJ, mu * b01 * iJ, (mu * (b11 - 1.0) + p) * iJ, c
+
+
+@inline_kernel
+def stress_damage_speed(params, row, damage, i, f00, f01, f10, f11):
+    """:func:`stress_and_speed`, with particle ``i``'s damage updated from ``F`` and its stress
+    degraded (:mod:`parmpm.materials.damage`) when its material has a damage model; without
+    one ``damage`` is not touched (so undamaged runs are bit for bit those without the model)."""
+    s00, s01, s11, c = stress_and_speed(params, row, f00, f01, f10, f11)
+    if params[row, COL_MODEL] != 0.0:
+        D = damage_scalar(params, row, damage[i], max_stretch_2d(f00, f01, f10, f11))
+        damage[i] = D
+        s00, s01, s11 = degrade_2d(D, s00, s01, s11)
+    return s00, s01, s11, c
 
 
 @kernel

@@ -289,7 +289,7 @@ def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, 
 
 @loop_kernel
 def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
-             x, v, F, r0, stress, dx, mat, params, gnew, err,
+             x, v, F, r0, stress, dx, mat, params, damage, gnew, err,
              loc, inv_ps, slot_patch, new_patch):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v, Δv)`` rows (the deformation mode reads only ``v``); returns the largest
@@ -386,5 +386,6 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             l22 = k * (wAz * gAz + wBz * gBz + wCz * gCz + wDz * gDz)
             vmax = update_F_stress(vmax, i, l00, l01, l02, l10, l11, l12, l20, l21, l22,
                                    f00, f01, f02, f10, f11, f12, f20, f21, f22,
-                                   v, F, stress, mat, params)
+                                   v, F, stress, mat, params,
+                                   damage)
     return vmax, moved, first_out

@@ -131,7 +131,7 @@ def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r
 
 @loop_kernel
 def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
-            x, v, F, r0, stress, dx, mat, params, gnew, err,
+            x, v, F, r0, stress, dx, mat, params, damage, gnew, err,
              loc, inv_ps, slot_patch, new_patch):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
     updated."""
@@ -201,5 +201,6 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
                                    dt * l12, dt * l20, dt * l21, dt * l22,
                                    F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
                                    F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2],
-                                   v, F, stress, mat, params)
+                                   v, F, stress, mat, params,
+                                   damage)
     return vmax, moved, first_out

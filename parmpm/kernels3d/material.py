@@ -14,6 +14,7 @@ import math
 
 from parmpm.jit import inline_kernel, kernel
 from parmpm.materials import LINEAR_ELASTIC
+from parmpm.materials.damage import COL_MODEL, damage_scalar, degrade_3d, max_stretch_3d
 
 
 @inline_kernel
@@ -58,9 +59,11 @@ def store_stress(stress, i, s00, s01, s02, s11, s12, s22):
 
 @inline_kernel
 def update_F_stress(vmax, i, l00, l01, l02, l10, l11, l12, l20, l21, l22,
-                    f00, f01, f02, f10, f11, f12, f20, f21, f22, v, F, stress, mat, params):
+                    f00, f01, f02, f10, f11, f12, f20, f21, f22, v, F, stress, mat, params,
+                    damage):
     """The end of a G2P deformation update of particle ``i``: ``F ← (I + ΔtL) F`` (``l = ΔtL``,
-    ``f = F``), its stress, and the running largest ``c_p + |v_p|`` (``inf`` once one is NaN)."""
+    ``f = F``), its damage and (degraded) stress (:mod:`parmpm.materials.damage`), and the
+    running largest ``c_p + |v_p|`` (``inf`` once one is NaN)."""
     n00 = f00 + (l00 * f00 + l01 * f10 + l02 * f20)
     n01 = f01 + (l00 * f01 + l01 * f11 + l02 * f21)
     n02 = f02 + (l00 * f02 + l01 * f12 + l02 * f22)
@@ -75,6 +78,12 @@ def update_F_stress(vmax, i, l00, l01, l02, l10, l11, l12, l20, l21, l22,
     F[i, 2, 0], F[i, 2, 1], F[i, 2, 2] = n20, n21, n22
     s00, s01, s02, s11, s12, s22, c = stress_and_speed(params, mat[i], n00, n01, n02, n10, n11,
                                                        n12, n20, n21, n22)
+    row = mat[i]
+    if params[row, COL_MODEL] != 0.0:  # damage: touch nothing else without a model
+        D = damage_scalar(params, row, damage[i],
+                          max_stretch_3d(n00, n01, n02, n10, n11, n12, n20, n21, n22))
+        damage[i] = D
+        s00, s01, s02, s11, s12, s22 = degrade_3d(D, s00, s01, s02, s11, s12, s22)
     store_stress(stress, i, s00, s01, s02, s11, s12, s22)
     s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2])
     if not (s <= vmax):

@@ -1,9 +1,10 @@
 """Material registry and the stress kernel's single dispatch.
 
 Each material is a row of a float64 parameter table (see ``PARAM``) so kernels need no objects:
-``[model code, ρ0, E, ν, λ, μ, c², 1/ρ0]`` with ``c² = (λ + 2μ)/ρ0`` the P-wave speed squared used
-for the CFL time step (``1/ρ0`` spares the hot loop a division). ``cauchy_stress`` is where a damage model plugs in: it receives the particle's
-damage state (unused by the elastic models) and may scale or replace the elastic stress.
+``[model code, ρ0, E, ν, λ, μ, c², 1/ρ0, damage model, λ0, λf, D_freeze]`` with
+``c² = (λ + 2μ)/ρ0`` the P-wave speed squared used for the CFL time step (``1/ρ0`` spares the hot
+loop a division); the last four describe the damage model (:mod:`parmpm.materials.damage`;
+zeros: none). ``cauchy_stress`` gives the elastic stress degraded by the particle's damage.
 """
 from __future__ import annotations
 
@@ -12,13 +13,15 @@ import math
 import numpy as np
 
 from parmpm.jit import helper_kernel
+from parmpm.materials.damage import SOFTENING, degrade
 from parmpm.materials.linear_elastic import linear_elastic_stress
 from parmpm.materials.neo_hookean import det_d, neo_hookean_stress
 
 LINEAR_ELASTIC, NEO_HOOKEAN = 0, 1
 MODELS = {"linear_elastic": LINEAR_ELASTIC, "neo_hookean": NEO_HOOKEAN}
-PARAM = {"model": 0, "density": 1, "E": 2, "nu": 3, "lam": 4, "mu": 5, "c2": 6, "inv_density": 7}
-N_PARAMS = 8
+PARAM = {"model": 0, "density": 1, "E": 2, "nu": 3, "lam": 4, "mu": 5, "c2": 6, "inv_density": 7,
+         "damage": 8, "damage_onset": 9, "damage_fracture": 10, "damage_freeze": 11}
+N_PARAMS = 12
 
 
 def lame(E: float, nu: float) -> tuple[float, float]:
@@ -33,8 +36,12 @@ def material_table(materials: dict) -> tuple[np.ndarray, list[str]]:
     for row, name in enumerate(names):
         m = materials[name]
         lam, mu = lame(m["youngs_modulus"], m["poisson_ratio"])
-        table[row, :] = [MODELS[m["model"]], m["density"], m["youngs_modulus"],
-                         m["poisson_ratio"], lam, mu, (lam + 2 * mu) / m["density"], 1 / m["density"]]
+        table[row, :8] = [MODELS[m["model"]], m["density"], m["youngs_modulus"],
+                          m["poisson_ratio"], lam, mu, (lam + 2 * mu) / m["density"], 1 / m["density"]]
+        dmg = m.get("damage")
+        if dmg:
+            table[row, 8:] = [SOFTENING[dmg["softening"]], dmg["onset"], dmg["fracture"],
+                              dmg["freeze"]]
     return table, names
 
 
@@ -46,6 +53,7 @@ def cauchy_stress(d, params, F, damage, out):
         linear_elastic_stress(d, F, params[4], params[5], out)
     else:
         neo_hookean_stress(d, F, params[4], params[5], out)
+    degrade(d, damage, out)
 
 
 @helper_kernel

@@ -1,0 +1,156 @@
+"""Scalar damage driven by the largest principal stretch, degrading the stress in tension.
+
+A material with a ``[materials.NAME.damage]`` table carries a damage ``D ∈ [0, 1]`` per particle
+(``Particles.damage``), updated after every deformation update from the largest principal
+stretch ``λ = √(max eig b)``, ``b = F Fᵀ`` (in 1D ``|F|``), with onset ``λ0`` and fracture
+stretch ``λf``:
+
+* linear softening:       ``g(λ) = (λ − λ0)/(λf − λ0)``, clipped to [0, 1] (``D = 1`` at ``λf``);
+* exponential softening:  ``g(λ) = 1 − exp(−(λ − λ0)/(λf − λ0))`` for ``λ > λ0`` (``D → 1``;
+  ``λf − λ0`` is the stretch scale over which ``1 − D`` falls by ``e``);
+
+and ``D ← max(D, g(λ))``: damage never heals. The stress is then
+``σ = (1 − D) σ_e`` when the mean in-plane stress ``p = tr σ_e / d`` is tensile, and
+``σ = (1 − D)(σ_e − p I) + p I`` when it is compressive (a damaged particle still carries
+pressure, not shear). With ``D = 0`` nothing is touched, so undamaged runs are bit for bit those
+of the same material without the table. The CFL wave speed stays the undamaged one (conservative).
+
+Parameter-table columns (:data:`parmpm.materials.PARAM`): ``damage`` (0 none, 1 linear,
+2 exponential), ``damage_onset`` (λ0), ``damage_fracture`` (λf), ``damage_freeze`` (the ``D`` at
+which a CPDI domain stops following the material's stretch; see :mod:`parmpm.shapes`).
+"""
+import math
+
+from parmpm.jit import helper_kernel
+
+NO_DAMAGE, LINEAR, EXPONENTIAL = 0, 1, 2
+SOFTENING = {"linear": LINEAR, "exponential": EXPONENTIAL}
+COL_MODEL, COL_ONSET, COL_FRACTURE, COL_FREEZE = 8, 9, 10, 11
+
+
+@helper_kernel
+def softening(code, onset, fracture, lam):
+    """``g(λ)`` of the module docstring (0 below the onset)."""
+    if not lam > onset:  # NaN stretch: no damage from it (the CFL check stops such a run)
+        return 0.0
+    x = (lam - onset) / (fracture - onset)
+    if code == LINEAR:
+        return min(1.0, x)
+    return 1.0 - math.exp(-x)
+
+
+@helper_kernel
+def largest_eigenvalue_sym3(a00, a01, a02, a11, a12, a22):
+    """Largest eigenvalue of a symmetric 3×3 matrix (closed form, trigonometric; exact for
+    repeated eigenvalues)."""
+    p1 = a01 * a01 + a02 * a02 + a12 * a12
+    q = (a00 + a11 + a22) / 3.0
+    if p1 == 0.0:
+        return max(a00, a11, a22)
+    p2 = (a00 - q) ** 2 + (a11 - q) ** 2 + (a22 - q) ** 2 + 2.0 * p1
+    p = math.sqrt(p2 / 6.0)
+    b00, b11, b22 = (a00 - q) / p, (a11 - q) / p, (a22 - q) / p
+    b01, b02, b12 = a01 / p, a02 / p, a12 / p
+    r = 0.5 * (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02)
+               + b02 * (b01 * b12 - b11 * b02))
+    r = min(1.0, max(-1.0, r))
+    return q + 2.0 * p * math.cos(math.acos(r) / 3.0)
+
+
+@helper_kernel
+def max_stretch_2d(f00, f01, f10, f11):
+    """Largest principal stretch ``√(max eig F Fᵀ)`` in 2D."""
+    b00 = f00 * f00 + f01 * f01
+    b01 = f00 * f10 + f01 * f11
+    b11 = f10 * f10 + f11 * f11
+    h = 0.5 * (b00 - b11)
+    return math.sqrt(0.5 * (b00 + b11) + math.sqrt(h * h + b01 * b01))
+
+
+@helper_kernel
+def max_stretch_3d(f00, f01, f02, f10, f11, f12, f20, f21, f22):
+    """Largest principal stretch ``√(max eig F Fᵀ)`` in 3D."""
+    b00 = f00 * f00 + f01 * f01 + f02 * f02
+    b01 = f00 * f10 + f01 * f11 + f02 * f12
+    b02 = f00 * f20 + f01 * f21 + f02 * f22
+    b11 = f10 * f10 + f11 * f11 + f12 * f12
+    b12 = f10 * f20 + f11 * f21 + f12 * f22
+    b22 = f20 * f20 + f21 * f21 + f22 * f22
+    return math.sqrt(largest_eigenvalue_sym3(b00, b01, b02, b11, b12, b22))
+
+
+@helper_kernel
+def max_stretch(d, F):
+    """Largest principal stretch of the leading d×d block of ``F``."""
+    if d == 1:
+        return abs(F[0, 0])
+    if d == 2:
+        return max_stretch_2d(F[0, 0], F[0, 1], F[1, 0], F[1, 1])
+    return max_stretch_3d(F[0, 0], F[0, 1], F[0, 2], F[1, 0], F[1, 1], F[1, 2],
+                          F[2, 0], F[2, 1], F[2, 2])
+
+
+@helper_kernel
+def damage_update(d, prm, F, D):
+    """``max(D, g(λ(F)))`` for a material row ``prm``; ``D`` itself without a damage model."""
+    code = int(prm[COL_MODEL])
+    if code == NO_DAMAGE:
+        return D
+    return max(D, softening(code, prm[COL_ONSET], prm[COL_FRACTURE], max_stretch(d, F)))
+
+
+@helper_kernel
+def degrade(d, D, out):
+    """The damaged stress in place (leading d×d of ``out``); nothing at ``D = 0``."""
+    if not D > 0.0:
+        return
+    p = 0.0
+    for a in range(d):
+        p += out[a, a]
+    p /= d
+    keep = 1.0 - D
+    for a in range(d):
+        for b in range(d):
+            out[a, b] *= keep
+    if p < 0.0:  # compression: the pressure stays whole
+        for a in range(d):
+            out[a, a] += D * p
+
+
+@helper_kernel
+def degrade_2d(D, s00, s01, s11):
+    """:func:`degrade` in 2D on the three stress components (returned)."""
+    if not D > 0.0:
+        return s00, s01, s11
+    p = 0.5 * (s00 + s11)
+    keep = 1.0 - D
+    s00, s01, s11 = keep * s00, keep * s01, keep * s11
+    if p < 0.0:
+        s00 += D * p
+        s11 += D * p
+    return s00, s01, s11
+
+
+@helper_kernel
+def degrade_3d(D, s00, s01, s02, s11, s12, s22):
+    """:func:`degrade` in 3D on the six stress components (returned)."""
+    if not D > 0.0:
+        return s00, s01, s02, s11, s12, s22
+    p = (s00 + s11 + s22) / 3.0
+    k = 1.0 - D
+    s00, s01, s02, s11, s12, s22 = k * s00, k * s01, k * s02, k * s11, k * s12, k * s22
+    if p < 0.0:
+        s00 += D * p
+        s11 += D * p
+        s22 += D * p
+    return s00, s01, s02, s11, s12, s22
+
+
+@helper_kernel
+def damage_scalar(params, row, D, lam):
+    """``max(D, g(λ))`` for material ``row`` of the parameter table (the specialised kernels,
+    which compute ``λ`` from the entries of ``F``); ``D`` without a damage model."""
+    code = int(params[row, COL_MODEL])
+    if code == NO_DAMAGE:
+        return D
+    return max(D, softening(code, params[row, COL_ONSET], params[row, COL_FRACTURE], lam))
