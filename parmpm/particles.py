@@ -4,8 +4,10 @@ patch.
 Fields use the literature's names: ``x`` position, ``v`` velocity, ``x0`` reference position,
 ``mass``, ``vol0`` initial volume, ``F`` deformation gradient, ``stress`` (Cauchy), ``r0`` initial
 CPDI domain vectors (columns, physical units), ``lh0`` initial GIMP half-widths, ``mat`` material
-row, ``damage`` (for damage models), ``gid`` global id (never changes: it is how runs on different
-rank counts and restarts are compared), ``dx`` a scratch displacement for MUSL.
+row, ``damage`` (for damage models), ``rf`` a frozen CPDI domain in the material's unrotated
+frame (zeros: not frozen; :mod:`parmpm.shapes.freeze`), ``gid`` global id (never changes: it is
+how runs on different rank counts and restarts are compared), ``dx`` a scratch displacement for
+MUSL.
 """
 from __future__ import annotations
 
@@ -19,7 +21,7 @@ from parmpm.jit import kernel, loop_kernel
 
 DIMS = (1, 2, 3)
 
-FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx")
+FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx", "rf")
 INT_FIELDS = ("gid", "mat", "patch")
 
 
@@ -38,6 +40,7 @@ class Particles:
         self.F[:] = np.eye(d)
         self.stress = np.zeros((n, d, d))
         self.r0 = np.zeros((n, d, d))
+        self.rf = np.zeros((n, d, d))
         self.patch = np.zeros(n, np.int64)
         self.start = np.zeros(1, np.int64)
 

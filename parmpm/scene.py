@@ -21,7 +21,8 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   ``density`` (> 0), ``youngs_modulus`` (> 0), ``poisson_ratio`` (-1 < nu < 0.5); all required.
   Optional ``[materials.NAME.damage]``: ``onset`` (stretch >= 1, required), ``fracture``
   (> onset, required), ``softening`` ("linear" | "exponential", default linear), ``criterion``
-  ("max_principal_stretch", the only one), ``freeze`` (0 < D <= 1, default 1; not used yet).
+  ("max_principal_stretch", the only one), ``freeze`` (0 < D <= 1 or "never", default 1: the damage at which a CPDI
+  domain freezes, :mod:`parmpm.shapes.freeze`).
 * ``[[bodies]]`` (at least one): ``shape`` ("box", "disk" in 2D, "sphere" in 3D; default "box");
   box: ``min``, ``max``; disk/sphere: ``center``, ``radius``; ``material`` (required);
   ``ppc`` (particles per cell per axis, default 2); ``velocity`` (default 0); optional

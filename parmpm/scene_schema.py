@@ -349,6 +349,13 @@ def _materials(c: _Checker, raw: Any) -> dict:
     return out
 
 
+def _freeze(c: _Checker, key: str, value: Any) -> float:
+    """The damage at which a CPDI domain freezes: 0 < D <= 1, or "never" (stored as 2)."""
+    if value == "never":
+        return 2.0
+    return c.number(key, value, 'a damage 0 < D <= 1 or "never"', lambda x: 0.0 < x <= 1.0)
+
+
 def _damage(c: _Checker, key: str, raw: Any) -> dict:
     """``[materials.NAME.damage]``: the stretch-driven damage of :mod:`parmpm.materials.damage`."""
     from parmpm.materials.damage import SOFTENING
@@ -364,8 +371,7 @@ def _damage(c: _Checker, key: str, raw: Any) -> dict:
         "fracture": c.number(f"{key}.fracture", c.required(key, t, "fracture", f"a stretch > {onset}"),
                              f"a stretch > onset ({onset:g})", lambda x: x > onset),
         "softening": c.choice(f"{key}.softening", t.get("softening", "linear"), tuple(SOFTENING)),
-        "freeze": c.number(f"{key}.freeze", t.get("freeze", 1.0), "a damage 0 < D <= 1",
-                           lambda x: 0.0 < x <= 1.0),
+        "freeze": _freeze(c, f"{key}.freeze", t.get("freeze", 1.0)),
     }
 
 

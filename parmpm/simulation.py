@@ -160,6 +160,8 @@ class Simulation:
         P = Particles(self.dim, mine.size)
         block = 1 << 18
         for name in FIELDS:
+            if not reader.has(name):  # an older format: the field keeps its initial value
+                continue
             dst = getattr(P, name)
             for lo in range(0, self.n_total, block):
                 hi = min(lo + block, self.n_total)

@@ -26,6 +26,9 @@ from parmpm.grid import grid_block, grid_update, region_node_ranges
 from parmpm.kernels2d import KERNELS_2D
 from parmpm.kernels3d import KERNELS_3D
 from parmpm.kernels2d.cells import usable_cells
+from parmpm.materials.damage import COL_MODEL
+from parmpm.shapes import CPDI
+from parmpm.shapes.freeze import freeze_domains
 from parmpm.particles import Particles, locate_patches
 from parmpm.transfer import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL, g2p, p2g, p2g_momentum
 
@@ -92,6 +95,9 @@ class Stepper:
         self.migrated = 0
         self._new_patch = np.zeros(0, np.int64)
         self._located = None                # (first particle off the grid, moved) from G2P
+        #: damage-triggered CPDI domain freeze (parmpm.shapes.freeze): CPDI and a damage model
+        self.freezing = bool(disc.method == CPDI and np.any(params[:, COL_MODEL] != 0))
+        self.frozen = 0
         lay = disc.layout
         self._loc = np.array([lay.cells3, lay.psize3, lay.patches_per_axis], np.int64)
         self.forcing = None                 # f(t, particles, out): per-particle body force
@@ -214,6 +220,9 @@ class Stepper:
             t = self._lap("fill", t)
             vmax = self._g2p(G2P_MUSL_DEFORM, dt)
         self._check("g2p")
+        if self.freezing:
+            P = self.P
+            self.frozen = freeze_domains(P.dim, P.F, P.r0, P.rf, P.damage, P.mat, self.params)
         t = self._lap("g2p", t)
         moves = self.locate_and_send()
         t = self._lap("migrate", t)

@@ -239,3 +239,20 @@ def test_xdmf_of_a_two_rank_run_reads_back(tmp_path):
             assert pd["stretch"].shape == (n,) and pd["damage"].shape == (n,)
             ranks |= set(np.unique(pd["rank"]).tolist())
         assert ranks == {0.0, 1.0}
+
+
+@needs_mpi
+def test_restart_with_frozen_domains_is_bit_identical(tmp_path):
+    """Damage and frozen CPDI domains (``damage``, ``rf``, the reset ``r0``) survive a restart:
+    1 rank to step 100 with a checkpoint at 50, continued from 50 on 2 ranks, same step 100."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    over = ["--set", "materials.bar.damage={onset=1.02, fracture=1.5, freeze=0.3}",
+            "--set", "metrics.stop_on_separation=false", "--set", "grid.patch_size=4"]
+    proc = _cli(1, "run", "hanging_bar", "-o", str(a), *QUIET, *OFF, *over, "--set",
+                "time.steps=100", "--set", "checkpoint.every_steps=50")
+    assert proc.returncode == 0, proc.stderr
+    p, _ = _particles(a / "checkpoint_00000100.h5")
+    assert np.any(p["rf"] != 0) and p["damage"].max() >= 0.3  # domains did freeze
+    proc = _cli(2, "restart", str(a / "checkpoint_00000050.h5"), "-o", str(b), *QUIET)
+    assert proc.returncode == 0, proc.stderr
+    _same(a / "checkpoint_00000100.h5", b / "checkpoint_00000100.h5")

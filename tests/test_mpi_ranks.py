@@ -50,6 +50,9 @@ def _cases() -> dict:
     # and the generic 1D ones
     damage = "materials.bar.damage={onset=1.05, fracture=1.6}"
     cases["2d_cpdi_damage"] = ["hanging_bar", OFF + [damage, "grid.patch_size=4", "time.steps=60"]]
+    cases["2d_cpdi_freeze"] = ["hanging_bar", OFF + [
+        "materials.bar.damage={onset=1.02, fracture=1.5, freeze=0.3}", "grid.patch_size=4",
+        "time.steps=150", "metrics.stop_on_separation=false"]]
     cases["1d_cpdi_damage"] = ["hanging_bar_1d", OFF + [damage, "grid.patch_size=4",
                                                         "time.steps=60"]]
     return cases
@@ -106,9 +109,11 @@ def test_bit_identical_on_1_to_4_ranks(runs, case):
 
 def test_damage_cases_damage(runs):
     """The damage cases are not vacuous: particles are damaged by the end."""
-    for case in ("2d_cpdi_damage", "1d_cpdi_damage"):
+    for case in ("2d_cpdi_damage", "1d_cpdi_damage", "2d_cpdi_freeze"):
         ref, _ = _load(runs[1], case)
         assert ref["damage"].max() > 0.01, case
+    ref, _ = _load(runs[1], "2d_cpdi_freeze")
+    assert ref["damage"].max() >= 0.3  # some domains froze
 
 
 def test_crossing_scene_migrates_and_rebalances(runs):

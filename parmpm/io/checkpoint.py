@@ -7,7 +7,7 @@ number of ranks. The file is written under a temporary name, flushed, fsynced an
 kill at any moment leaves every earlier checkpoint whole. Datasets are chunked with HDF5's
 Fletcher-32 checksums, so flipped bytes are found on reading rather than restarted from.
 
-Schema (format ``parmpm-checkpoint``, version 1), readable with plain h5py::
+Schema (format ``parmpm-checkpoint``, version 2), readable with plain h5py::
 
     /                 attrs: format, version, scene (resolved TOML), step, time, dt (last Δt),
                       vmax (max c+|v| for the next Δt), method, lcr (m, NaN = none), ranks
@@ -17,7 +17,8 @@ Schema (format ``parmpm-checkpoint``, version 1), readable with plain h5py::
     /particles/mat    (N,) int64 material row
     /particles/x, v, x0, lh0        (N, dim) float64
     /particles/mass, vol0, damage   (N,) float64
-    /particles/F, stress, r0        (N, dim, dim) float64
+    /particles/F, stress, r0, rf    (N, dim, dim) float64 (rf: frozen CPDI domain, 0 = none;
+                                    absent in version 1 files, read as 0)
 """
 from __future__ import annotations
 
@@ -31,9 +32,10 @@ import numpy as np
 from parmpm.errors import ParmpmError
 
 FORMAT = "parmpm-checkpoint"
-VERSION = 1
+VERSION = 2  # 2: adds particles/rf (frozen CPDI domains); version 1 files read with rf = 0
 #: stored particle fields (``dx`` is MUSL scratch, ``patch`` is derived from ``x``)
-FIELDS = ("gid", "mat", "x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage")
+FIELDS = ("gid", "mat", "x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage",
+          "rf")
 ATTRS = ("scene", "step", "time", "dt", "vmax", "method", "lcr", "ranks", "particles", "dim", "state")
 
 
@@ -115,7 +117,7 @@ class CheckpointReader:
         if a.get("format") != FORMAT:
             self.close()
             raise ParmpmError(f"{where}: not a parmpm checkpoint (no format = '{FORMAT}' attribute)")
-        version = int(a.get("version", -1))
+        version = self.version = int(a.get("version", -1))
         if version > VERSION:
             self.close()
             raise ParmpmError(f"{where}: written by a newer parmpm (format version {version}; "
@@ -143,6 +145,8 @@ class CheckpointReader:
         expected = {"gid": (), "mat": (), "mass": (), "vol0": (), "damage": (),
                     "x": (d,), "v": (d,), "x0": (d,), "lh0": (d,),
                     "F": (d, d), "stress": (d, d), "r0": (d, d)}
+        if self.version >= 2:
+            expected["rf"] = (d, d)
         g = self.f["particles"]
         for name, tail in expected.items():
             if name not in g or g[name].shape != (self.n,) + tail:
@@ -153,6 +157,10 @@ class CheckpointReader:
     @property
     def state(self) -> dict:
         return json.loads(str(self.attrs["state"]))
+
+    def has(self, name: str) -> bool:
+        """Whether the file holds ``particles/name`` (version 1 files have no ``rf``)."""
+        return name in self.f["particles"]
 
     def read(self, name: str, lo: int = 0, hi: int | None = None) -> np.ndarray:
         try:
