@@ -77,7 +77,8 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from parmpm.errors import SceneError
-from parmpm.scene_schema import lcr_length, one_line, resolve, toml_key, toml_value
+from parmpm.scene_check import lcr_length, one_line, toml_key, toml_value
+from parmpm.scene_schema import resolve
 
 __all__ = ["Scene", "load_scene", "scene_from_toml", "builtin_scenes", "parse_lcr"]
 
