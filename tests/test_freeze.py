@@ -101,3 +101,25 @@ def test_damage_with_freeze_separates_the_hanging_bar_plain_cpdi_holds(tmp_path)
     assert not plain["separated"] and frozen["separated"] and never["separated"]
     assert frozen["separation_time"] < 0.8 * never["separation_time"]
     assert frozen["max_stretch"] < never["max_stretch"]
+
+
+def test_3d_domains_freeze_and_kernels_agree(tmp_path):
+    """The 3D bar with damage freezes domains (Newton polar rotation in the loop), and the
+    specialised 3D kernels give the generic kernels' state to round-off."""
+    from parmpm.simulation import Simulation
+
+    over = QUIET + ["time.steps=60", "metrics.stop_on_separation=false",
+                    "materials.bar.damage={onset=1.02, fracture=1.5, freeze=0.3}"]
+    runs = []
+    for specialised in (True, False):
+        sim = Simulation(parmpm.load_scene("hanging_bar_3d", over), tmp_path / str(specialised),
+                         quiet=True)
+        if not specialised:
+            sim.stepper.kernels = None
+        sim.run()
+        runs.append((sim.stepper.frozen, sim.particles))
+    (nf, a), (ng, b) = runs
+    assert nf == ng > 0
+    np.testing.assert_allclose(a.damage, b.damage, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(a.x, b.x, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(a.r0, b.r0, rtol=0, atol=1e-14)
