@@ -12,9 +12,8 @@ mass below ``mass_eps`` get zero velocity (they carry no material). Ghost nodes 
 import numpy as np
 from numba import literal_unroll, literally
 
-from parmpm.jit import helper_kernel, kernel, loop_kernel
+from parmpm.jit import DIMS, helper_kernel, kernel, loop_kernel
 
-DIMS = (1, 2, 3)
 
 #: row stride modulo 4 KiB (in doubles) of a grid block: 208 doubles = 1664 B puts the rows of a
 #: 5-row block 768 B or more apart modulo 4 KiB, so stores to one row never falsely depend on loads

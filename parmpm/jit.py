@@ -18,6 +18,9 @@ contract is checked):
 """
 from numba import njit
 
+#: the dimensions loops are compiled for, one specialisation each (``literal_unroll(DIMS)``)
+DIMS = (1, 2, 3)
+
 JIT_OPTIONS = dict(cache=True, fastmath=False, nogil=True, error_model="numpy")
 
 kernel = njit(**JIT_OPTIONS)

@@ -17,9 +17,7 @@ import numpy as np
 
 from numba import literal_unroll, literally
 
-from parmpm.jit import kernel, loop_kernel
-
-DIMS = (1, 2, 3)
+from parmpm.jit import DIMS, inline_kernel, kernel, loop_kernel
 
 FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx", "rf")
 INT_FIELDS = ("gid", "mat", "patch")
@@ -188,9 +186,9 @@ def bodies_to_particles(scene: dict, material_rows: dict[str, int], params: np.n
 def locate_patches(d, x, origin, inv_h, cells, psize, ppa, current, out):
     """Flat global patch id of each particle's cell into ``out``; a particle outside the grid
     keeps ``current``. Returns (the index of the first particle outside the grid or -1, how many
-    particles changed patch). The patch index ``⌊c/s⌋`` of cell ``c`` uses a floating-point
-    reciprocal corrected by one integer test instead of an integer division; the loop is
-    compiled per dimension without reference counting (together ~3× faster)."""
+    particles changed patch). Per axis the patch index is
+    :func:`patch_index` (the one G2P's specialised kernels use); the loop
+    is compiled per dimension without reference counting."""
     inv_ps = np.zeros(3)
     for k in range(d):
         inv_ps[k] = 1.0 / psize[k]
@@ -211,16 +209,10 @@ def _locate_loop(dim, x, origin, inv_h, cells, psize, ppa, current, out, inv_ps)
         pid = 0
         stride = 1
         for k in range(d):
-            u = (x[i, k] - origin[k]) * inv_h[k]
-            if not (u >= 0.0 and u < cells[k]):  # NaN lands here too
+            q = patch_index((x[i, k] - origin[k]) * inv_h[k], cells[k], psize[k], inv_ps[k])
+            if q < 0:  # outside the grid (NaN too)
                 pid = -1
                 break
-            c = int(u)
-            q = int(c * inv_ps[k])
-            if q * psize[k] > c:
-                q -= 1
-            elif (q + 1) * psize[k] <= c:
-                q += 1
             pid += stride * q
             stride *= ppa[k]
         if pid < 0:
@@ -232,3 +224,40 @@ def _locate_loop(dim, x, origin, inv_h, cells, psize, ppa, current, out, inv_ps)
             if pid != current[i]:
                 moved += 1
     return first, moved
+
+
+@inline_kernel
+def patch_index(u, cells, psize, inv_psize):
+    """Patch index ``⌊c/s⌋`` along one axis of the cell ``c = ⌊u⌋`` holding grid coordinate
+    ``u`` (as :func:`parmpm.particles.locate_patches`), or -1 outside the grid (NaN too)."""
+    if not (u >= 0.0 and u < cells):
+        return -1
+    c = int(u)
+    q = int(c * inv_psize)
+    if q * psize > c:
+        q -= 1
+    elif (q + 1) * psize <= c:
+        q += 1
+    return q
+
+
+@inline_kernel
+def patch_id2(x0, x1, origin, inv_h, loc, inv_ps):
+    """Flat global patch id of a 2D position, or -1 outside the grid; ``loc`` rows are the
+    layout's cells, patch size and patches per axis."""
+    q0 = patch_index((x0 - origin[0]) * inv_h[0], loc[0, 0], loc[1, 0], inv_ps[0])
+    q1 = patch_index((x1 - origin[1]) * inv_h[1], loc[0, 1], loc[1, 1], inv_ps[1])
+    if q0 < 0 or q1 < 0:
+        return -1
+    return q0 + loc[2, 0] * q1
+
+
+@inline_kernel
+def patch_id3(x0, x1, x2, origin, inv_h, loc, inv_ps):
+    """:func:`patch_id2` in 3D."""
+    q0 = patch_index((x0 - origin[0]) * inv_h[0], loc[0, 0], loc[1, 0], inv_ps[0])
+    q1 = patch_index((x1 - origin[1]) * inv_h[1], loc[0, 1], loc[1, 1], inv_ps[1])
+    q2 = patch_index((x2 - origin[2]) * inv_h[2], loc[0, 2], loc[1, 2], inv_ps[2])
+    if q0 < 0 or q1 < 0 or q2 < 0:
+        return -1
+    return q0 + loc[2, 0] * (q1 + loc[2, 1] * q2)

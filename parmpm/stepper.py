@@ -100,6 +100,7 @@ class Stepper:
         self.frozen = 0
         lay = disc.layout
         self._loc = np.array([lay.cells3, lay.psize3, lay.patches_per_axis], np.int64)
+        self._inv_psize = 1.0 / lay.psize3
         self.forcing = None                 # f(t, particles, out): per-particle body force
         self._bforce = np.zeros((0, particles.dim))
         #: hand-specialised (p2g, p2g_momentum, g2p) for this dimension and method, if any
@@ -170,10 +171,9 @@ class Stepper:
         if self.kernels is not None:
             if self._new_patch.size != P.n:
                 self._new_patch = np.zeros(P.n, np.int64)
-            lay = self.disc.layout
             vmax, moved, first_out = self.kernels[2](
                 mode, *self._args_fast(), dt, self.flip, P.x, P.v, P.F, P.r0, P.stress, P.dx,
-                P.mat, self.params, P.damage, self.gnew_block, self.err, self._loc, 1.0 / lay.psize3,
+                P.mat, self.params, P.damage, self.gnew_block, self.err, self._loc, self._inv_psize,
                 self.patches.local_ids, self._new_patch)
             if mode != G2P_MUSL_MOTION:
                 self._located = (first_out, moved)

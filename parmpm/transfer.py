@@ -26,13 +26,12 @@ import math
 import numpy as np
 from numba import literal_unroll, literally
 
-from parmpm.jit import kernel, loop_kernel
+from parmpm.jit import DIMS, kernel, loop_kernel
 from parmpm.materials import cauchy_stress, det_d, wave_speed
 from parmpm.materials.damage import damage_update
 from parmpm.shapes import domain_matrix, particle_support
 
 G2P_USL, G2P_MUSL_MOTION, G2P_MUSL_DEFORM = 0, 1, 2
-DIMS = (1, 2, 3)
 
 
 @kernel

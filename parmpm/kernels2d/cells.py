@@ -65,37 +65,15 @@ def usable_cells(base, nloc, nglob):
 
 
 @inline_kernel
-def patch_index(u, cells, psize, inv_psize):
-    """Patch index ``⌊c/s⌋`` along one axis of the cell ``c = ⌊u⌋`` holding grid coordinate
-    ``u`` (as :func:`parmpm.particles.locate_patches`), or -1 outside the grid (NaN too)."""
-    if not (u >= 0.0 and u < cells):
-        return -1
-    c = int(u)
-    q = int(c * inv_psize)
-    if q * psize > c:
-        q -= 1
-    elif (q + 1) * psize <= c:
-        q += 1
-    return q
-
-
-@inline_kernel
-def patch_id2(x0, x1, origin, inv_h, loc, inv_ps):
-    """Flat global patch id of a 2D position, or -1 outside the grid; ``loc`` rows are the
-    layout's cells, patch size and patches per axis."""
-    q0 = patch_index((x0 - origin[0]) * inv_h[0], loc[0, 0], loc[1, 0], inv_ps[0])
-    q1 = patch_index((x1 - origin[1]) * inv_h[1], loc[0, 1], loc[1, 1], inv_ps[1])
-    if q0 < 0 or q1 < 0:
-        return -1
-    return q0 + loc[2, 0] * q1
-
-
-@inline_kernel
-def patch_id3(x0, x1, x2, origin, inv_h, loc, inv_ps):
-    """:func:`patch_id2` in 3D."""
-    q0 = patch_index((x0 - origin[0]) * inv_h[0], loc[0, 0], loc[1, 0], inv_ps[0])
-    q1 = patch_index((x1 - origin[1]) * inv_h[1], loc[0, 1], loc[1, 1], inv_ps[1])
-    q2 = patch_index((x2 - origin[2]) * inv_h[2], loc[0, 2], loc[1, 2], inv_ps[2])
-    if q0 < 0 or q1 < 0 or q2 < 0:
-        return -1
-    return q0 + loc[2, 0] * (q1 + loc[2, 1] * q2)
+def note_patch(new_patch, i, pid, sp, moved, first_out):
+    """Record particle ``i``'s next patch ``pid`` (``-1``: off the grid, it keeps its slot's
+    patch ``sp``); returns the updated (moved count, first particle off the grid)."""
+    if pid < 0:
+        new_patch[i] = sp
+        if first_out < 0:
+            first_out = i
+    else:
+        new_patch[i] = pid
+        if pid != sp:
+            moved += 1
+    return moved, first_out

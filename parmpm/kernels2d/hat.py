@@ -9,9 +9,10 @@ gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇�
 import math
 
 from parmpm.jit import loop_kernel
-from parmpm.kernels2d.cells import cell_of, patch_id2
+from parmpm.kernels2d.cells import cell_of, note_patch
 from parmpm.kernels2d.cpdi import G2P_MUSL_DEFORM, G2P_USL
-from parmpm.kernels2d.material import stress_damage_speed
+from parmpm.kernels2d.material import update_F_stress
+from parmpm.particles import patch_id2
 
 
 @loop_kernel
@@ -137,24 +138,9 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
                 x[i, 0] = xx + dx[i, 0]
                 x[i, 1] = xy + dx[i, 1]
             pid = patch_id2(x[i, 0], x[i, 1], origin, inv_h, loc, inv_ps)  # where it goes next
-            if pid < 0:
-                new_patch[i] = sp
-                if first_out < 0:
-                    first_out = i
-            else:
-                new_patch[i] = pid
-                if pid != sp:
-                    moved += 1
+            moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             l00, l01, l10, l11 = dt * l00, dt * l01, dt * l10, dt * l11
-            n00 = f00 + (l00 * f00 + l01 * f10)
-            n01 = f01 + (l00 * f01 + l01 * f11)
-            n10 = f10 + (l10 * f00 + l11 * f10)
-            n11 = f11 + (l10 * f01 + l11 * f11)
-            F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1] = n00, n01, n10, n11
-            s00, s01, s11, c = stress_damage_speed(params, mat[i], damage, i, n00, n01, n10, n11)
-            stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1] = s00, s01, s01, s11
-            s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
-            if not (s <= vmax):
-                vmax = s if s == s else math.inf
+            vmax = update_F_stress(vmax, i, l00, l01, l10, l11, f00, f01, f10, f11, v, F, stress,
+                                   mat, params, damage)
     return vmax, moved, first_out

@@ -50,6 +50,25 @@ def stress_damage_speed(params, row, damage, i, f00, f01, f10, f11):
     return s00, s01, s11, c
 
 
+@inline_kernel
+def update_F_stress(vmax, i, l00, l01, l10, l11, f00, f01, f10, f11, v, F, stress, mat, params,
+                    damage):
+    """The end of a G2P deformation update of particle ``i``: ``F ← (I + ΔtL) F`` (``l = ΔtL``,
+    ``f = F``), its damage and (degraded) stress, and the running largest ``c_p + |v_p|``
+    (``inf`` once one is NaN)."""
+    n00 = f00 + (l00 * f00 + l01 * f10)
+    n01 = f01 + (l00 * f01 + l01 * f11)
+    n10 = f10 + (l10 * f00 + l11 * f10)
+    n11 = f11 + (l10 * f01 + l11 * f11)
+    F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1] = n00, n01, n10, n11
+    s00, s01, s11, c = stress_damage_speed(params, mat[i], damage, i, n00, n01, n10, n11)
+    stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1] = s00, s01, s01, s11
+    s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
+    if not (s <= vmax):
+        return s if s == s else math.inf
+    return vmax
+
+
 @kernel
 def stress_pass(F, mat, params, stress):
     """The stress update of every particle on its own (what G2P does after ``F``): for

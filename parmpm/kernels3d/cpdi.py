@@ -22,9 +22,10 @@ import math
 import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
-from parmpm.kernels2d.cells import patch_id3
+from parmpm.kernels2d.cells import note_patch
 from parmpm.kernels3d.cells import cells_of8
 from parmpm.kernels3d.material import update_F_stress
+from parmpm.particles import patch_id3
 
 G2P_USL, G2P_MUSL_MOTION, G2P_MUSL_DEFORM = 0, 1, 2
 
@@ -359,14 +360,7 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
                     continue
                 x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
             pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], origin, inv_h, loc, inv_ps)
-            if pid < 0:
-                new_patch[i] = sp
-                if first_out < 0:
-                    first_out = i
-            else:
-                new_patch[i] = pid
-                if pid != sp:
-                    moved += 1
+            moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             # Δt L = Δt/V Σ v(x_α) ⊗ g_α, opposite corners paired (g: see p2g_cpdi)
             gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = cofactor(
                 R00, R01, R02, R10, R11, R12, R20, R21, R22)

@@ -10,9 +10,10 @@ full step). Grid rows as in :mod:`parmpm.kernels3d.cpdi`; node ``i0 + L0 (i1 + L
 import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
-from parmpm.kernels2d.cells import cell_of, patch_id3
+from parmpm.kernels2d.cells import cell_of, note_patch
 from parmpm.kernels3d.cpdi import G2P_MUSL_DEFORM, G2P_USL
 from parmpm.kernels3d.material import update_F_stress
+from parmpm.particles import patch_id3
 
 
 @inline_kernel
@@ -189,14 +190,7 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             else:
                 x[i, 0], x[i, 1], x[i, 2] = xx + dx[i, 0], xy + dx[i, 1], xz + dx[i, 2]
             pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], origin, inv_h, loc, inv_ps)
-            if pid < 0:
-                new_patch[i] = sp
-                if first_out < 0:
-                    first_out = i
-            else:
-                new_patch[i] = pid
-                if pid != sp:
-                    moved += 1
+            moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             vmax = update_F_stress(vmax, i, dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
                                    dt * l12, dt * l20, dt * l21, dt * l22,
                                    F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],

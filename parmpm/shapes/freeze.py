@@ -23,6 +23,7 @@ import numpy as np
 
 from parmpm.jit import kernel
 from parmpm.materials.damage import COL_FREEZE, COL_MODEL
+from parmpm.shapes.cpdi import cofactor
 
 
 @kernel
@@ -59,18 +60,11 @@ def polar_rotation(d, F, Q):
 
 @kernel
 def inverse_transpose3(X, out):
-    """``out = X⁻ᵀ`` (3×3) by cofactors: ``X⁻ᵀ = cof(X)/det X``."""
-    c00 = X[1, 1] * X[2, 2] - X[1, 2] * X[2, 1]
-    c01 = X[1, 2] * X[2, 0] - X[1, 0] * X[2, 2]
-    c02 = X[1, 0] * X[2, 1] - X[1, 1] * X[2, 0]
-    det = X[0, 0] * c00 + X[0, 1] * c01 + X[0, 2] * c02
-    out[0, 0], out[0, 1], out[0, 2] = c00 / det, c01 / det, c02 / det
-    out[1, 0] = (X[0, 2] * X[2, 1] - X[0, 1] * X[2, 2]) / det
-    out[1, 1] = (X[0, 0] * X[2, 2] - X[0, 2] * X[2, 0]) / det
-    out[1, 2] = (X[0, 1] * X[2, 0] - X[0, 0] * X[2, 1]) / det
-    out[2, 0] = (X[0, 1] * X[1, 2] - X[0, 2] * X[1, 1]) / det
-    out[2, 1] = (X[0, 2] * X[1, 0] - X[0, 0] * X[1, 2]) / det
-    out[2, 2] = (X[0, 0] * X[1, 1] - X[0, 1] * X[1, 0]) / det
+    """``out = X⁻ᵀ = cof(X)/det X`` (3×3), by :func:`parmpm.shapes.cpdi.cofactor`."""
+    det = cofactor(3, X, out)
+    for a in range(3):
+        for b in range(3):
+            out[a, b] /= det
 
 
 @kernel
