@@ -127,6 +127,14 @@ def _lattice(lo, hi, spacing):
     return np.stack([m.ravel() for m in mesh[::-1]], axis=1)
 
 
+def _turn(d: int, degrees: float) -> np.ndarray:
+    """Rotation by ``degrees`` counter-clockwise in the x-y plane (the identity on z)."""
+    a = math.radians(degrees)
+    Q = np.eye(d)
+    Q[:2, :2] = [[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]]
+    return Q
+
+
 def bodies_to_particles(scene: dict, material_rows: dict[str, int], params: np.ndarray) -> Particles:
     """Seed particles in every body: ``ppc`` per cell per axis, domains tiling the body."""
     d = scene["dim"]
@@ -135,11 +143,16 @@ def bodies_to_particles(scene: dict, material_rows: dict[str, int], params: np.n
     chunks = []
     for body in scene["bodies"]:
         ppc = np.asarray(body["ppc"], float)
+        turn = None
         if body["shape"] == "box":
             lo, hi = np.asarray(body["min"], float), np.asarray(body["max"], float)
             count = np.maximum(1, np.round((hi - lo) / h * ppc)).astype(int)
             spacing = (hi - lo) / count
             pts = _lattice(lo, lo + count * spacing, spacing)
+            if body.get("angle"):  # the lattice turned about the box centre, domains with it
+                turn = _turn(d, body["angle"])
+                mid = 0.5 * (lo + hi)
+                pts = (pts - mid) @ turn.T + mid
         else:  # disk / sphere on a grid-aligned lattice
             c, r = np.asarray(body["center"], float), float(body["radius"])
             spacing = h / ppc
@@ -148,10 +161,12 @@ def bodies_to_particles(scene: dict, material_rows: dict[str, int], params: np.n
             pts = _lattice(lo, lo + n * spacing, spacing)
             pts = pts[np.sum((pts - c) ** 2, axis=1) <= r * r]
         vel = np.tile(np.asarray(body["velocity"], float), (len(pts), 1))
+        centre = (np.asarray(body["center"], float) if body["shape"] != "box" else
+                  0.5 * (np.asarray(body["min"], float) + np.asarray(body["max"], float)))
+        if body.get("velocity_gradient") is not None:  # affine: v += L·(x − c)
+            vel += (pts - centre) @ np.asarray(body["velocity_gradient"], float).T
         omega = body.get("angular_velocity")
         if omega is not None:  # rigid spin about the body's centre: v += ω × (x − c)
-            centre = (np.asarray(body["center"], float) if body["shape"] != "box" else
-                      0.5 * (np.asarray(body["min"], float) + np.asarray(body["max"], float)))
             r = pts - centre
             if d == 2:
                 vel += float(omega) * np.stack([-r[:, 1], r[:, 0]], axis=1)
@@ -163,11 +178,11 @@ def bodies_to_particles(scene: dict, material_rows: dict[str, int], params: np.n
             length = body["max"][ax] - body["min"][ax]
             beta = (2 * vib["mode"] - 1) * math.pi / (2 * length)
             vel[:, ax] += vib["amplitude"] * np.sin(beta * (pts[:, ax] - body["min"][ax]))
-        chunks.append((pts, vel, spacing, material_rows[body["material"]]))
+        chunks.append((pts, vel, spacing, material_rows[body["material"]], turn))
     n = sum(len(c[0]) for c in chunks)
     P = Particles(d, n)
     i = 0
-    for pts, vel, spacing, row in chunks:
+    for pts, vel, spacing, row, turn in chunks:
         s = slice(i, i + len(pts))
         P.x[s] = pts
         P.x0[s] = pts
@@ -176,7 +191,7 @@ def bodies_to_particles(scene: dict, material_rows: dict[str, int], params: np.n
         P.mass[s] = params[row, 1] * np.prod(spacing)
         P.mat[s] = row
         P.lh0[s] = 0.5 * spacing
-        P.r0[s] = np.diag(0.5 * spacing)
+        P.r0[s] = np.diag(0.5 * spacing) if turn is None else turn * (0.5 * spacing)
         i += len(pts)
     P.gid[:] = np.arange(n)
     return P

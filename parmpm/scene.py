@@ -31,7 +31,11 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   ``β_n = (2n − 1)π / (2L)``, ``L`` the box length along ``axis`` (the first mode of a bar fixed
   at ``min[axis]`` and free at ``max[axis]``; Sulsky et al. 1995, Bardenhagen 2002);
   ``angular_velocity`` (2D: a number, rad/s counter-clockwise; 3D: a vector; default none): adds
-  the rigid spin ``ω × (x − centre)`` about the body's centre. Every body's bounding box lies
+  the rigid spin ``ω × (x − centre)`` about the body's centre; ``velocity_gradient`` (a
+  ``dim``×``dim`` list of rows, 1/s; default none): adds the affine field ``L·(x − centre)`` (a
+  bar stretched at a rate from the start); ``angle`` (box only, 2D/3D, degrees counter-clockwise
+  about the box centre in the x-y plane; default none): turns the box, its particle lattice and
+  its CPDI domains (GIMP domains stay axis-aligned). Every body's (turned) bounding box lies
   inside the grid.
 * ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi", default "cpdi"), ``lcr``
   (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none"; default "2dx" for cpdi,
@@ -53,8 +57,11 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
 * ``[output]``: ``every`` (simulated seconds) and/or ``every_steps``; a snapshot is due whenever
   either schedule fires. If neither is given: ``every_steps = max(1, steps // 20)`` when
   ``time.steps`` is set, else ``every = end / 20``. ``snapshots``, ``figure`` (bools, default true).
-* ``[metrics]``: ``kind`` ("hanging_bar" | "vibrating_bar" | "manufactured" | "rotation" |
-  "none", default "none"; see ``parmpm.metrics``),
+* ``[metrics]``: ``kind`` ("hanging_bar" | "vibrating_bar" | "tension_bar" | "manufactured" |
+  "rotation" | "none", default "none"; see ``parmpm.metrics``), ``stop_on_separation`` (bool,
+  default false; hanging_bar and tension_bar only: stop the run once the material is in more
+  than one piece), ``grip`` (tension_bar only, default "grip": the material of the two box
+  bodies that pull the bar; every other body is the bar),
   ``every_steps`` (default 1), ``axis`` (default: the first vibration axis for vibrating_bar,
   else ``dim − 1``, the axis along which a hanging bar's gravity acts).
 * ``[decomposition]``: ``rebalance_threshold`` (>= 0, default 0.1: re-partition the patches when

@@ -13,6 +13,8 @@ from typing import Any, Callable, NoReturn
 
 from parmpm.errors import SceneError
 
+AXIS_NAMES = "xyz"  # axis letters, in the order of the coordinates
+
 LCR_EXPECTED = 'a positive length in metres, "<k>dx", "<k>dx/<n>" (k, n > 0) or "none"'
 _LCR_RE = re.compile(r"^\s*(?P<k>[0-9.eE+-]*)\s*dx\s*(?:/\s*(?P<n>[0-9.eE+-]+)\s*)?$",
                      re.IGNORECASE)

@@ -16,16 +16,17 @@ from __future__ import annotations
 
 from typing import Any
 
-from parmpm.scene_check import _Checker, lcr_length, show
+from parmpm.scene_bodies import (BODY_KEYS, SHAPE_DIMS, SHAPE_KEYS, VIBRATION_KEYS,  # noqa: F401
+                                 _bodies, rotated_box_bounds)
+from parmpm.scene_check import AXIS_NAMES, _Checker, lcr_length, show
 
 DIMS = (1, 2, 3)
-AXIS_NAMES = "xyz"
 INTERPOLATORS = ("mpm", "ugimp", "cpgimp", "cpdi")
 UPDATES = ("auto", "usl", "musl")
 MODELS = ("linear_elastic", "neo_hookean")
-SHAPE_DIMS = {"box": (1, 2, 3), "disk": (2,), "sphere": (3,)}
 BOUNDARY_KINDS = ("fixed", "slip", "free")
-METRICS = ("hanging_bar", "vibrating_bar", "manufactured", "rotation", "none")
+METRICS = ("hanging_bar", "vibrating_bar", "tension_bar", "manufactured", "rotation", "none")
+SEPARATION_METRICS = ("hanging_bar", "tension_bar")  # the kinds that count separated pieces
 
 TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method", "gravity",
             "damping", "boundary", "time", "output", "metrics", "decomposition", "checkpoint",
@@ -33,18 +34,13 @@ TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method
 GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost")
 MATERIAL_KEYS = ("model", "density", "youngs_modulus", "poisson_ratio", "damage")
 DAMAGE_KEYS = ("criterion", "onset", "fracture", "softening", "freeze")
-BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration",
-             "angular_velocity")
-SHAPE_KEYS = {"box": ("min", "max"), "disk": ("center", "radius"), "sphere": ("center", "radius")}
-_SHAPE_ONLY_KEYS = ("min", "max", "center", "radius")
-VIBRATION_KEYS = ("amplitude", "mode", "axis")
 METHOD_KEYS = ("interpolator", "lcr", "update", "flip")
 GRAVITY_KEYS = ("g", "ramp_time")
 DAMPING_KEYS = ("coefficient",)
 MANUFACTURED_KEYS = ("amplitude",)
 TIME_KEYS = ("end", "steps", "cfl", "dt_max")
 OUTPUT_KEYS = ("every", "every_steps", "snapshots", "figure")
-METRICS_KEYS = ("kind", "every_steps", "axis", "stop_on_separation")
+METRICS_KEYS = ("kind", "every_steps", "axis", "stop_on_separation", "grip")
 DECOMPOSITION_KEYS = ("rebalance_threshold", "rebalance_cooldown")
 CHECKPOINT_KEYS = ("every_steps", "every", "wall_minutes", "keep", "at_end")
 
@@ -171,88 +167,6 @@ def _damage(c: _Checker, key: str, raw: Any) -> dict:
         "softening": c.choice(f"{key}.softening", t.get("softening", "linear"), tuple(SOFTENING)),
         "freeze": _freeze(c, f"{key}.freeze", t.get("freeze", 1.0)),
     }
-
-
-def _bodies(c: _Checker, raw: Any, dim: int, grid: dict, materials: dict) -> list:
-    if isinstance(raw, dict):
-        c.fail("bodies", "expected an array of tables ([[bodies]]), got a single table [bodies]")
-    if not isinstance(raw, list) or not raw:
-        c.expected("bodies", "at least one [[bodies]] table", raw)
-    lo = grid["origin"]
-    hi = [o + n * h for o, n, h in zip(lo, grid["cells"], grid["cell_size"])]
-    return [_body(c, f"bodies.{i}", spec, dim, lo, hi, grid, materials)
-            for i, spec in enumerate(raw)]
-
-
-def _body(c: _Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: dict,
-          materials: dict) -> dict:
-    t = c.table(key, raw, BODY_KEYS)
-    shape = c.choice(f"{key}.shape", t.get("shape", "box"), tuple(SHAPE_DIMS))
-    if dim not in SHAPE_DIMS[shape]:
-        allowed = ", ".join(f'"{s}"' for s, dims in SHAPE_DIMS.items() if dim in dims)
-        c.fail(f"{key}.shape", f'expected {allowed} in a {dim}D scene, got "{shape}" '
-                               f"(only for dim {' or '.join(map(str, SHAPE_DIMS[shape]))})")
-    for name in _SHAPE_ONLY_KEYS:
-        if name in t and name not in SHAPE_KEYS[shape]:
-            c.fail(f"{key}.{name}", f'not used by shape "{shape}" (expected '
-                                    f"{' and '.join(SHAPE_KEYS[shape])})")
-    material = c.string(f"{key}.material", c.required(key, t, "material", "a material name"))
-    if material not in materials:
-        c.fail(f"{key}.material", f"unknown material {show(material)} (defined: "
-                                  + ", ".join(show(m) for m in materials) + ")")
-    out: dict[str, Any] = {"shape": shape}
-    if shape == "box":
-        pts = f"{dim} numbers"
-        bmin = c.vector(f"{key}.min", c.required(key, t, "min", pts), dim, "float", False)
-        bmax = c.vector(f"{key}.max", c.required(key, t, "max", pts), dim, "float", False)
-        if any(b <= a for a, b in zip(bmin, bmax)):
-            c.expected(f"{key}.max", f"each component > {key}.min {show(bmin)}", bmax)
-        out.update(min=bmin, max=bmax)
-    else:
-        center = c.vector(f"{key}.center", c.required(key, t, "center", f"{dim} numbers"),
-                          dim, "float", False)
-        radius = c.number(f"{key}.radius", c.required(key, t, "radius", "a number > 0"),
-                          "a number > 0", lambda x: x > 0)
-        out.update(center=center, radius=radius)
-        bmin = [x - radius for x in center]
-        bmax = [x + radius for x in center]
-    for axis in range(dim):
-        tol = 1e-9 * grid["cell_size"][axis]
-        below, above = bmin[axis] < lo[axis] - tol, bmax[axis] > hi[axis] + tol
-        if below or above:
-            side = "center" if shape != "box" else ("min" if below else "max")
-            c.fail(f"{key}.{side}", f"body {key.split('.')[1]} spans [{bmin[axis]!r}, {bmax[axis]!r}] on "
-                        f"axis {axis} ({AXIS_NAMES[axis]}), expected it inside the grid "
-                        f"[{lo[axis]!r}, {hi[axis]!r}]")
-    out["material"] = material
-    out["ppc"] = c.vector(f"{key}.ppc", t.get("ppc", 2), dim, "int>0")
-    out["velocity"] = c.vector(f"{key}.velocity", t.get("velocity", [0.0] * dim), dim, "float",
-                               False)
-    out["angular_velocity"] = None
-    if t.get("angular_velocity") is not None:
-        akey = f"{key}.angular_velocity"
-        if dim == 1:
-            c.fail(akey, "expected no angular velocity in a 1D scene (nothing to rotate about)")
-        if dim == 2:
-            out["angular_velocity"] = c.number(akey, t["angular_velocity"],
-                                               "a number (rad/s, counter-clockwise)")
-        else:
-            out["angular_velocity"] = c.vector(akey, t["angular_velocity"], 3, "float", False)
-    out["vibration"] = None
-    if t.get("vibration") is not None:
-        vkey = f"{key}.vibration"
-        v = c.table(vkey, t["vibration"], VIBRATION_KEYS)
-        if shape != "box":
-            c.fail(vkey, f'expected only on shape "box", got shape "{shape}"')
-        out["vibration"] = {
-            "amplitude": c.number(f"{vkey}.amplitude",
-                                  c.required(vkey, v, "amplitude", "a number (velocity)")),
-            "mode": c.integer(f"{vkey}.mode", v.get("mode", 1), "an integer >= 1",
-                              lambda n: n >= 1),
-            "axis": c.integer(f"{vkey}.axis", v.get("axis", 0),
-                              f"an integer in [0, {dim})", lambda a: 0 <= a < dim),
-        }
-    return out
 
 
 def _method(c: _Checker, raw: Any, min_dx: float) -> dict:
@@ -396,7 +310,21 @@ def _metrics(c: _Checker, raw: Any, dim: int, bodies: list) -> dict:
     }
     if kind == "none":  # no metrics, nothing to stop on (e.g. --set metrics.kind=none)
         out["stop_on_separation"] = False
-    if out["stop_on_separation"] and kind != "hanging_bar":
-        c.fail("metrics.stop_on_separation", f'only the "hanging_bar" metrics track separation, '
-                                             f'got metrics.kind "{kind}"')
+    if out["stop_on_separation"] and kind not in SEPARATION_METRICS:
+        c.fail("metrics.stop_on_separation", "only the " + " and ".join(
+            f'"{k}"' for k in SEPARATION_METRICS) + f' metrics track separation, got metrics.kind "{kind}"')
+    out["grip"] = None
+    if kind == "tension_bar":
+        grip = c.string("metrics.grip", t.get("grip", "grip"), "a material name")
+        held = [b for b in bodies if b["material"] == grip]
+        if len(held) != 2 or any(b["shape"] != "box" for b in held):
+            c.fail("metrics.grip", f"expected exactly two box bodies of material {show(grip)} (the "
+                                   f"grips at the bar's ends), got {len(held)}"
+                                   + (" (not all boxes)" if held and len(held) == 2 else ""))
+        if len(held) == len(bodies):
+            c.fail("metrics.grip", f"expected a bar between the grips: every body is of material "
+                                   f"{show(grip)}")
+        out["grip"] = grip
+    elif "grip" in t:
+        c.fail("metrics.grip", f'used only by metrics.kind "tension_bar", got kind "{kind}"')
     return out

@@ -147,6 +147,8 @@ def test_manufactured_restart_is_bit_identical(tmp_path):
 def test_only_separation_metrics_count_pieces_and_stop_on_separation():
     from parmpm.metrics import METRICS
 
-    assert {k for k, cls in METRICS.items() if cls.needs_components} == {"hanging_bar"}
-    with pytest.raises(SceneError, match='metrics.stop_on_separation: only the "hanging_bar"'):
+    assert {k for k, cls in METRICS.items() if cls.needs_components} == {"hanging_bar",
+                                                                          "tension_bar"}
+    with pytest.raises(SceneError, match='metrics.stop_on_separation: only the "hanging_bar" and '
+                                         '"tension_bar" metrics track separation'):
         parmpm.load_scene("manufactured", ["metrics.stop_on_separation=true"])

@@ -55,6 +55,8 @@ def _cases() -> dict:
         "time.steps=150", "metrics.stop_on_separation=false"]]
     cases["1d_cpdi_damage"] = ["hanging_bar_1d", OFF + [damage, "grid.patch_size=4",
                                                         "time.steps=60"]]
+    # the tension bar: grips, a weak band, domains freezing; separation counted across ranks
+    cases["2d_tension_bar"] = ["tension_bar", OFF + ["grid.patch_size=8"]]
     return cases
 
 
@@ -114,6 +116,8 @@ def test_damage_cases_damage(runs):
         assert ref["damage"].max() > 0.01, case
     ref, _ = _load(runs[1], "2d_cpdi_freeze")
     assert ref["damage"].max() >= 0.3  # some domains froze
+    ref, summary = _load(runs[1], "2d_tension_bar")
+    assert ref["damage"].max() == 1.0 and summary["metrics"]["separated"]
 
 
 def test_crossing_scene_migrates_and_rebalances(runs):

@@ -85,7 +85,7 @@ def test_hanging_bar_resolved():
     assert d["time"] == {"end": 0.3, "steps": None, "cfl": 0.4, "dt_max": None}
     assert d["output"]["every"] == 0.05
     assert d["metrics"] == {"kind": "hanging_bar", "every_steps": 1, "axis": 1,
-                            "stop_on_separation": True}
+                            "stop_on_separation": True, "grip": None}
     assert scene.min_dx == 0.1
     assert scene.lcr == pytest.approx(0.2)
 
@@ -122,7 +122,8 @@ def test_defaults(tmp_path):
     assert d["method"]["lcr"] == "2dx" and scene.lcr == pytest.approx(1.0)
     assert d["damping"] == {"coefficient": 0.0}
     assert d["output"] == {"every": 0.05, "every_steps": None, "snapshots": True, "figure": True}
-    assert d["metrics"] == {"kind": "none", "every_steps": 1, "axis": 1, "stop_on_separation": False}
+    assert d["metrics"] == {"kind": "none", "every_steps": 1, "axis": 1, "stop_on_separation": False,
+                            "grip": None}
     assert d["boundary"]["fixed_regions"] == []
     assert _round_trip(scene, tmp_path).data == d
 
@@ -167,7 +168,7 @@ def test_disk_and_sphere(tmp_path):
     assert scene.data["bodies"][0] == {
         "shape": "disk", "center": [2.0, 2.0], "radius": 0.5, "material": "rubber",
         "ppc": [2, 2], "velocity": [0.0, 0.0], "vibration": None,
-        "angular_velocity": None}
+        "angular_velocity": None, "angle": None, "velocity_gradient": None}
     assert _round_trip(scene, tmp_path).data == scene.data
     scene = load_scene("hanging_bar_3d", ['bodies.0={shape = "sphere", center = [0.5, -0.5, 0.5], '
                                           'radius = 0.5, material = "bar"}'])

@@ -5,7 +5,8 @@
   connected components of that graph is the number of separated pieces (Sadeghirad, Brannon &
   Burghardt 2011 describe separation as particles no longer sharing any node).
 * one registered class per metrics kind (``metrics.kind`` in the scene), each in its own module:
-  :mod:`.bars` (hanging and vibrating bar), :mod:`.manufactured` (the manufactured solution's
+  :mod:`.bars` (hanging and vibrating bar), :mod:`.tension` (a bar pulled apart between grips:
+  where and when it breaks, against the damage model's prediction), :mod:`.manufactured` (the manufactured solution's
   error norm), :mod:`.rotation` (a spinning body: domain size, stress, energy) — per-scene
   histories and the numbers the run's ``summary.json`` reports, against :mod:`parmpm.exact`.
 
@@ -38,6 +39,7 @@ __all__ = [
     "VibratingBarMetrics",
     "ManufacturedMetrics",
     "RotationMetrics",
+    "TensionBarMetrics",
     "METRICS",
     "register_metrics",
     "make_metrics",
@@ -279,7 +281,8 @@ def make_metrics(scene_data: dict, x0: np.ndarray, mass: np.ndarray):
 
 
 # the registered families (import for their @register_metrics side effect)
-from parmpm.metrics import bars, manufactured, rotation  # noqa: E402,F401
+from parmpm.metrics import bars, manufactured, rotation, tension  # noqa: E402,F401
 from parmpm.metrics.bars import HangingBarMetrics, VibratingBarMetrics  # noqa: E402
 from parmpm.metrics.manufactured import ManufacturedMetrics  # noqa: E402
 from parmpm.metrics.rotation import RotationMetrics  # noqa: E402
+from parmpm.metrics.tension import TensionBarMetrics  # noqa: E402
