@@ -21,7 +21,7 @@ from parmpm.errors import ParmpmError, RunInterrupted, SimulationError
 from parmpm.grid import BC_CODES
 from parmpm.log import get_logger
 from parmpm.materials import material_table
-from parmpm.particles import Particles, bodies_to_particles, locate_patches
+from parmpm.particles import Particles, locate_patches, seed_bodies
 from parmpm.progress import Progress
 from parmpm.shapes import CPDI, INTERPOLATORS
 from parmpm.stepper import (PHASES, Discretisation, Stepper, fmt_vec, reach_message,
@@ -56,13 +56,19 @@ class Simulation:
                                    np.asarray(grid["cell_size"], float), layout)
         self.params, names = material_table(data["materials"])
         self.restart = checkpoint
+        P = seeds = None
         if checkpoint is None:
-            # Every rank seeds the same particles (global ids = seeding order), keeps its own.
-            P = bodies_to_particles(data, {n: i for i, n in enumerate(names)}, self.params)
+            # Every rank seeds the same positions (global ids = seeding order) and builds only
+            # its own particles once the patches are dealt out.
+            seeds = seed_bodies(data, {n: i for i, n in enumerate(names)})
             if data.get("manufactured"):  # start on the exact field (before patches are chosen)
                 from parmpm.manufactured import initialise
+                P, seeds = seeds.particles(self.params), None
                 initialise(P, data["manufactured"]["amplitude"], self.params)
-            x_all, x0_all, mass_all = P.x, P.x0, P.mass
+                x_all, x0_all, mass_all = P.x, P.x0, P.mass
+            else:
+                x_all = x0_all = seeds.x
+                mass_all = seeds.mass(self.params) if data["metrics"]["kind"] != "none" else None
         else:
             x_all, x0_all, mass_all = (checkpoint.read(k) for k in ("x", "x0", "mass"))
         self.n_total = x_all.shape[0]
@@ -81,7 +87,10 @@ class Simulation:
         mine = np.flatnonzero(self.patches.rank_of[where] == self.rank)
         del x_all, x0_all, mass_all  # no second reference to the seeded arrays while they move
         if checkpoint is None:
-            if mine.size != P.n:
+            if seeds is not None:
+                P = seeds.particles(self.params, mine)
+                del seeds
+            elif mine.size != P.n:
                 P.permute(mine)
         else:  # collective: a damaged block found by one rank stops every rank
             problem = None

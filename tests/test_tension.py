@@ -198,3 +198,23 @@ def test_without_the_freeze_the_broken_band_holds_on(tmp_path, broken):
     # the same run until the first domain froze (a few steps before the failure was sampled)
     assert never["stretch_at_failure"] == pytest.approx(broken["stretch_at_failure"], abs=1e-6)
     assert not never["separated"] and never["max_stretch"] > limit
+
+
+def test_seeds_build_exactly_the_kept_particles():
+    """A rank builds only its own particles from the seeds (set-up memory follows its share):
+    every field equals the all-particles build at those global ids, bit for bit, velocities of
+    turned, affine and spinning bodies included."""
+    from parmpm.materials import material_table
+    from parmpm.particles import seed_bodies
+
+    scene = load_scene("tension_bar", ["bodies.1.angle=3.0", "bodies.2.angular_velocity=1.5"])
+    params, names = material_table(scene.data["materials"])
+    seeds = seed_bodies(scene.data, {n: i for i, n in enumerate(names)})
+    full = seeds.particles(params)
+    keep = np.sort(np.random.default_rng(3).choice(seeds.n, seeds.n // 3, replace=False))
+    part = seeds.particles(params, keep)
+    np.testing.assert_array_equal(part.gid, keep)
+    for name in ("x", "x0", "v", "mass", "vol0", "mat", "lh0", "r0", "F"):
+        np.testing.assert_array_equal(getattr(part, name), getattr(full, name)[keep], err_msg=name)
+    np.testing.assert_array_equal(seeds.x, full.x)
+    np.testing.assert_array_equal(seeds.mass(params), full.mass)
