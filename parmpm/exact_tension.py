@@ -23,17 +23,30 @@ That is the prediction :class:`parmpm.metrics.tension.TensionBarMetrics` compare
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from parmpm.errors import SceneError
 from parmpm.exact import lame_parameters, nominal_stress_1d
 
 
-def _lateral_stretch(stretch: np.ndarray, lam: float, mu: float, k: int) -> np.ndarray:
-    """``λ_t`` with ``μ(λ_t² − 1) + λ_L ln(λ λ_t^k) = 0`` (increasing in ``λ_t``), by bisection."""
+def _lateral_stretch(stretch, lam: float, mu: float, k: int):
+    """``λ_t`` with ``μ(λ_t² − 1) + λ_L ln(λ λ_t^k) = 0`` (increasing in ``λ_t``), by bisection
+    to round-off (64 halvings of ``[1e-6, 2]``); plain floats for a scalar (the peak search
+    calls this hundreds of times), numpy for arrays."""
+    if np.ndim(stretch) == 0:
+        s, lo, hi = float(stretch), 1e-6, 2.0
+        for _ in range(64):
+            mid = 0.5 * (lo + hi)
+            if mu * (mid * mid - 1.0) + lam * math.log(s * mid ** k) < 0:
+                lo = mid
+            else:
+                hi = mid
+        return 0.5 * (lo + hi)
     lo = np.full_like(stretch, 1e-6)
     hi = np.full_like(stretch, 2.0)
-    for _ in range(200):
+    for _ in range(64):
         mid = 0.5 * (lo + hi)
         f = mu * (mid * mid - 1.0) + lam * np.log(stretch * mid ** k)
         lo, hi = np.where(f < 0, mid, lo), np.where(f < 0, hi, mid)
@@ -48,8 +61,11 @@ def elastic_tension(model: str, E: float, nu: float, dim: int):
     k = dim - 1
     if model == "neo_hookean":
         def stress(stretch):
-            s = np.asarray(stretch, dtype=float)
-            t = _lateral_stretch(np.atleast_1d(s), lam, mu, k).reshape(s.shape)
+            if np.ndim(stretch) == 0:
+                s = float(stretch)
+            else:
+                s = np.asarray(stretch, dtype=float)
+            t = _lateral_stretch(s, lam, mu, k)
             return mu * (s * s - t * t) / s
     elif model == "linear_elastic":
         modulus = E / (1.0 - nu * nu) if dim == 2 else E
@@ -80,7 +96,7 @@ def _peak(law, damage, samples: int = 20001) -> tuple[float, float]:
     P = (1.0 - softening(lam, damage)) * law(lam)
     i = int(np.argmax(P))
     a, b = lam[max(i - 1, 0)], lam[min(i + 1, samples - 1)]
-    for _ in range(100):  # golden-section refinement of the sampled maximum
+    for _ in range(80):  # golden-section refinement of the sampled maximum (to round-off)
         c, d = b - 0.618033988749895 * (b - a), a + 0.618033988749895 * (b - a)
         fc = (1.0 - softening(c, damage)) * law(c)
         fd = (1.0 - softening(d, damage)) * law(d)
@@ -92,7 +108,7 @@ def _peak(law, damage, samples: int = 20001) -> tuple[float, float]:
 def _rising(law, damage, target: float, top: float) -> float:
     """``λ`` in ``[1, top]`` with ``(1 − g)·P_e = target`` on the rising branch (bisection)."""
     lo, hi = 1.0, top
-    for _ in range(200):
+    for _ in range(64):
         mid = 0.5 * (lo + hi)
         if (1.0 - softening(mid, damage)) * law(mid) < target:
             lo = mid

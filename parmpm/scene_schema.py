@@ -143,10 +143,11 @@ def _materials(c: _Checker, raw: Any) -> dict:
     return out
 
 
-def _freeze(c: _Checker, key: str, value: Any) -> float:
-    """The damage at which a CPDI domain freezes: 0 < D <= 1, or "never" (stored as 2)."""
+def _freeze(c: _Checker, key: str, value: Any) -> float | str:
+    """The damage at which a CPDI domain freezes: 0 < D <= 1, or "never" (kept as the word, so
+    the resolved scene reads back; the material table stores it as 2, a damage never reached)."""
     if value == "never":
-        return 2.0
+        return "never"
     return c.number(key, value, 'a damage 0 < D <= 1 or "never"', lambda x: 0.0 < x <= 1.0)
 
 

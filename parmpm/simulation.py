@@ -209,7 +209,11 @@ class Simulation:
         from parmpm.connectivity import compact_nodes, global_components, local_components, shared_pairs
 
         P, D, ps = self.particles, self.disc, self.patches
-        K = max(64, int(np.prod(D.nloc[:self.dim])))
+        # entries per particle: a tensor-product support reaches at most `ghost` cells past the
+        # particle's cell on each side (farther is the reach error below), a CPDI one 2^d nodes
+        # for each of 2^d corners
+        g = int(D.layout.ghost)
+        K = min(int(np.prod(D.nloc[:self.dim])), max(4 ** self.dim, (2 * g + 2) ** self.dim))
         nodes = np.zeros((P.n, K), np.int64)
         count = np.zeros(P.n, np.int64)
         err = np.full(1, -1, np.int64)

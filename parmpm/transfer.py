@@ -247,8 +247,12 @@ def _support_nodes_loop(method, d, lcr, start, base, nloc, nglob, origin, inv_h,
                 continue
             c = 0
             for e in range(n):
-                if w[e] <= 0.0 or c >= nodes.shape[1]:
+                if w[e] <= 0.0:
                     continue
+                if c >= nodes.shape[1]:  # more than the ghost layer allows: the reach error
+                    if err[0] < 0:
+                        err[0] = i
+                    break
                 loc = idx[e]
                 i0 = loc % nloc[0]
                 i1 = (loc // nloc[0]) % nloc[1]

@@ -23,6 +23,7 @@ STUDIES = {
     "convergence": "convergence.py",
     "update_order": "update_order.py",
     "rotation": "rotation.py",
+    "fracture_alignment": "fracture_alignment.py",
     "speed_accuracy": "speed_accuracy.py",
     "scaling": "scaling.py",
 }

@@ -4,9 +4,10 @@ what its docstring claims:
 
 * every ``freeze`` case separates, at a bar stretch within two cells of opening of the predicted
   failure stretch, ``[λ_fail, λ_fail + 2Δx/L_bar]``, with the crack inside the weak band;
-* the ``lcr`` cases (``freeze = "never"``) separate later than every freeze case — beyond that
-  two-cell window — or not at all by the quick mode's maximum stretch (then reported as not
-  separated), and their separation stretch spreads more over angles and offsets;
+* the ``lcr`` cases (``freeze = "never"``) fail at the same stretch but separate no earlier than
+  the same geometry with freezing, some beyond that two-cell window, or not at all by the quick
+  mode's maximum stretch (then reported as not separated), and their separation stretch spreads
+  more over angles and offsets (the full study: 16x the freeze spread);
 * the summary CSV agrees with the case rows; and 2 MPI ranks give the same case rows (a rotated
   case in both modes) except ``wall_s``.
 """
@@ -72,6 +73,8 @@ def test_quick_cases_and_figure(quick):
     assert {_f(r["angle"]) for r in rows} == {0.0, 30.0}
     assert len({(r["offset_x"], r["offset_y"]) for r in rows}) == 2
     for r in rows:  # the same bar in every case: the same prediction
+        if r["status"] == "unstable":
+            continue
         assert _f(r["predicted_failure_stretch"]) == pytest.approx(_f(rows[0]["predicted_failure_stretch"]))
         assert 1.05 < _f(r["predicted_failure_stretch"]) < 1.2
         assert int(r["steps"]) > 0 and _f(r["wall_s"]) > 0
@@ -94,25 +97,33 @@ def test_freeze_separates_within_two_cells_of_the_prediction_in_the_band(quick):
 def test_lcr_separates_later_and_spreads_more(quick):
     _, rows, summary = quick
     freeze, lcr = _mode(rows, "freeze"), _mode(rows, "lcr")
-    latest_freeze = max(_f(r["stretch_at_separation"]) for r in freeze)
     pred = _f(freeze[0]["predicted_failure_stretch"])
+    assert all(r["status"] == "separated" and _f(r["cfl"]) == 0.4 for r in freeze)
+    beyond = 0
     for r in lcr:
-        if r["separated"] == "True":
-            sep = _f(r["stretch_at_separation"])
-            # later than every freeze case and outside the two-cell window
-            assert sep > latest_freeze and sep > pred + 2 * DX / L_BAR, r
-            assert abs(_f(r["crack_position"])) <= _f(r["weak_segment_halfwidth"]) + 1e-12
-        else:  # ran to the quick mode's maximum stretch without separating: reported as such
-            assert r["stretch_at_separation"] == "" and _f(r["max_stretch"]) >= QUICK_MAX_STRETCH - 0.01
-        # the same damage law in both modes: the band fails when it does with freezing (the first
-        # fully damaged particle can freeze a few steps before the sample that sees it)
         twin, = [f for f in freeze if (f["angle"], f["offset_x"], f["offset_y"]) ==
                  (r["angle"], r["offset_x"], r["offset_y"])]
-        assert _f(r["stretch_at_failure"]) == pytest.approx(_f(twin["stretch_at_failure"]), abs=1e-4)
+        if r["status"] == "unstable":  # blew up at both CFL numbers: reported, nothing to compare
+            continue
+        if r["separated"] == "True":
+            sep = _f(r["stretch_at_separation"])
+            # never before the same geometry with freezing, and the crack still in the band
+            assert sep >= _f(twin["stretch_at_separation"]), (r, twin)
+            assert abs(_f(r["crack_position"])) <= _f(r["weak_segment_halfwidth"]) + 1e-12
+            beyond += sep > pred + 2 * DX / L_BAR
+        else:  # ran to the quick mode's maximum stretch without separating: reported as such
+            assert r["stretch_at_separation"] == "" and _f(r["max_stretch"]) >= QUICK_MAX_STRETCH - 0.01
+            beyond += 1
+        # the same damage law in both modes: at the same CFL number the band fails when it does
+        # with freezing (the first fully damaged particle may freeze a few steps before the
+        # metrics sample that sees it)
+        if r["cfl"] == twin["cfl"]:
+            assert _f(r["stretch_at_failure"]) == pytest.approx(_f(twin["stretch_at_failure"]), abs=1e-5)
+    assert beyond >= 1  # some lcr case needs more than two cells of opening (quick: all four)
     s_freeze, s_lcr = summary["freeze"], summary["lcr"]
     assert int(s_freeze["separated"]) == 4 and _f(s_freeze["crack_in_band_fraction"]) == 1.0
     assert _f(s_freeze["spread"]) < 2 * DX / L_BAR
-    if int(s_lcr["separated"]) >= 2:  # the separated lcr cases spread more than the freeze ones
+    if int(s_lcr["separated"]) >= 2:  # the separated lcr cases spread more, and later
         assert _f(s_lcr["spread"]) > _f(s_freeze["spread"])
         assert _f(s_lcr["mean_excess"]) > _f(s_freeze["mean_excess"])
 

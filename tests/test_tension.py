@@ -218,3 +218,14 @@ def test_seeds_build_exactly_the_kept_particles():
         np.testing.assert_array_equal(getattr(part, name), getattr(full, name)[keep], err_msg=name)
     np.testing.assert_array_equal(seeds.x, full.x)
     np.testing.assert_array_equal(seeds.mass(params), full.mass)
+
+
+def test_freeze_never_reads_back_from_the_resolved_scene(tmp_path):
+    """The resolved scene (what checkpoints store) keeps ``freeze = "never"`` as the word."""
+    scene = load_scene("tension_bar", ["materials.band.damage.freeze=never"])
+    assert scene.data["materials"]["band"]["damage"]["freeze"] == "never"
+    again = scene_from_toml(scene.to_toml(), "again.toml")
+    assert again.data == scene.data
+    from parmpm.materials import material_table
+    params, names = material_table(scene.data["materials"])
+    assert params[names.index("band"), 11] == 2.0 and params[names.index("bar"), 11] == 1.0

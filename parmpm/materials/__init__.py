@@ -40,8 +40,8 @@ def material_table(materials: dict) -> tuple[np.ndarray, list[str]]:
                           m["poisson_ratio"], lam, mu, (lam + 2 * mu) / m["density"], 1 / m["density"]]
         dmg = m.get("damage")
         if dmg:
-            table[row, 8:] = [SOFTENING[dmg["softening"]], dmg["onset"], dmg["fracture"],
-                              dmg["freeze"]]
+            freeze = 2.0 if dmg["freeze"] == "never" else dmg["freeze"]  # 2: never reached
+            table[row, 8:] = [SOFTENING[dmg["softening"]], dmg["onset"], dmg["fracture"], freeze]
     return table, names
 
 
