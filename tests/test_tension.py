@@ -229,3 +229,17 @@ def test_freeze_never_reads_back_from_the_resolved_scene(tmp_path):
     from parmpm.materials import material_table
     params, names = material_table(scene.data["materials"])
     assert params[names.index("band"), 11] == 2.0 and params[names.index("bar"), 11] == 1.0
+
+
+def test_damageable_hanging_bar_breaks_at_its_top(tmp_path):
+    """The built-in ``hanging_bar_damage``: the bar separates, and where the damage model says —
+    every fully damaged (frozen) particle started in the top 5 % of the bar, where the
+    self-weighted bar stretches most; the undamaged scene holds (tests/test_freeze.py)."""
+    sim = Simulation(load_scene("hanging_bar_damage", OFF), tmp_path, quiet=True)
+    m = sim.run()["metrics"]
+    assert m["separated"] and m["separation_time"] < 0.035  # measured 0.0301 s
+    P = sim.particles
+    broken = P.damage >= 1.0
+    assert broken.sum() >= 20  # a whole row across the 1 m bar (30 particles wide)
+    assert P.x0[broken, 1].min() > -0.05 - 1e-12  # the bar spans y0 in [-1, 0]
+    assert np.all(np.abs(P.rf[broken]).sum(axis=(1, 2)) > 0)  # and their domains froze
