@@ -311,6 +311,11 @@ def _peak_rss_mb() -> float:
     return rss / 2**20 if sys.platform == "darwin" else rss / 2**10
 
 
+def _ratio(work: dict | None) -> float | None:
+    """``max / mean`` of the ranks' computing time per step (1: perfectly even)."""
+    return work["max"] / work["mean"] if work and work["mean"] > 0 else None
+
+
 def summarise(summary: dict, setup_seconds: float, migrated: int, peak_rss_mb: float) -> dict:
     """The bench result from a run summary: the timed steps exclude the first step."""
     rate = summary["particle_steps_per_second"]
@@ -329,6 +334,10 @@ def summarise(summary: dict, setup_seconds: float, migrated: int, peak_rss_mb: f
         "particle_steps_per_second": rate,
         "ns_per_particle_step": 1e9 * per_step * summary["ranks"] / n,
         "phase_seconds_per_step": dict(phases, halo=sum(phases[k] for k in HALO_PHASES)),
+        # per-rank computing time (p2g, grid, g2p, sort): the slowest rank sets the step, the
+        # others wait for it in the halo exchange and the Δt reduction
+        "rank_work_seconds_per_step": summary.get("rank_work_seconds_per_step"),
+        "work_imbalance": _ratio(summary.get("rank_work_seconds_per_step")),
         "phase_share": share,
         "halo_share": share["halo"], "migrate_share": share["migrate"],
         "particles_migrated": migrated,
@@ -359,6 +368,10 @@ def format_result(r: dict) -> str:
         f"  memory               {r.get('bytes_per_particle', float('nan')):.0f} B per particle "
         f"(peak {r['peak_rss_mb_per_rank']:.0f} MiB per rank, interpreter included)",
         f"  imbalance            {dec['imbalance']:.3f} (particles per rank {dec['particles_per_rank']})",
+        *([f"  work per rank        {1e3 * r['rank_work_seconds_per_step']['min']:.4g} / "
+           f"{1e3 * r['rank_work_seconds_per_step']['mean']:.4g} / "
+           f"{1e3 * r['rank_work_seconds_per_step']['max']:.4g} ms/step (min / mean / max; "
+           f"max/mean {r['work_imbalance']:.3f})"] if r.get("work_imbalance") else []),
         f"  halo traffic         {dec['halo_bytes_per_step'] / 2**20:.3g} MiB/step; "
         f"migrated {r['particles_migrated']} particles; rebalances {dec['rebalances']}",
         "  phase         s/step      share",
@@ -376,7 +389,7 @@ def format_result(r: dict) -> str:
 SUMMARY_COLUMNS = ("dim", "method", "update", "ranks", "particles", "ppc", "steps",
                    "seconds_per_step", "particle_steps_per_second", "ns_per_particle_step",
                    "bytes_per_particle", "jit_warmup_seconds", "setup_seconds",
-                   "stress_in_g2p_seconds_per_step", "halo_bytes_per_step")
+                   "stress_in_g2p_seconds_per_step", "halo_bytes_per_step", "work_imbalance")
 
 
 def _row(r: dict) -> dict:

@@ -24,7 +24,7 @@ from parmpm.materials import material_table
 from parmpm.particles import Particles, locate_patches, seed_bodies
 from parmpm.progress import Progress
 from parmpm.shapes import CPDI, INTERPOLATORS
-from parmpm.stepper import (PHASES, Discretisation, Stepper, fmt_vec, reach_message,
+from parmpm.stepper import (PHASES, WORK_PHASES, Discretisation, Stepper, fmt_vec, reach_message,
                             support_reach)
 from parmpm.transfer import max_speed, support_nodes
 
@@ -500,7 +500,10 @@ class Simulation:
         loop = time.perf_counter() - warm_wall if warm_wall else wall
         wall, loop = (float(v) for v in allreduce_max(self.comm, np.array([wall, loop])))
         timers = self.stepper.timers
-        phase = allreduce_max(self.comm, np.array([timers[k] for k in PHASES]))
+        per_rank = np.array(self.comm.allgather([timers[k] for k in PHASES]))  # (ranks, phases)
+        phase = per_rank.max(axis=0)
+        # each rank's own work (the phases that wait for no one): how unevenly it is spread
+        work = per_rank[:, [PHASES.index(k) for k in WORK_PHASES]].sum(axis=1)
         lay = self.disc.layout
         summary = {
             "scene": data["name"], "dim": self.dim, "method": self.interp.name,
@@ -517,6 +520,10 @@ class Simulation:
             "final": self.totals(),
             "phase_seconds_per_step": ({k: float(v) / warm_steps for k, v in zip(PHASES, phase)}
                                        if warm_steps else None),
+            "rank_work_seconds_per_step": ({"min": float(work.min()) / warm_steps,
+                                            "mean": float(work.mean()) / warm_steps,
+                                            "max": float(work.max()) / warm_steps}
+                                           if warm_steps else None),
             "metrics": self.metrics.result() if self.metrics is not None else {},
         }
         if root:

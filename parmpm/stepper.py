@@ -36,6 +36,8 @@ from parmpm.transfer import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL, g2p, p2g,
 SPECIALISED = {2: KERNELS_2D, 3: KERNELS_3D}
 
 PHASES = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "sort", "reduce")
+#: the phases in which a rank only computes (the others exchange with, or wait for, other ranks)
+WORK_PHASES = ("p2g", "grid", "g2p", "sort")
 
 
 @dataclass
