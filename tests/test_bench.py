@@ -83,6 +83,12 @@ def test_run_bench_serial(argv, tmp_path, capsys):
     assert r["jit_warmup_seconds"] > 0 and r["bytes_per_particle"] >= 0
     assert 0 < r["stress_in_g2p_seconds_per_step"]
     assert r["ns_per_particle_step"] == pytest.approx(1e9 / r["particle_steps_per_second"])
+    # one rank: its computing time (p2g, grid, g2p, sort) is the sum of those phases, inside the step
+    work = r["rank_work_seconds_per_step"]
+    assert work["min"] == work["mean"] == work["max"] and r["work_imbalance"] == 1.0
+    ph = r["phase_seconds_per_step"]
+    assert work["max"] == pytest.approx(ph["p2g"] + ph["grid"] + ph["g2p"] + ph["sort"])
+    assert work["max"] <= r["seconds_per_step"]
 
 
 def test_sweep_writes_csv_and_json(tmp_path, capsys):

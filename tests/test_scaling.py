@@ -160,6 +160,11 @@ def test_scaling_quick(tmp_path):
         # the face/edge/corner formula reproduces the halo code's bytes (0 on one rank)
         assert float(r["halo_bytes_model"]) == pytest.approx(float(r["halo_bytes_per_step"]), rel=1e-12)
     assert int(strong[1]["halo_bytes_per_step"]) > 0
+    # each rank's computing time: spread over ranks, and inside the (slowest rank's) step
+    two = json.loads(next(out.glob("bench_2d_P2_*.json")).read_text())
+    work = two["rank_work_seconds_per_step"]
+    assert 0 < work["min"] <= work["mean"] <= work["max"] <= two["seconds_per_step"]
+    assert two["work_imbalance"] == pytest.approx(work["max"] / work["mean"])
 
     const = json.loads((out / "cost_model.json").read_text())
     m = const["measured"]
