@@ -86,28 +86,46 @@ def test_scalar_forms_match_the_array_forms():
 
 @pytest.mark.parametrize("d", [1, 2, 3])
 def test_degraded_stress_tension_and_compression(d):
-    """σ = (1−D)σ_e when tr σ_e > 0; σ = (1−D)(σ_e − pI) + pI when p = tr σ_e / d < 0."""
+    """σ = (1−D)σ_e + D·min(p_v, 0)·I: the law's pressure term is kept in compression only."""
     rng = np.random.default_rng(d)
     D = 0.4
-    for sign in (1.0, -1.0):
+    for pv in (3.0, -7.0):
         S = rng.normal(0, 1.0, (d, d))
-        S = S + S.T + sign * 10.0 * np.eye(d)
-        p = np.trace(S) / d
-        want = (1 - D) * S if p > 0 else (1 - D) * (S - p * np.eye(d)) + p * np.eye(d)
+        S = S + S.T + 10.0 * np.eye(d)  # a tensile mean stress: it is p_v that decides
+        want = (1 - D) * S + D * min(pv, 0.0) * np.eye(d)
         out = np.zeros((3, 3))
         out[:d, :d] = S
-        degrade(d, D, out)
+        degrade(d, D, pv, out)
         np.testing.assert_allclose(out[:d, :d], want, rtol=1e-14, atol=1e-13)
         if d == 2:
-            np.testing.assert_allclose(degrade_2d(D, S[0, 0], S[0, 1], S[1, 1]),
+            np.testing.assert_allclose(degrade_2d(D, pv, S[0, 0], S[0, 1], S[1, 1]),
                                        (want[0, 0], want[0, 1], want[1, 1]), rtol=1e-14)
         if d == 3:
             np.testing.assert_allclose(
-                degrade_3d(D, S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]),
+                degrade_3d(D, pv, S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]),
                 (want[0, 0], want[0, 1], want[0, 2], want[1, 1], want[1, 2], want[2, 2]), rtol=1e-14)
     out = np.eye(3)
-    degrade(3, 0.0, out)  # D = 0: untouched, bit for bit
+    degrade(3, 0.0, -5.0, out)  # D = 0: untouched, bit for bit
     assert np.array_equal(out, np.eye(3))
+
+
+def test_broken_particle_resists_collapse():
+    """A fully damaged neo-Hookean particle sheared and squeezed to J = 0.0015 (the state that
+    blew up the tension bar with ``freeze = "never"``) has a *tensile* mean elastic stress, yet it
+    keeps the law's pressure ``λ ln J / J`` — and carries nothing once its volume is not reduced."""
+    params, _ = material_table(material())
+    lam = params[0, 4]
+    F = np.eye(3)
+    F[:2, :2] = [[3.01928008, 3.45767633], [3.05052982, 3.49394864]]
+    J = np.linalg.det(F[:2, :2])
+    el, dm = np.zeros((3, 3)), np.zeros((3, 3))
+    cauchy_stress(2, params[0], F, 0.0, el)
+    cauchy_stress(2, params[0], F, 1.0, dm)
+    assert 0 < J < 0.002 and np.trace(el[:2, :2]) > 0
+    np.testing.assert_allclose(dm[:2, :2], lam * np.log(J) / J * np.eye(2), rtol=1e-12)
+    for f in (np.diag([1.5, 1.0, 1.0]), np.array([[1.0, 0.7, 0.0], [0.0, 1.0, 0.0], [0, 0, 1.0]])):
+        cauchy_stress(2, params[0], f, 1.0, dm)  # J >= 1: a broken particle carries nothing
+        assert np.all(dm[:2, :2] == 0.0)
 
 
 def test_cauchy_stress_is_degraded_by_the_damage():

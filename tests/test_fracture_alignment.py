@@ -7,7 +7,7 @@ what its docstring claims:
 * the ``lcr`` cases (``freeze = "never"``) fail at the same stretch but separate no earlier than
   the same geometry with freezing, some beyond that two-cell window, or not at all by the quick
   mode's maximum stretch (then reported as not separated), and their separation stretch spreads
-  more over angles and offsets (the full study: 16x the freeze spread);
+  more over angles and offsets (the full study: 22x the freeze spread);
 * the summary CSV agrees with the case rows; and 2 MPI ranks give the same case rows (a rotated
   case in both modes) except ``wall_s``.
 """

@@ -9,7 +9,8 @@ import math
 
 from parmpm.jit import inline_kernel, kernel
 from parmpm.materials import LINEAR_ELASTIC
-from parmpm.materials.damage import COL_MODEL, damage_scalar, degrade_2d, max_stretch_2d
+from parmpm.materials.damage import (COL_MODEL, damage_scalar, degrade_2d, max_stretch_2d,
+                                     pressure_term)
 
 
 @inline_kernel
@@ -46,7 +47,10 @@ def stress_damage_speed(params, row, damage, i, f00, f01, f10, f11):
     if params[row, COL_MODEL] != 0.0:
         D = damage_scalar(params, row, damage[i], max_stretch_2d(f00, f01, f10, f11))
         damage[i] = D
-        s00, s01, s11 = degrade_2d(D, s00, s01, s11)
+        if D > 0.0:
+            pv = pressure_term(int(params[row, 0]) == LINEAR_ELASTIC, params[row, 4],
+                               f00 * f11 - f01 * f10, f00 + f11 - 2.0)
+            s00, s01, s11 = degrade_2d(D, pv, s00, s01, s11)
     return s00, s01, s11, c
 
 

@@ -14,7 +14,8 @@ import math
 
 from parmpm.jit import inline_kernel, kernel
 from parmpm.materials import LINEAR_ELASTIC
-from parmpm.materials.damage import COL_MODEL, damage_scalar, degrade_3d, max_stretch_3d
+from parmpm.materials.damage import (COL_MODEL, damage_scalar, degrade_3d, max_stretch_3d,
+                                     pressure_term)
 
 
 @inline_kernel
@@ -83,7 +84,12 @@ def update_F_stress(vmax, i, l00, l01, l02, l10, l11, l12, l20, l21, l22,
         D = damage_scalar(params, row, damage[i],
                           max_stretch_3d(n00, n01, n02, n10, n11, n12, n20, n21, n22))
         damage[i] = D
-        s00, s01, s02, s11, s12, s22 = degrade_3d(D, s00, s01, s02, s11, s12, s22)
+        if D > 0.0:
+            J = (n00 * (n11 * n22 - n12 * n21) - n01 * (n10 * n22 - n12 * n20)
+                 + n02 * (n10 * n21 - n11 * n20))
+            pv = pressure_term(int(params[row, 0]) == LINEAR_ELASTIC, params[row, 4], J,
+                               n00 + n11 + n22 - 3.0)
+            s00, s01, s02, s11, s12, s22 = degrade_3d(D, pv, s00, s01, s02, s11, s12, s22)
     store_stress(stress, i, s00, s01, s02, s11, s12, s22)
     s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2])
     if not (s <= vmax):

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from parmpm.jit import helper_kernel
-from parmpm.materials.damage import SOFTENING, degrade
+from parmpm.materials.damage import SOFTENING, degrade, pressure_term
 from parmpm.materials.linear_elastic import linear_elastic_stress
 from parmpm.materials.neo_hookean import det_d, neo_hookean_stress
 
@@ -53,7 +53,11 @@ def cauchy_stress(d, params, F, damage, out):
         linear_elastic_stress(d, F, params[4], params[5], out)
     else:
         neo_hookean_stress(d, F, params[4], params[5], out)
-    degrade(d, damage, out)
+    if damage > 0.0:
+        tr = 0.0
+        for a in range(d):
+            tr += F[a, a] - 1.0
+        degrade(d, damage, pressure_term(model == LINEAR_ELASTIC, params[4], det_d(d, F), tr), out)
 
 
 @helper_kernel

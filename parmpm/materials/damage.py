@@ -10,10 +10,19 @@ stretch ``λf``:
   ``λf − λ0`` is the stretch scale over which ``1 − D`` falls by ``e``);
 
 and ``D ← max(D, g(λ))``: damage never heals. The stress is then
-``σ = (1 − D) σ_e`` when the mean in-plane stress ``p = tr σ_e / d`` is tensile, and
-``σ = (1 − D)(σ_e − p I) + p I`` when it is compressive (a damaged particle still carries
-pressure, not shear). With ``D = 0`` nothing is touched, so undamaged runs are bit for bit those
-of the same material without the table. The CFL wave speed stays the undamaged one (conservative).
+
+    σ = (1 − D) σ_e + D · min(p_v, 0) · I,
+
+with ``p_v`` the pressure term of the elastic law, a function of the volume change alone:
+``λ_L ln J / J`` (neo-Hookean), ``λ_L tr ε`` (linear elastic). A damaged particle loses its
+strength in shear and in tension but keeps resisting compression of its volume, so a fully
+damaged particle (``D = 1``) carries ``p_v I`` while ``J < 1`` and nothing while ``J ≥ 1``.
+Why ``p_v`` and not the mean stress ``tr σ_e / d``: a strongly sheared particle can have a
+tensile mean stress while it loses volume (the ``μ(b − I)/J`` term); with the mean stress as the
+switch nothing stops such a broken particle from collapsing to ``J → 0`` (seen in the tension
+bar with ``freeze = "never"``: non-finite stress after failure). With ``D = 0`` nothing is
+touched, so undamaged runs are bit for bit those of the same material without the table. The CFL
+wave speed stays the undamaged one (conservative).
 
 Parameter-table columns (:data:`parmpm.materials.PARAM`): ``damage`` (0 none, 1 linear,
 2 exponential), ``damage_onset`` (λ0), ``damage_fracture`` (λf), ``damage_freeze`` (the ``D`` at
@@ -100,50 +109,55 @@ def damage_update(d, prm, F, D):
 
 
 @helper_kernel
-def degrade(d, D, out):
-    """The damaged stress in place (leading d×d of ``out``); nothing at ``D = 0``."""
+def degrade(d, D, pv, out):
+    """The damaged stress in place (leading d×d of ``out``), ``pv`` the law's pressure term;
+    nothing at ``D = 0``."""
     if not D > 0.0:
         return
-    p = 0.0
-    for a in range(d):
-        p += out[a, a]
-    p /= d
     keep = 1.0 - D
     for a in range(d):
         for b in range(d):
             out[a, b] *= keep
-    if p < 0.0:  # compression: the pressure stays whole
+    if pv < 0.0:  # volumetric compression: resisted whatever the damage
         for a in range(d):
-            out[a, a] += D * p
+            out[a, a] += D * pv
 
 
 @helper_kernel
-def degrade_2d(D, s00, s01, s11):
+def degrade_2d(D, pv, s00, s01, s11):
     """:func:`degrade` in 2D on the three stress components (returned)."""
     if not D > 0.0:
         return s00, s01, s11
-    p = 0.5 * (s00 + s11)
     keep = 1.0 - D
     s00, s01, s11 = keep * s00, keep * s01, keep * s11
-    if p < 0.0:
-        s00 += D * p
-        s11 += D * p
+    if pv < 0.0:
+        s00 += D * pv
+        s11 += D * pv
     return s00, s01, s11
 
 
 @helper_kernel
-def degrade_3d(D, s00, s01, s02, s11, s12, s22):
+def degrade_3d(D, pv, s00, s01, s02, s11, s12, s22):
     """:func:`degrade` in 3D on the six stress components (returned)."""
     if not D > 0.0:
         return s00, s01, s02, s11, s12, s22
-    p = (s00 + s11 + s22) / 3.0
     k = 1.0 - D
     s00, s01, s02, s11, s12, s22 = k * s00, k * s01, k * s02, k * s11, k * s12, k * s22
-    if p < 0.0:
-        s00 += D * p
-        s11 += D * p
-        s22 += D * p
+    if pv < 0.0:
+        s00 += D * pv
+        s11 += D * pv
+        s22 += D * pv
     return s00, s01, s02, s11, s12, s22
+
+
+@helper_kernel
+def pressure_term(linear, lam, J, tr_eps):
+    """``p_v``: ``λ_L tr ε`` (linear elastic) or ``λ_L ln J / J`` (neo-Hookean; −∞ for J ≤ 0)."""
+    if linear:
+        return lam * tr_eps
+    if J > 0.0:
+        return lam * math.log(J) / J
+    return -math.inf
 
 
 @helper_kernel
