@@ -243,3 +243,14 @@ def test_damageable_hanging_bar_breaks_at_its_top(tmp_path):
     assert broken.sum() >= 20  # a whole row across the 1 m bar (30 particles wide)
     assert P.x0[broken, 1].min() > -0.05 - 1e-12  # the bar spans y0 in [-1, 0]
     assert np.all(np.abs(P.rf[broken]).sum(axis=(1, 2)) > 0)  # and their domains froze
+
+
+def test_tension_bar_restart_continues_its_history(tmp_path):
+    """A run continued from a checkpoint before failure reports the same separation, stretches
+    and crack as the uninterrupted run (the metric's history travels in the checkpoint)."""
+    over = OFF + ["checkpoint.every_steps=300"]
+    full = Simulation(load_scene("tension_bar", over), tmp_path / "a", quiet=True).run()
+    again = Simulation.from_checkpoint(tmp_path / "a" / "checkpoint_00000300.h5",
+                                       out_dir=tmp_path / "b", quiet=True).run()
+    assert full["metrics"]["separated"] and full["steps"] > 300
+    assert again["metrics"] == full["metrics"] and again["steps"] == full["steps"]
