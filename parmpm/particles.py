@@ -11,8 +11,6 @@ MUSL.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from numba import literal_unroll, literally
@@ -117,125 +115,6 @@ def _merge_rows(out, old, new, keep, order, k):
         else:
             for c in range(out.shape[1]):
                 out[i, c] = new[j - k, c]
-
-
-def _lattice(lo, hi, spacing):
-    """Cell-centred lattice points of a box, axis 0 fastest."""
-    axes = [lo[k] + (np.arange(n) + 0.5) * spacing[k]
-            for k, n in enumerate(np.round((np.asarray(hi) - lo) / spacing).astype(int))]
-    mesh = np.meshgrid(*axes[::-1], indexing="ij")
-    return np.stack([m.ravel() for m in mesh[::-1]], axis=1)
-
-
-def _turn(d: int, degrees: float) -> np.ndarray:
-    """Rotation by ``degrees`` counter-clockwise in the x-y plane (the identity on z)."""
-    a = math.radians(degrees)
-    Q = np.eye(d)
-    Q[:2, :2] = [[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]]
-    return Q
-
-
-def _initial_velocity(d: int, body: dict, pts: np.ndarray) -> np.ndarray:
-    """A body's initial velocity at ``pts``: uniform + affine + spin + vibration mode."""
-    vel = np.tile(np.asarray(body["velocity"], float), (len(pts), 1))
-    centre = (np.asarray(body["center"], float) if body["shape"] != "box" else
-              0.5 * (np.asarray(body["min"], float) + np.asarray(body["max"], float)))
-    if body.get("velocity_gradient") is not None:  # affine: v += L·(x − c)
-        L = np.asarray(body["velocity_gradient"], float)
-        for i in range(d):  # elementwise, not BLAS: the same bits for any subset of the points
-            for j in range(d):
-                vel[:, i] += L[i, j] * (pts[:, j] - centre[j])
-    omega = body.get("angular_velocity")
-    if omega is not None:  # rigid spin about the body's centre: v += ω × (x − c)
-        r = pts - centre
-        if d == 2:
-            vel += float(omega) * np.stack([-r[:, 1], r[:, 0]], axis=1)
-        else:
-            vel += np.cross(np.asarray(omega, float), r)
-    vib = body.get("vibration")
-    if vib:
-        ax = vib["axis"]
-        length = body["max"][ax] - body["min"][ax]
-        beta = (2 * vib["mode"] - 1) * math.pi / (2 * length)
-        vel[:, ax] += vib["amplitude"] * np.sin(beta * (pts[:, ax] - body["min"][ax]))
-    return vel
-
-
-class Seeds:
-    """The particles every body seeds, as positions per body (``chunks``) and the per-body
-    constants. Every rank seeds the same (global ids = seeding order) but builds a full
-    :class:`Particles` (velocities included) only for the ones it keeps (:meth:`particles`): a
-    seed costs ``dim`` floats, a particle ~40, so set-up memory per rank follows its own share."""
-
-    def __init__(self, dim: int, chunks: list):
-        self.dim = dim
-        self.chunks = chunks  # (x, body, spacing, material row, turn or None) per body
-        self.n = sum(len(c[0]) for c in chunks)
-
-    @property
-    def x(self) -> np.ndarray:
-        """Every seed's position, in seeding order (no copy for a one-body scene)."""
-        if len(self.chunks) == 1:
-            return self.chunks[0][0]
-        return np.concatenate([c[0] for c in self.chunks]) if self.chunks else np.zeros((0, self.dim))
-
-    def mass(self, params: np.ndarray) -> np.ndarray:
-        return np.concatenate([np.full(len(c[0]), params[c[3], 1] * np.prod(c[2]))
-                               for c in self.chunks])
-
-    def particles(self, params: np.ndarray, keep: np.ndarray | None = None) -> Particles:
-        """The particles of global ids ``keep`` (increasing; default all), fields filled."""
-        keep = np.arange(self.n) if keep is None else np.asarray(keep, np.int64)
-        P = Particles(self.dim, keep.size)
-        P.gid[:] = keep
-        first = 0
-        for pts, body, spacing, row, turn in self.chunks:
-            lo, hi = np.searchsorted(keep, [first, first + len(pts)])
-            s, ids = slice(lo, hi), keep[lo:hi] - first
-            P.x[s] = pts[ids]
-            P.x0[s] = pts[ids]
-            P.v[s] = _initial_velocity(self.dim, body, pts[ids])
-            P.vol0[s] = np.prod(spacing)
-            P.mass[s] = params[row, 1] * np.prod(spacing)
-            P.mat[s] = row
-            P.lh0[s] = 0.5 * spacing
-            P.r0[s] = np.diag(0.5 * spacing) if turn is None else turn * (0.5 * spacing)
-            first += len(pts)
-        return P
-
-
-def seed_bodies(scene: dict, material_rows: dict[str, int]) -> Seeds:
-    """Seed every body: ``ppc`` per cell per axis, domains tiling the body."""
-    d = scene["dim"]
-    h = np.asarray(scene["grid"]["cell_size"], float)
-    origin = np.asarray(scene["grid"]["origin"], float)
-    chunks = []
-    for body in scene["bodies"]:
-        ppc = np.asarray(body["ppc"], float)
-        turn = None
-        if body["shape"] == "box":
-            lo, hi = np.asarray(body["min"], float), np.asarray(body["max"], float)
-            count = np.maximum(1, np.round((hi - lo) / h * ppc)).astype(int)
-            spacing = (hi - lo) / count
-            pts = _lattice(lo, lo + count * spacing, spacing)
-            if body.get("angle"):  # the lattice turned about the box centre, domains with it
-                turn = _turn(d, body["angle"])
-                mid = 0.5 * (lo + hi)
-                pts = (pts - mid) @ turn.T + mid
-        else:  # disk / sphere on a grid-aligned lattice
-            c, r = np.asarray(body["center"], float), float(body["radius"])
-            spacing = h / ppc
-            lo = origin + np.floor((c - r - origin) / spacing) * spacing
-            n = np.ceil((c + r - lo) / spacing).astype(int)
-            pts = _lattice(lo, lo + n * spacing, spacing)
-            pts = pts[np.sum((pts - c) ** 2, axis=1) <= r * r]
-        chunks.append((pts, body, spacing, material_rows[body["material"]], turn))
-    return Seeds(d, chunks)
-
-
-def bodies_to_particles(scene: dict, material_rows: dict[str, int], params: np.ndarray) -> Particles:
-    """Every body's particles (all of them: a one-rank convenience; see :class:`Seeds`)."""
-    return seed_bodies(scene, material_rows).particles(params)
 
 
 @kernel

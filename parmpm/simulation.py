@@ -22,7 +22,8 @@ from parmpm.grid import BC_CODES
 from parmpm.log import get_logger
 from parmpm.measures import Measures
 from parmpm.materials import material_table
-from parmpm.particles import Particles, locate_patches, seed_bodies
+from parmpm.particles import Particles, locate_patches
+from parmpm.seeding import seed_bodies
 from parmpm.progress import Progress
 from parmpm.shapes import CPDI, INTERPOLATORS
 from parmpm.stepper import PHASES, WORK_PHASES, Discretisation, Stepper, fmt_vec
@@ -56,36 +57,44 @@ class Simulation(Measures):
                                    np.asarray(grid["cell_size"], float), layout)
         self.params, names = material_table(data["materials"])
         self.restart = checkpoint
-        P = seeds = None
+        P = seeds = counts = where = None
+        D = self.disc
+        dec = data["decomposition"]
         if checkpoint is None:
-            # Every rank seeds the same positions (global ids = seeding order) and builds only
-            # its own particles once the patches are dealt out.
+            # Every rank seeds the same particles (global ids = seeding order) and builds only
+            # its own once the patches are dealt out (parmpm.seeding).
             seeds = seed_bodies(data, {n: i for i, n in enumerate(names)})
             if data.get("manufactured"):  # start on the exact field (before patches are chosen)
                 from parmpm.manufactured import initialise
                 P, seeds = seeds.particles(self.params), None
                 initialise(P, data["manufactured"]["amplitude"], self.params)
+            elif data["metrics"]["kind"] == "none":  # no metric needs every particle's x0
+                counts = seeds.patch_counts(D)  # unturned boxes: counted axis by axis
+        if counts is not None:
+            self.n_total = seeds.n
+            self.metrics = None
+        else:
+            if P is not None:
                 x_all, x0_all, mass_all = P.x, P.x0, P.mass
-            else:
+            elif seeds is not None:
                 x_all = x0_all = seeds.x
                 mass_all = seeds.mass(self.params) if data["metrics"]["kind"] != "none" else None
-        else:
-            x_all, x0_all, mass_all = (checkpoint.read(k) for k in ("x", "x0", "mass"))
-        self.n_total = x_all.shape[0]
-        from parmpm.metrics import make_metrics
-        self.metrics = make_metrics(data, x0_all, mass_all)
-        D = self.disc
-        where = np.zeros(self.n_total, np.int64)
-        bad, _ = locate_patches(d, x_all, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
-                                layout.patches_per_axis, where, where)
-        if bad >= 0:
-            raise SimulationError(f"particle {bad} at {fmt_vec(x_all[bad])} is outside the grid")
-        dec = data["decomposition"]
-        self.patches = PatchSet(layout, comm, np.bincount(where, minlength=layout.n_patches),
-                                threshold=dec["rebalance_threshold"],
+            else:
+                x_all, x0_all, mass_all = (checkpoint.read(k) for k in ("x", "x0", "mass"))
+            self.n_total = x_all.shape[0]
+            from parmpm.metrics import make_metrics
+            self.metrics = make_metrics(data, x0_all, mass_all)
+            where = np.zeros(self.n_total, np.int64)
+            bad, _ = locate_patches(d, x_all, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
+                                    layout.patches_per_axis, where, where)
+            if bad >= 0:
+                raise SimulationError(f"particle {bad} at {fmt_vec(x_all[bad])} is outside the grid")
+            counts = np.bincount(where, minlength=layout.n_patches)
+            del x_all, x0_all, mass_all  # no second reference to the seeded arrays while they move
+        self.patches = PatchSet(layout, comm, counts, threshold=dec["rebalance_threshold"],
                                 cooldown=dec["rebalance_cooldown"])
-        mine = np.flatnonzero(self.patches.rank_of[where] == self.rank)
-        del x_all, x0_all, mass_all  # no second reference to the seeded arrays while they move
+        owned = self.patches.rank_of == self.rank
+        mine = np.flatnonzero(owned[where]) if where is not None else seeds.members(owned)
         if checkpoint is None:
             if seeds is not None:
                 P = seeds.particles(self.params, mine)
@@ -101,7 +110,11 @@ class Simulation(Measures):
             problems = [p for p in comm.allgather(problem) if p]
             if problems:
                 raise ParmpmError(problems[0])
-        P.patch = where[mine]
+        if where is not None:
+            P.patch = where[mine]
+        else:  # the lattice path: locate only this rank's particles
+            locate_patches(d, P.x, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
+                           layout.patches_per_axis, P.patch, P.patch)
         self.particles = P
         bc = np.zeros((3, 2), np.int64)
         for k, axis in enumerate("xyz"[:d]):

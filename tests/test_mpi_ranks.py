@@ -55,6 +55,10 @@ def _cases() -> dict:
         "time.steps=150", "metrics.stop_on_separation=false"]]
     cases["1d_cpdi_damage"] = ["hanging_bar_1d", OFF + [damage, "grid.patch_size=4",
                                                         "time.steps=60"]]
+    # no metrics: every rank counts the particles per patch axis by axis and builds only its
+    # own (parmpm.seeding); the same run as 2d_cpdi, whose metrics make every rank seed all
+    cases["2d_cpdi_no_metrics"] = ["hanging_bar", OFF + ["metrics.kind=none", "grid.patch_size=4",
+                                                         "time.steps=40"]]
     # the tension bar: grips, a weak band, domains freezing; separation counted across ranks
     cases["2d_tension_bar"] = ["tension_bar", OFF + ["grid.patch_size=8"]]
     return cases
@@ -118,6 +122,16 @@ def test_damage_cases_damage(runs):
     assert ref["damage"].max() >= 0.3  # some domains froze
     ref, summary = _load(runs[1], "2d_tension_bar")
     assert ref["damage"].max() == 1.0 and summary["metrics"]["separated"]
+
+
+def test_set_up_without_metrics_is_the_same_run(runs):
+    """Seeding by per-axis patch counts (no metrics) gives the particles, ids and results of
+    seeding every particle on every rank (2d_cpdi has metrics), on every rank count."""
+    for n in RANKS:
+        a, _ = _load(runs[n], "2d_cpdi")
+        b, _ = _load(runs[n], "2d_cpdi_no_metrics")
+        for k in FIELDS:
+            np.testing.assert_array_equal(a[k], b[k], err_msg=f"{k} on {n} ranks")
 
 
 def test_crossing_scene_migrates_and_rebalances(runs):

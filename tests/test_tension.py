@@ -12,7 +12,7 @@ from parmpm.errors import SceneError
 from parmpm.exact_tension import elastic_tension, opening_allowance, softening, tension_failure
 from parmpm.materials import lame
 from parmpm.materials.neo_hookean import neo_hookean_stress
-from parmpm.particles import bodies_to_particles
+from parmpm.seeding import bodies_to_particles
 from parmpm.scene import scene_from_toml
 
 E, NU = 1.0e6, 0.3
@@ -205,7 +205,7 @@ def test_seeds_build_exactly_the_kept_particles():
     every field equals the all-particles build at those global ids, bit for bit, velocities of
     turned, affine and spinning bodies included."""
     from parmpm.materials import material_table
-    from parmpm.particles import seed_bodies
+    from parmpm.seeding import seed_bodies
 
     scene = load_scene("tension_bar", ["bodies.1.angle=3.0", "bodies.2.angular_velocity=1.5"])
     params, names = material_table(scene.data["materials"])
