@@ -124,6 +124,10 @@ class Seeds:
             out.append(per_axis)
         return out
 
+    @staticmethod
+    def _ppa(disc) -> list[int]:
+        return [int(n) for n in disc.layout.patches_per_axis]  # padded axes: 1
+
     def patch_counts(self, disc) -> np.ndarray | None:
         """Particles in every patch of the layout (flat ids), from per-axis counts; None when
         the bodies are not all unturned boxes or a particle lies outside the grid."""
@@ -132,22 +136,20 @@ class Seeds:
         axes = self._axis_patches(disc)
         if axes is None:
             return None
-        ppa = [int(n) for n in disc.layout.patches_per_axis][:self.dim]
-        ppa += [1] * (3 - len(ppa))
+        ppa = self._ppa(disc)
         counts = np.zeros(ppa[::-1], np.int64)  # indexed [q2, q1, q0]: flat id q0 fastest
         for per_axis in axes:
             hist = [np.bincount(q, minlength=n) for q, n in zip(per_axis, ppa)]
             hist += [np.ones(1, np.int64)] * (3 - len(hist))
             counts += np.einsum("k,j,i->kji", hist[2], hist[1], hist[0])
-        self._axes, self._ppa = axes, ppa
         return counts.ravel()
 
-    def members(self, owned: np.ndarray) -> np.ndarray:
+    def members(self, disc, owned: np.ndarray) -> np.ndarray:
         """Global ids (increasing) of the particles in the patches where ``owned`` (a bool per
-        flat patch id) is true; after :meth:`patch_counts`."""
-        own = np.asarray(owned, bool).reshape(self._ppa[::-1])  # [q2, q1, q0]
+        flat patch id) is true; for seeds that :meth:`patch_counts` could count."""
+        own = np.asarray(owned, bool).reshape(self._ppa(disc)[::-1])  # [q2, q1, q0]
         out, first = [], 0
-        for (lat, *_), per_axis in zip(self.chunks, self._axes):
+        for (lat, *_), per_axis in zip(self.chunks, self._axis_patches(disc)):
             q = per_axis + [np.zeros(1, np.int64)] * (3 - len(per_axis))
             mask = own[np.ix_(q[2], q[1], q[0])]  # [i2, i1, i0]: raveled, i0 fastest = id order
             out.append(np.flatnonzero(mask.ravel()) + first)

@@ -94,7 +94,7 @@ class Simulation(Measures):
         self.patches = PatchSet(layout, comm, counts, threshold=dec["rebalance_threshold"],
                                 cooldown=dec["rebalance_cooldown"])
         owned = self.patches.rank_of == self.rank
-        mine = np.flatnonzero(owned[where]) if where is not None else seeds.members(owned)
+        mine = np.flatnonzero(owned[where]) if where is not None else seeds.members(D, owned)
         if checkpoint is None:
             if seeds is not None:
                 P = seeds.particles(self.params, mine)

@@ -13,51 +13,21 @@ what its docstring claims:
 """
 from __future__ import annotations
 
-import csv
-import math
-import os
-import shutil
-import subprocess
-import sys
-from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
-SCRIPT = REPO / "run_scripts" / "fracture_alignment.py"
+from study_harness import mpirun, num, read_csv, run_quick
+
 DX, L_BAR = 0.025, 0.8
 QUICK_MAX_STRETCH = 1.6
 
 
-def mpirun() -> str | None:
-    beside = Path(sys.executable).parent / "mpirun"
-    return str(beside) if beside.exists() else shutil.which("mpirun")
-
-
-def _run(out: Path, prefix=(), extra=(), timeout=240) -> Path:
-    out.mkdir(parents=True, exist_ok=True)
-    path = os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))
-    env = dict(os.environ, PYTHONPATH=path)
-    cmd = [*prefix, sys.executable, str(SCRIPT), "--quick", "--out", str(out), *extra]
-    proc = subprocess.run(cmd, cwd=out.parent, env=env, capture_output=True, text=True, timeout=timeout)
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
-    return out
-
-
-def _csv(path: Path) -> list[dict]:
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
-
-
-def _f(value: str) -> float:
-    return float(value) if value not in ("", None) else math.nan
-
-
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory):
-    out = _run(tmp_path_factory.mktemp("fracture_alignment") / "out")
-    rows = _csv(out / "fracture_alignment.csv")
-    summary = {s["mode"]: s for s in _csv(out / "fracture_alignment_summary.csv")}
+    out = run_quick("fracture_alignment.py", tmp_path_factory.mktemp("fracture_alignment") / "out",
+                    timeout=240)
+    rows = read_csv(out / "fracture_alignment.csv")
+    summary = {s["mode"]: s for s in read_csv(out / "fracture_alignment_summary.csv")}
     return out, rows, summary
 
 
@@ -70,14 +40,14 @@ def _mode(rows, mode):
 def test_quick_cases_and_figure(quick):
     out, rows, summary = quick
     assert len(rows) == 8 and set(summary) == {"freeze", "lcr"}
-    assert {_f(r["angle"]) for r in rows} == {0.0, 30.0}
+    assert {num(r["angle"]) for r in rows} == {0.0, 30.0}
     assert len({(r["offset_x"], r["offset_y"]) for r in rows}) == 2
     for r in rows:  # the same bar in every case: the same prediction
         if r["status"] == "unstable":
             continue
-        assert _f(r["predicted_failure_stretch"]) == pytest.approx(_f(rows[0]["predicted_failure_stretch"]))
-        assert 1.05 < _f(r["predicted_failure_stretch"]) < 1.2
-        assert int(r["steps"]) > 0 and _f(r["wall_s"]) > 0
+        assert num(r["predicted_failure_stretch"]) == pytest.approx(num(rows[0]["predicted_failure_stretch"]))
+        assert 1.05 < num(r["predicted_failure_stretch"]) < 1.2
+        assert int(r["steps"]) > 0 and num(r["wall_s"]) > 0
     png = out / "fracture_alignment.png"
     assert png.is_file() and 20_000 < png.stat().st_size < 300_000
 
@@ -85,20 +55,20 @@ def test_quick_cases_and_figure(quick):
 def test_freeze_separates_within_two_cells_of_the_prediction_in_the_band(quick):
     _, rows, _ = quick
     for r in _mode(rows, "freeze"):
-        pred = _f(r["predicted_failure_stretch"])
-        sep = _f(r["stretch_at_separation"])
+        pred = num(r["predicted_failure_stretch"])
+        sep = num(r["stretch_at_separation"])
         assert r["separated"] == "True", r
         assert pred <= sep <= pred + 2 * DX / L_BAR, (r["angle"], r["offset_x"], sep, pred)
         # the band fails first, and the crack is in it
-        assert _f(r["stretch_at_failure"]) <= sep
-        assert abs(_f(r["crack_position"])) <= _f(r["weak_segment_halfwidth"]) + 1e-12
+        assert num(r["stretch_at_failure"]) <= sep
+        assert abs(num(r["crack_position"])) <= num(r["weak_segment_halfwidth"]) + 1e-12
 
 
 def test_lcr_separates_later_and_spreads_more(quick):
     _, rows, summary = quick
     freeze, lcr = _mode(rows, "freeze"), _mode(rows, "lcr")
-    pred = _f(freeze[0]["predicted_failure_stretch"])
-    assert all(r["status"] == "separated" and _f(r["cfl"]) == 0.4 for r in freeze)
+    pred = num(freeze[0]["predicted_failure_stretch"])
+    assert all(r["status"] == "separated" and num(r["cfl"]) == 0.4 for r in freeze)
     beyond = 0
     for r in lcr:
         twin, = [f for f in freeze if (f["angle"], f["offset_x"], f["offset_y"]) ==
@@ -106,37 +76,37 @@ def test_lcr_separates_later_and_spreads_more(quick):
         if r["status"] == "unstable":  # blew up at both CFL numbers: reported, nothing to compare
             continue
         if r["separated"] == "True":
-            sep = _f(r["stretch_at_separation"])
+            sep = num(r["stretch_at_separation"])
             # never before the same geometry with freezing, and the crack still in the band
-            assert sep >= _f(twin["stretch_at_separation"]), (r, twin)
-            assert abs(_f(r["crack_position"])) <= _f(r["weak_segment_halfwidth"]) + 1e-12
+            assert sep >= num(twin["stretch_at_separation"]), (r, twin)
+            assert abs(num(r["crack_position"])) <= num(r["weak_segment_halfwidth"]) + 1e-12
             beyond += sep > pred + 2 * DX / L_BAR
         else:  # ran to the quick mode's maximum stretch without separating: reported as such
-            assert r["stretch_at_separation"] == "" and _f(r["max_stretch"]) >= QUICK_MAX_STRETCH - 0.01
+            assert r["stretch_at_separation"] == "" and num(r["max_stretch"]) >= QUICK_MAX_STRETCH - 0.01
             beyond += 1
         # the same damage law in both modes: at the same CFL number the band fails when it does
         # with freezing (the first fully damaged particle may freeze a few steps before the
         # metrics sample that sees it)
         if r["cfl"] == twin["cfl"]:
-            assert _f(r["stretch_at_failure"]) == pytest.approx(_f(twin["stretch_at_failure"]), abs=1e-5)
+            assert num(r["stretch_at_failure"]) == pytest.approx(num(twin["stretch_at_failure"]), abs=1e-5)
     assert beyond >= 1  # some lcr case needs more than two cells of opening (quick: all four)
     s_freeze, s_lcr = summary["freeze"], summary["lcr"]
-    assert int(s_freeze["separated"]) == 4 and _f(s_freeze["crack_in_band_fraction"]) == 1.0
-    assert _f(s_freeze["spread"]) < 2 * DX / L_BAR
+    assert int(s_freeze["separated"]) == 4 and num(s_freeze["crack_in_band_fraction"]) == 1.0
+    assert num(s_freeze["spread"]) < 2 * DX / L_BAR
     if int(s_lcr["separated"]) >= 2:  # the separated lcr cases spread more, and later
-        assert _f(s_lcr["spread"]) > _f(s_freeze["spread"])
-        assert _f(s_lcr["mean_excess"]) > _f(s_freeze["mean_excess"])
+        assert num(s_lcr["spread"]) > num(s_freeze["spread"])
+        assert num(s_lcr["mean_excess"]) > num(s_freeze["mean_excess"])
 
 
 def test_summary_matches_the_case_rows(quick):
     _, rows, summary = quick
     for mode, s in summary.items():
-        sep = [_f(r["stretch_at_separation"]) for r in rows if r["mode"] == mode and r["separated"] == "True"]
+        sep = [num(r["stretch_at_separation"]) for r in rows if r["mode"] == mode and r["separated"] == "True"]
         assert int(s["cases"]) == 4 and int(s["separated"]) == len(sep)
         if sep:
-            assert _f(s["min"]) == pytest.approx(min(sep)) and _f(s["max"]) == pytest.approx(max(sep))
-            assert _f(s["spread"]) == pytest.approx(max(sep) - min(sep))
-            assert _f(s["mean"]) == pytest.approx(sum(sep) / len(sep))
+            assert num(s["min"]) == pytest.approx(min(sep)) and num(s["max"]) == pytest.approx(max(sep))
+            assert num(s["spread"]) == pytest.approx(max(sep) - min(sep))
+            assert num(s["mean"]) == pytest.approx(sum(sep) / len(sep))
 
 
 @pytest.mark.mpi
@@ -144,8 +114,9 @@ def test_summary_matches_the_case_rows(quick):
 def test_two_ranks_give_the_same_rows(quick, tmp_path):
     out, rows, _ = quick
     # one rotated case in both modes (the quick mode's 30°, offset (0, 0)), to keep the test short
-    got = _run(tmp_path / "np2", prefix=[mpirun(), "-n", "2"], extra=["--angles", "30", "--offsets", "1"])
-    two = _csv(got / "fracture_alignment.csv")
+    got = run_quick("fracture_alignment.py", tmp_path / "np2", prefix=[mpirun(), "-n", "2"],
+                     extra=["--angles", "30", "--offsets", "1"], timeout=240)
+    two = read_csv(got / "fracture_alignment.csv")
     assert [r["mode"] for r in two] == ["freeze", "lcr"]
     for r2 in two:
         r1, = [r for r in rows if (r["mode"], r["angle"], r["offset_x"], r["offset_y"]) ==

@@ -40,7 +40,7 @@ def test_counts_and_members_match_locating_every_particle(scene, over, tmp_path)
     counts = seeds.patch_counts(D)
     assert np.array_equal(counts, np.bincount(where, minlength=lay.n_patches))
     owned = np.random.default_rng(1).random(lay.n_patches) < 0.4
-    assert np.array_equal(seeds.members(owned), np.flatnonzero(owned[where]))
+    assert np.array_equal(seeds.members(D, owned), np.flatnonzero(owned[where]))
 
 
 def test_turned_and_round_bodies_are_seeded_whole(tmp_path):

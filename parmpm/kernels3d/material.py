@@ -7,15 +7,15 @@ same CFL speed as :func:`parmpm.materials.wave_speed`:
 ``c² = [μ(b_max + 1) + λ max(1, 1 − ln J)]/ρ0`` (neo-Hookean) or ``c0² max(1, b_max)`` (linear),
 ``b_max = max_a Σ_b |b_ab|`` (Gershgorin), ``c = ∞`` when ``J ≤ 0``. ``ln J`` and ``1/J`` are computed
 once and ``1/ρ0`` is read from the table (``params[row, 7]``). Returns
-``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c)``. :func:`update_F_stress` is the end of every G2P
-deformation update: ``F ← (I + Δt L) F``, then the stress.
+``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c, p_v)``, ``p_v`` the law's pressure term that damage
+keeps in compression (:func:`parmpm.materials.damage.pressure_term`). :func:`update_F_stress` is
+the end of every G2P deformation update: ``F ← (I + Δt L) F``, then the stress.
 """
 import math
 
 from parmpm.jit import inline_kernel, kernel
 from parmpm.materials import LINEAR_ELASTIC
-from parmpm.materials.damage import (COL_MODEL, damage_scalar, degrade_3d, max_stretch_3d,
-                                     pressure_term)
+from parmpm.materials.damage import COL_MODEL, damage_scalar, degrade_3d, max_stretch_3d
 
 
 @inline_kernel
@@ -37,7 +37,7 @@ def stress_and_speed(params, row, f00, f01, f02, f10, f11, f12, f20, f21, f22):
         c = math.sqrt(params[row, 6] * max(1.0, bmax)) if J > 0.0 else math.inf
         m2 = 2.0 * mu
         return (m2 * e00 + lam * tr, m2 * (0.5 * (f01 + f10)), m2 * (0.5 * (f02 + f20)),
-                m2 * e11 + lam * tr, m2 * (0.5 * (f12 + f21)), m2 * e22 + lam * tr, c)
+                m2 * e11 + lam * tr, m2 * (0.5 * (f12 + f21)), m2 * e22 + lam * tr, c, lam * tr)
     if J > 0.0:
         lnJ = math.log(J)
         p = lam * lnJ
@@ -46,8 +46,9 @@ def stress_and_speed(params, row, f00, f01, f02, f10, f11, f12, f20, f21, f22):
         p = -math.inf
         c = math.inf
     iJ = 1.0 / J
+    pv = p / J if J > 0.0 else -math.inf
     return ((mu * (b00 - 1.0) + p) * iJ, mu * b01 * iJ, mu * b02 * iJ,
-            (mu * (b11 - 1.0) + p) * iJ, mu * b12 * iJ, (mu * (b22 - 1.0) + p) * iJ, c)
+            (mu * (b11 - 1.0) + p) * iJ, mu * b12 * iJ, (mu * (b22 - 1.0) + p) * iJ, c, pv)
 
 
 @inline_kernel
@@ -77,19 +78,14 @@ def update_F_stress(vmax, i, l00, l01, l02, l10, l11, l12, l20, l21, l22,
     F[i, 0, 0], F[i, 0, 1], F[i, 0, 2] = n00, n01, n02
     F[i, 1, 0], F[i, 1, 1], F[i, 1, 2] = n10, n11, n12
     F[i, 2, 0], F[i, 2, 1], F[i, 2, 2] = n20, n21, n22
-    s00, s01, s02, s11, s12, s22, c = stress_and_speed(params, mat[i], n00, n01, n02, n10, n11,
-                                                       n12, n20, n21, n22)
+    s00, s01, s02, s11, s12, s22, c, pv = stress_and_speed(params, mat[i], n00, n01, n02, n10,
+                                                           n11, n12, n20, n21, n22)
     row = mat[i]
     if params[row, COL_MODEL] != 0.0:  # damage: touch nothing else without a model
         D = damage_scalar(params, row, damage[i],
                           max_stretch_3d(n00, n01, n02, n10, n11, n12, n20, n21, n22))
         damage[i] = D
-        if D > 0.0:
-            J = (n00 * (n11 * n22 - n12 * n21) - n01 * (n10 * n22 - n12 * n20)
-                 + n02 * (n10 * n21 - n11 * n20))
-            pv = pressure_term(int(params[row, 0]) == LINEAR_ELASTIC, params[row, 4], J,
-                               n00 + n11 + n22 - 3.0)
-            s00, s01, s02, s11, s12, s22 = degrade_3d(D, pv, s00, s01, s02, s11, s12, s22)
+        s00, s01, s02, s11, s12, s22 = degrade_3d(D, pv, s00, s01, s02, s11, s12, s22)
     store_stress(stress, i, s00, s01, s02, s11, s12, s22)
     s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2])
     if not (s <= vmax):
@@ -103,7 +99,7 @@ def stress_pass(F, mat, params, stress):
     ``parmpm bench``'s "stress" line, which G2P's fused loop cannot time separately."""
     vmax = 0.0
     for i in range(F.shape[0]):
-        s00, s01, s02, s11, s12, s22, c = stress_and_speed(
+        s00, s01, s02, s11, s12, s22, c, _ = stress_and_speed(
             params, mat[i], F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
             F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2])
         store_stress(stress, i, s00, s01, s02, s11, s12, s22)

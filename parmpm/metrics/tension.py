@@ -18,13 +18,13 @@ other's). Grip particles are those whose reference position lies in a grip's (tu
 from __future__ import annotations
 
 import logging
-import math
 
 import numpy as np
 
 from parmpm.errors import SceneError
 from parmpm.exact_tension import opening_allowance, tension_failure
 from parmpm.metrics import _as_points, _History, _to_plain, register_metrics
+from parmpm.seeding import _turn
 
 logger = logging.getLogger(__name__)
 
@@ -34,11 +34,7 @@ FULL = 1.0 - 1e-9  # damage counted as complete failure
 def _box_frame(body: dict, dim: int):
     """(centre, axes as rows, half-lengths) of a (possibly turned) box body."""
     lo, hi = np.asarray(body["min"], float), np.asarray(body["max"], float)
-    axes = np.eye(dim)
-    a = math.radians(body.get("angle") or 0.0)
-    if dim >= 2:
-        axes[0, :2] = [math.cos(a), math.sin(a)]
-        axes[1, :2] = [-math.sin(a), math.cos(a)]
+    axes = _turn(dim, body["angle"]).T if body.get("angle") else np.eye(dim)  # rows: its edges
     return 0.5 * (lo + hi), axes, 0.5 * (hi - lo)
 
 
