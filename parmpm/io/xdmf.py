@@ -9,6 +9,14 @@ serialisers and its HDF5 naming); the heavy data goes to ``<name>.h5`` next to
 rewritten atomically at most every ``flush_seconds`` and on :meth:`SnapshotWriter.close`, so a
 crashed run still leaves a readable series of what was flushed.
 
+Every failure to write (a full disk, a read-only folder, an I/O error) is one ``ParmpmError``
+line, without a chained traceback: ``disk full writing '<name>.h5': N MB needed, M MB free``
+when the free space (checked before each snapshot against its size) is short, or the system's
+reason otherwise. The writer then closes: the index keeps the snapshots written before, and
+:meth:`SnapshotWriter.close` does nothing more. HDF5 writes through
+:class:`parmpm.io.checkpoint.GuardedFile`, so it never sees a failed write (HDF5 crashes the
+process when it closes a file whose writes failed); a write error is found after each snapshot.
+
 meshio's ``TimeSeriesReader`` reads it back: ``read_points_cells()`` gives the first snapshot's
 geometry and ``read_data(k)`` the time and point data of snapshot ``k``.
 
@@ -20,13 +28,18 @@ vectors and tensors are written as scalars (see :func:`pad_point_data`).
 
 from __future__ import annotations
 
+import errno
 import logging
 import os
+import shutil
 import time
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
 import numpy as np
+
+from parmpm.errors import ParmpmError
+from parmpm.io.checkpoint import GuardedFile
 
 logger = logging.getLogger(__name__)
 
@@ -80,23 +93,74 @@ class SnapshotWriter:
     context manager. One ``meshio.xdmf.TimeSeriesWriter`` stays open across writes.
     """
 
+    #: bytes a snapshot adds beyond its arrays (object headers, the group's index), bounded
+    OVERHEAD = 64 * 1024
+
     def __init__(self, out_dir, name: str, dim: int, flush_seconds: float = 5.0):
         import h5py
         from meshio.xdmf import TimeSeriesWriter
 
         self.out_dir = Path(out_dir)
-        self.out_dir.mkdir(parents=True, exist_ok=True)
         self.dim = int(dim)
         self.path = self.out_dir / f"{name}.xdmf"
         self.h5_path = self.out_dir / f"{name}.h5"
         self.flush_seconds = float(flush_seconds)
-        self._writer = TimeSeriesWriter(self.path, data_format="HDF")
-        # what TimeSeriesWriter.__enter__ does, but with the .h5 next to the .xdmf
-        self._writer.h5_filename = str(self.h5_path)
-        self._writer.h5_file = h5py.File(self.h5_path, "w")
         self.steps = 0
         self._last_flush = -np.inf
+        self._closed = True  # until the files exist
+        self._writer = TimeSeriesWriter(self.path, data_format="HDF")
+        self._writer.h5_file = None
+        self._file = None
+        try:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+            # what TimeSeriesWriter.__enter__ does, but with the .h5 next to the .xdmf
+            self._writer.h5_filename = str(self.h5_path)
+            self._file = GuardedFile(self.h5_path)
+            self._writer.h5_file = h5py.File(self._file, "w")
+        except OSError as exc:
+            self._fail(exc)
         self._closed = False
+        self._check_io()
+
+    # --- failures -----------------------------------------------------------------------------
+    def _free(self) -> int | None:
+        try:
+            return int(shutil.disk_usage(self.out_dir).free)
+        except OSError:
+            return None
+
+    def _check_io(self) -> None:
+        """Raise the write error the guarded file kept, if any."""
+        if self._file is not None and self._file.error is not None:
+            self._fail(self._file.error)
+
+    def _abandon(self) -> None:
+        """Close the HDF5 file, ignoring errors (HDF5 cannot flush onto a full disk, and an
+        unclosed file crashes the interpreter at exit), and stop writing."""
+        self._closed = True
+        h5, self._writer.h5_file = self._writer.h5_file, None
+        if h5 is not None:
+            try:
+                h5.close()
+            except Exception:  # noqa: BLE001 - the error being reported is the one that matters
+                pass
+        if self._file is not None:
+            self._file.close()
+        try:
+            self.path.with_name(self.path.name + ".tmp").unlink(missing_ok=True)
+        except OSError:
+            pass
+
+    def _fail(self, exc: OSError, where: Path | None = None):
+        """Abandon the files and raise ``exc`` as one line."""
+        where = where or self.h5_path
+        self._abandon()
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+            free = self._free()
+            tail = f": {free / 1e6:.1f} MB free" if free is not None else ""
+            raise ParmpmError(f"disk full writing '{where}' ({os.strerror(exc.errno)}){tail}") from None
+        why = os.strerror(exc.errno) if exc.errno else (str(exc).splitlines() or ["I/O error"])[0]
+        raise ParmpmError(f"cannot write snapshots '{where}': {why}") from None
 
     # ----------------------------------------------------------------------------------------
     def write(self, t: float, x, point_data: dict | None = None) -> None:
@@ -106,25 +170,50 @@ class SnapshotWriter:
         x = np.asarray(x, dtype=np.float64)
         n = x.shape[0]
         points = _pad_columns(x.reshape(n, -1), 3)
+        vertices = np.arange(n, dtype=np.int64).reshape(n, 1)
+        fields = {}
+        for key, value in (point_data or {}).items():
+            fields.update(pad_point_data(key, value, n, self.dim))
+        need = points.nbytes + vertices.nbytes + sum(a.nbytes for a in fields.values()) + self.OVERHEAD
+        free = self._free()
+        if free is not None and need > free:
+            try:  # stop cleanly: the index holds every snapshot written so far
+                self.flush()
+            except OSError:
+                pass
+            self._abandon()
+            raise ParmpmError(f"disk full writing '{self.h5_path}': {need / 1e6:.1f} MB needed, "
+                              f"{free / 1e6:.1f} MB free")
         w = self._writer
         grid = ET.SubElement(w.collection, "Grid", Name=f"step{self.steps}", GridType="Uniform")
-        ET.SubElement(grid, "Time", Value=repr(float(t)))
-        w.points(grid, points)
-        w.cells([("vertex", np.arange(n, dtype=np.int64).reshape(n, 1))], grid)
-        grid.find("Topology").set("NodesPerElement", "1")
-        if point_data:
-            fields = {}
-            for key, value in point_data.items():
-                fields.update(pad_point_data(key, value, n, self.dim))
-            w.point_data(fields, grid)
+        try:
+            ET.SubElement(grid, "Time", Value=repr(float(t)))
+            w.points(grid, points)
+            w.cells([("vertex", vertices)], grid)
+            grid.find("Topology").set("NodesPerElement", "1")
+            if fields:
+                w.point_data(fields, grid)
+        except OSError as exc:
+            w.collection.remove(grid)
+            self._fail(exc)
+        if self._file.error is not None:
+            w.collection.remove(grid)
+            self._fail(self._file.error)
         self.steps += 1
         now = time.monotonic()
         if now - self._last_flush >= self.flush_seconds:
-            self.flush()
+            try:
+                self.flush()
+            except OSError as exc:
+                self._fail(exc)
 
     def flush(self) -> None:
-        """Flush the HDF5 data and atomically rewrite the XML index."""
+        """Flush the HDF5 data and atomically rewrite the XML index (an OSError propagates;
+        :meth:`write` and :meth:`close` turn it into one line). The index is not rewritten when
+        the data did not reach the disk."""
         self._writer.h5_file.flush()
+        if self._file.error is not None:
+            raise self._file.error
         tmp = self.path.with_name(self.path.name + ".tmp")
         ET.ElementTree(self._writer.xdmf_file).write(tmp)
         os.replace(tmp, self.path)
@@ -134,9 +223,16 @@ class SnapshotWriter:
         """Write the final XML index and close the HDF5 file (idempotent)."""
         if self._closed:
             return
-        self.flush()
-        self._writer.h5_file.close()
-        self._closed = True
+        try:
+            self.flush()
+            h5, self._writer.h5_file = self._writer.h5_file, None
+            self._closed = True
+            h5.close()
+            self._check_io()
+            self._file.close()
+            self._check_io()
+        except OSError as exc:
+            self._fail(exc)
         logger.debug("wrote %d snapshots to %s", self.steps, self.path)
 
     def __enter__(self):
