@@ -32,6 +32,14 @@ class HangingBarMetrics(_History):
     * tip: the bar's particles with the extreme initial coordinate in the direction of gravity;
       its displacement is the mean displacement of those particles projected on ``−ĝ`` along the
       axis (so negative = downward);
+    * bottom corner: of the tip particles, the one with the smallest reference coordinate on
+      every other axis (2D: the bottom-left particle; 1D: the tip particle), the point whose
+      displacement history Sadeghirad, Brannon & Burghardt (2011) plot for this bar. Its
+      displacement along the axis (``corner_displacement``; negative = downward) gives the
+      *first peak* (``corner_first_peak`` and ``corner_first_peak_time``: the lowest point of the
+      first downswing) and the *rebound* (``corner_rebound``, ``corner_rebound_time``: the
+      highest point of the upswing after it), found by :func:`first_peak_and_rebound`; ``None``
+      where the run ended before the history turned;
     * separation: ``components > 1`` at some sample (see :func:`count_components`);
     * in 1D, the static elongation ``ΔL`` of :func:`parmpm.exact.hanging_bar_static` with the
       material's 1D law (``exact_static_elongation``, at the very tip), the exact static
@@ -64,6 +72,12 @@ class HangingBarMetrics(_History):
         self.tip = np.flatnonzero(self.bar & (np.abs(xa - extreme) <= tol))
         self.tip_mask = np.zeros(self.x0.shape[0], bool)
         self.tip_mask[self.tip] = True
+        self.corner = self.tip
+        for k in range(self.dim):
+            if k != self.axis:
+                c = self.x0[self.corner, k]
+                self.corner = self.corner[c - c.min() <= 1e-9 * max(float(np.ptp(self.x0[self.bar, k])), 1.0)]
+        self.corner = int(self.corner[0])
         lo, hi = _bar_span(body, self.x0[self.bar], self.axis)
         self.L = hi - lo
         # reference distance of the tip particles from the support (the top of the bar)
@@ -85,21 +99,27 @@ class HangingBarMetrics(_History):
 
         self.times: list[float] = []
         self.tip_history: list[float] = []
+        self.corner_history: list[float] = []
         self.max_stretch_history: list[float] = []
         self.components_history: list[int] = []
         self.separation_time = None
         self.stretch_at_separation = None
 
     def terms(self, gid, x, v, F, **context):
-        """Per-particle addends (tip displacement along the axis, tip indicator) and the local
-        maximum axial stretch of the bar, for particles ``gid`` (any subset, any order)."""
+        """Per-particle addends (tip displacement along the axis, tip indicator, the same two for
+        the bottom corner) and the local maximum axial stretch of the bar, for particles ``gid``
+        (any subset, any order)."""
         n = np.shape(gid)[0]
         x = _as_points(x, n, self.dim)
         F = np.asarray(F, dtype=float).reshape(n, self.dim, self.dim)
         tip = self.tip_mask[gid]
-        sums = np.zeros((n, 2))
-        sums[:, 0] = np.where(tip, x[:, self.axis] - self.x0[gid, self.axis], 0.0)
+        corner = np.asarray(gid) == self.corner
+        u = x[:, self.axis] - self.x0[gid, self.axis]
+        sums = np.zeros((n, 4))
+        sums[:, 0] = np.where(tip, u, 0.0)
         sums[:, 1] = tip
+        sums[:, 2] = np.where(corner, u, 0.0)
+        sums[:, 3] = corner
         bar = self.bar[gid]
         stretch = np.sqrt(np.sum(F[bar, :, self.axis] ** 2, axis=1))
         return sums, np.array([stretch.max() if stretch.size else -np.inf])
@@ -110,12 +130,19 @@ class HangingBarMetrics(_History):
         tip = float(sums[0] / sums[1]) * self.up_sign if sums[1] > 0 else float("nan")
         self.times.append(float(t))
         self.tip_history.append(tip)
+        self.corner_history.append(float(sums[2] / sums[3]) * self.up_sign if sums[3] > 0 else float("nan"))
         self.max_stretch_history.append(max_stretch)
         comps = -1 if components is None else int(components)
         self.components_history.append(comps)
         if comps > 1 and self.separation_time is None:
             self.separation_time = float(t)
             self.stretch_at_separation = max_stretch
+
+    def restore(self, state: dict) -> None:
+        """Continue a saved history; one saved before the corner was tracked gets NaN there."""
+        super().restore(state)
+        if "corner_history" not in state:
+            self.corner_history = [float("nan")] * len(self.times)
 
     def result(self) -> dict:
         """JSON-ready dict (see the class docstring for the definitions)."""
@@ -126,6 +153,8 @@ class HangingBarMetrics(_History):
         rel = None
         if exact is not None and tip_final is not None and exact != 0.0:
             rel = abs(-tip_final - exact) / abs(exact)
+        times, corner = np.asarray(self.times), np.asarray(self.corner_history)
+        i_peak, i_rebound = first_peak_and_rebound(corner)
         return {
             "separated": self.separation_time is not None,
             "separation_time": self.separation_time,
@@ -133,12 +162,41 @@ class HangingBarMetrics(_History):
             "stretch_at_separation": _to_plain(self.stretch_at_separation),
             "tip_displacement": _to_plain(tip_final),
             "max_tip_displacement": _to_plain(np.nanmax(np.abs(tips))) if tips.size else None,
+            "corner_particle": self.corner,
+            "corner_displacement": _to_plain(corner[-1]) if corner.size else None,
+            "corner_first_peak": None if i_peak is None else _to_plain(corner[i_peak]),
+            "corner_first_peak_time": None if i_peak is None else _to_plain(times[i_peak]),
+            "corner_rebound": None if i_rebound is None else _to_plain(corner[i_rebound]),
+            "corner_rebound_time": None if i_rebound is None else _to_plain(times[i_rebound]),
             "exact_static_elongation": _to_plain(self.exact_static_elongation),
             "exact_static_tip_displacement": _to_plain(exact),
             "relative_error_static": _to_plain(rel),
             "max_components": int(max(self.components_history)) if self.components_history else None,
             "samples": len(self.times),
         }
+
+
+def first_peak_and_rebound(u, tol: float = 0.01) -> tuple[int | None, int | None]:
+    """Sample indices of the first peak and the rebound of a displacement history ``u`` that
+    starts at rest and first swings downward (``u < 0``).
+
+    The first peak is the lowest sample of the first downswing, the rebound the highest sample of
+    the upswing that follows it. A turning point counts only once the history has come back from
+    it by ``tol·|peak|`` (so round-off wiggles and a run that ends on its way down do not count);
+    either index is ``None`` when that has not happened by the last sample. NaN samples are
+    skipped."""
+    d = -np.asarray(u, dtype=float)  # downward displacement
+    high = np.fmax.accumulate(d) if d.size else d
+    back = np.flatnonzero((high > 0.0) & (high - d > tol * high))
+    if back.size == 0:
+        return None, None
+    i_peak = int(np.nanargmax(d[: back[0] + 1]))
+    rest = d[i_peak:]
+    low = np.fmin.accumulate(rest)
+    up = np.flatnonzero(rest - low > tol * d[i_peak])
+    if up.size == 0:
+        return i_peak, None
+    return i_peak, i_peak + int(np.nanargmin(rest[: up[0] + 1]))
 
 
 @register_metrics("vibrating_bar")
@@ -217,6 +275,6 @@ class VibratingBarMetrics(_History):
 
 
 HangingBarMetrics.needs_components = True
-HangingBarMetrics._STATE = ("times", "tip_history", "max_stretch_history", "components_history",
-                            "separation_time", "stretch_at_separation")
+HangingBarMetrics._STATE = ("times", "tip_history", "corner_history", "max_stretch_history",
+                            "components_history", "separation_time", "stretch_at_separation")
 VibratingBarMetrics._STATE = ("times", "com_velocity", "com_velocity_exact")
