@@ -194,7 +194,7 @@ def _os_problem(path: Path, exc: OSError) -> str:
 
 
 def _row_bytes(like: dict[str, np.ndarray]) -> int:
-    return sum(int(np.prod(a.shape[1:], dtype=np.int64)) * DTYPES.get(k, a.dtype).itemsize
+    return sum(int(np.prod(a.shape[1:], dtype=np.int64)) * DTYPES[k].itemsize
                for k, a in like.items())
 
 
@@ -218,6 +218,9 @@ class CheckpointWriter:
                  block_rows: int = BLOCK_ROWS):
         import h5py
 
+        unknown = sorted(set(like) - set(DTYPES))
+        if unknown:
+            raise ValueError(f"not checkpoint fields: {unknown} (known: {FIELDS})")
         self.path = Path(path)
         self.tmp = self.path.with_name(self.path.name + ".tmp")
         self.n, self.block_rows = int(n), int(block_rows)
@@ -241,7 +244,7 @@ class CheckpointWriter:
             for name, a in like.items():
                 shape = (self.n,) + a.shape[1:]
                 chunk = (max(1, min(self.n, self.block_rows)),) + a.shape[1:]
-                self._ds[name] = g.create_dataset(name, shape=shape, dtype=DTYPES.get(name, a.dtype),
+                self._ds[name] = g.create_dataset(name, shape=shape, dtype=DTYPES[name],
                                                   chunks=chunk if self.n else None,
                                                   fletcher32=bool(self.n))
         except OSError as exc:
