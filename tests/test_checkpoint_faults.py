@@ -432,3 +432,10 @@ def test_remove_stale_tmp(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bar.h5", "checkpoint_00000002.h5",
                                                           "notes.tmp"]
     assert remove_stale_tmp(tmp_path / "missing") == []
+
+
+def test_space_message_shows_the_difference():
+    assert ck.space_message(Path("a.h5"), 1_440_000, 100_000) == \
+        "disk full writing 'a.h5': 1.4 MB needed, 0.1 MB free"
+    assert ck.space_message(Path("a.h5"), 240_000, 230_000) == \
+        "disk full writing 'a.h5': 0.24 MB needed, 0.23 MB free"

@@ -104,8 +104,13 @@ def checkpoint_name(step: int) -> str:
     return f"checkpoint_{step:08d}.h5"
 
 
-def _mb(nbytes: float) -> str:
-    return f"{nbytes / 1e6:.1f}"
+def space_message(path: Path, need: int, free: int) -> str:
+    """``disk full writing '<path>': N MB needed, M MB free``, with as many decimals as it takes
+    for N and M to differ."""
+    digits = 1
+    while digits < 6 and f"{need / 1e6:.{digits}f}" == f"{free / 1e6:.{digits}f}":
+        digits += 1
+    return f"disk full writing '{path}': {need / 1e6:.{digits}f} MB needed, {free / 1e6:.{digits}f} MB free"
 
 
 def _free_bytes(folder: Path) -> int:
@@ -185,7 +190,7 @@ def _os_problem(path: Path, exc: OSError) -> str:
     """One line for an OSError met writing ``path`` (h5py's messages span lines)."""
     if exc.errno in _NO_SPACE:
         try:
-            free = f": {_mb(_free_bytes(path.parent))} MB free"
+            free = f": {_free_bytes(path.parent) / 1e6:.1f} MB free"
         except OSError:
             free = ""
         return f"disk full writing '{path}' ({os.strerror(exc.errno)}){free}"
@@ -259,8 +264,7 @@ class CheckpointWriter:
             self._fail(exc)
         if need > free:
             self._discard()
-            raise ParmpmError(f"disk full writing '{self.path}': {_mb(need)} MB needed, "
-                              f"{_mb(free)} MB free")
+            raise ParmpmError(space_message(self.path, need, free))
 
     def _check_io(self) -> None:
         """Raise the write error the guarded file kept, if any."""

@@ -39,7 +39,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from parmpm.errors import ParmpmError
-from parmpm.io.checkpoint import GuardedFile
+from parmpm.io.checkpoint import GuardedFile, space_message
 
 logger = logging.getLogger(__name__)
 
@@ -182,8 +182,7 @@ class SnapshotWriter:
             except OSError:
                 pass
             self._abandon()
-            raise ParmpmError(f"disk full writing '{self.h5_path}': {need / 1e6:.1f} MB needed, "
-                              f"{free / 1e6:.1f} MB free")
+            raise ParmpmError(space_message(self.h5_path, need, free))
         w = self._writer
         grid = ET.SubElement(w.collection, "Grid", Name=f"step{self.steps}", GridType="Uniform")
         try:
