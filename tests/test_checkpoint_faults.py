@@ -6,6 +6,7 @@ the clean-up of leftover temporary files.
 The full-filesystem tests mount a small tmpfs (root only; skipped where mounting is not
 permitted); the read-only tests mount it read-only (root, who ignores permissions) or take the
 write permission off a folder (any other user)."""
+import errno
 import logging
 import os
 import shutil
@@ -195,6 +196,10 @@ def test_older_versions_still_read_with_a_warning(tmp_path, caplog, version):
     for k in data:
         np.testing.assert_array_equal(got[k], data[k])
     assert f"format version {version}: its data carry no digests" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="parmpm.io.checkpoint"):
+        CheckpointReader(path, warn=False).close()  # the other ranks of a restart
+    assert caplog.text == ""
 
 
 def test_version_3_round_trip_with_unaligned_blocks(tmp_path):
@@ -439,3 +444,17 @@ def test_space_message_shows_the_difference():
         "disk full writing 'a.h5': 1.4 MB needed, 0.1 MB free"
     assert ck.space_message(Path("a.h5"), 240_000, 230_000) == \
         "disk full writing 'a.h5': 0.24 MB needed, 0.23 MB free"
+
+
+@pytest.mark.parametrize("call", ["fsync", "replace"])
+def test_io_error_at_commit_is_one_line_and_removes_the_tmp(tmp_path, monkeypatch, call):
+    """EIO where the data are forced to the device or the file is renamed into place."""
+    def fail(*args, **kwargs):
+        raise OSError(errno.EIO, os.strerror(errno.EIO))
+
+    path = tmp_path / "checkpoint_00000007.h5"
+    monkeypatch.setattr(os, call, fail)
+    with pytest.raises(ParmpmError) as e:
+        _write(path)
+    assert str(e.value) == f"cannot write checkpoint '{path}': Input/output error"
+    assert list(tmp_path.iterdir()) == []

@@ -372,9 +372,12 @@ class CheckpointWriter:
 
 
 class CheckpointReader:
-    """An open, validated checkpoint; every problem is a one-line ParmpmError naming the file."""
+    """An open, validated checkpoint; every problem is a one-line ParmpmError naming the file.
 
-    def __init__(self, path):
+    ``warn``: log a warning when the file's data carry no digests (versions 1 and 2); pass
+    ``warn=rank == 0`` so that a restart on many ranks says it once."""
+
+    def __init__(self, path, warn: bool = True):
         import h5py
 
         self.path = Path(path)
@@ -412,7 +415,7 @@ class CheckpointReader:
             self._check_datasets(where)
             if self.digested:
                 self._load_digests(where)
-            else:
+            elif warn:
                 logger.warning("%s has format version %d: its data carry no digests, only HDF5's "
                                "Fletcher-32 chunk checksums", where, version)
         except ParmpmError:
