@@ -252,7 +252,9 @@ class CheckpointWriter:
                 self._ds[name] = g.create_dataset(name, shape=shape, dtype=DTYPES[name],
                                                   chunks=chunk if self.n else None,
                                                   fletcher32=bool(self.n))
-        except OSError as exc:
+        except ParmpmError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - _fail re-raises what is not an I/O error
             self._fail(exc)
         self._check_io()
 
@@ -287,9 +289,15 @@ class CheckpointWriter:
         except OSError:
             pass
 
-    def _fail(self, exc: OSError):
+    def _fail(self, exc: BaseException):
+        """Throw the file away and raise one line: the write error the guarded file kept (what
+        HDF5 trips over after it is the consequence), else ``exc`` if an OSError, else
+        ``exc`` itself (a bug)."""
+        kept = self._file.error if self._file is not None else None
         self._discard()
-        raise ParmpmError(_os_problem(self.path, exc)) from None
+        if kept is not None or isinstance(exc, OSError):
+            raise ParmpmError(_os_problem(self.path, kept or exc)) from None
+        raise exc
 
     # --- writing ------------------------------------------------------------------------------
     def _feed(self, name: str, lo: int, a: np.ndarray) -> None:
@@ -325,7 +333,9 @@ class CheckpointWriter:
                 self._ds[name][lo:lo + m] = a
                 self._check_io()
                 self._feed(name, lo, a)
-        except OSError as exc:
+        except ParmpmError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - _fail re-raises what is not an I/O error
             self._fail(exc)
         self._next = lo + m
 
@@ -355,7 +365,9 @@ class CheckpointWriter:
             self._file.close()
             self._check_io()
             os.replace(self.tmp, self.path)
-        except OSError as exc:
+        except ParmpmError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - _fail re-raises what is not an I/O error
             self._fail(exc)
         try:
             dirfd = os.open(self.path.parent, os.O_RDONLY)
