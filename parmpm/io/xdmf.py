@@ -151,10 +151,16 @@ class SnapshotWriter:
         except OSError:
             pass
 
-    def _fail(self, exc: OSError, where: Path | None = None):
-        """Abandon the files and raise ``exc`` as one line."""
+    def _fail(self, exc: BaseException, where: Path | None = None):
+        """Abandon the files and raise the write error the guarded file kept (what h5py trips
+        over after it is the consequence), else ``exc``, as one line; an ``exc`` that is no
+        I/O error is re-raised (a bug)."""
         where = where or self.h5_path
+        kept = self._file.error if self._file is not None else None
         self._abandon()
+        if kept is None and not isinstance(exc, OSError):
+            raise exc
+        exc = kept or exc
         if exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
             free = self._free()
             tail = f": {free / 1e6:.1f} MB free" if free is not None else ""
@@ -192,7 +198,7 @@ class SnapshotWriter:
             grid.find("Topology").set("NodesPerElement", "1")
             if fields:
                 w.point_data(fields, grid)
-        except OSError as exc:
+        except Exception as exc:  # noqa: BLE001 - _fail re-raises what is not an I/O error
             w.collection.remove(grid)
             self._fail(exc)
         if self._file.error is not None:
