@@ -1,8 +1,11 @@
 """Grid phase on owned nodes: velocities from summed mass, momentum and force; boundary conditions.
 
 ``v_old = (mv)_i / m_i``, ``v_new = v_old + Δt (f_i / m_i + g − c·v_old)`` (gravity applied as
-``m_i g``, optional mass-proportional damping ``c``), then per-face conditions on the global
-boundary nodes — fixed: ``v = 0``; slip: the normal component is 0; free: nothing — then ``v = 0``
+``m_i g``, optional mass-proportional damping ``c``), then per-face conditions on the nodes of the
+physical boundary faces and on every node of the exterior layer beyond them (``grid.exterior``:
+cells kept outside the faces so that a particle domain next to a wall has nodes to reach; the
+nodes there carry mass and momentum like any other) — fixed: ``v = 0``; slip: the normal
+component is 0; free: nothing — then ``v = 0``
 on every node inside a fixed region (a grip, e.g. the hanging bar's support) and ``v·n = 0`` inside
 a slip region (a symmetry plane inside the grid, e.g. the manufactured solution's faces) — applied to both
 ``v_old`` and ``v_new`` so the FLIP increment ``Δv = v_new − v_old`` respects them too. Nodes with
@@ -25,12 +28,15 @@ BC_CODES = {"free": FREE, "slip": SLIP, "fixed": FIXED}
 
 
 @helper_kernel
-def _apply_bc(d, gidx, nglob, bc, vel):
+def _apply_bc(d, gidx, face_lo, face_hi, bc, vel):
+    """Face conditions of a node at global index ``gidx``: the physical faces of axis ``k`` are
+    the nodes ``face_lo[k]`` and ``face_hi[k]`` (0 and the last node without an exterior layer);
+    a node beyond a face (in the exterior layer) is treated as the face demands."""
     for k in range(d):
         side = -1
-        if gidx[k] == 0:
+        if gidx[k] <= face_lo[k]:
             side = 0
-        elif gidx[k] == nglob[k] - 1:
+        elif gidx[k] >= face_hi[k]:
             side = 1
         if side < 0 or bc[k, side] == FREE:
             continue
@@ -85,12 +91,13 @@ def _near_region(gi0, gi1, gi2, ranges):
 
 
 @kernel
-def grid_update(d, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, ranges, origin, h, dt,
-                gvec, damping, mass_eps, gsum, gnew, from_momentum_only):
+def grid_update(d, own_lo, own_hi, base, nloc, face_lo, face_hi, bc, regions, normal, ranges,
+                origin, h, dt, gvec, damping, mass_eps, gsum, gnew, from_momentum_only):
     """Owned-node update from the P2G block ``gsum[slot] = (m, mv, f)`` rows into the block
     ``gnew[slot] = (v, Δv)`` rows (:func:`grid_block` layout). With ``from_momentum_only`` (the
     MUSL re-map) only ``v = mv/m`` with boundary conditions is formed. Constraints are applied
-    only on nodes of a constrained grid face or near a region (``ranges``). The node loop is
+    only on nodes of a constrained face (at or beyond the global node indices ``face_lo``,
+    ``face_hi`` of the physical faces) or near a region (``ranges``). The node loop is
     compiled once per dimension (as :mod:`parmpm.transfer`'s loops), without reference counting."""
     vold = np.zeros(3)
     vnew = np.zeros(3)
@@ -101,14 +108,15 @@ def grid_update(d, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, range
             face[k, side] = bc[k, side] != FREE
     for dim in literal_unroll(DIMS):
         if dim == d:
-            _grid_loop(dim, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, ranges, origin,
-                       h, dt, gvec, damping, mass_eps, gsum, gnew, from_momentum_only,
-                       vold, vnew, gidx, face)
+            _grid_loop(dim, own_lo, own_hi, base, nloc, face_lo, face_hi, bc, regions, normal,
+                       ranges, origin, h, dt, gvec, damping, mass_eps, gsum, gnew,
+                       from_momentum_only, vold, vnew, gidx, face)
 
 
 @loop_kernel
-def _grid_loop(dim, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, ranges, origin, h, dt,
-               gvec, damping, mass_eps, gsum, gnew, from_momentum_only, vold, vnew, gidx, face):
+def _grid_loop(dim, own_lo, own_hi, base, nloc, face_lo, face_hi, bc, regions, normal, ranges,
+               origin, h, dt, gvec, damping, mass_eps, gsum, gnew, from_momentum_only, vold, vnew,
+               gidx, face):
     literally(dim)
     d = dim * 1
     L0, L1 = nloc[0], nloc[1]
@@ -120,8 +128,9 @@ def _grid_loop(dim, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, rang
             g2 = base[p, 2] + i2
             for i1 in range(own_lo[p, 1], own_hi[p, 1]):
                 g1 = base[p, 1] + i1
-                row_edge = ((face[1, 0] and g1 == 0) or (face[1, 1] and g1 == nglob[1] - 1)
-                            or (face[2, 0] and g2 == 0) or (face[2, 1] and g2 == nglob[2] - 1))
+                row_edge = ((face[1, 0] and g1 <= face_lo[1]) or (face[1, 1] and g1 >= face_hi[1])
+                            or (face[2, 0] and g2 <= face_lo[2])
+                            or (face[2, 1] and g2 >= face_hi[2]))
                 row0 = L0 * (i1 + L1 * i2)
                 for i0 in range(own_lo[p, 0], own_hi[p, 0]):
                     node = row0 + i0
@@ -137,14 +146,15 @@ def _grid_loop(dim, own_lo, own_hi, base, nloc, nglob, bc, regions, normal, rang
                         for a in range(d):
                             vold[a] = 0.0
                             vnew[a] = 0.0
-                    if (row_edge or (face[0, 0] and g0 == 0) or (face[0, 1] and g0 == nglob[0] - 1)
+                    if (row_edge or (face[0, 0] and g0 <= face_lo[0])
+                            or (face[0, 1] and g0 >= face_hi[0])
                             or (nreg > 0 and _near_region(g0, g1, g2, ranges))):
                         gidx[0], gidx[1], gidx[2] = g0, g1, g2
-                        _apply_bc(d, gidx, nglob, bc, vold)
+                        _apply_bc(d, gidx, face_lo, face_hi, bc, vold)
                         if nreg:
                             _apply_regions(d, gidx, origin, h, regions, normal, vold)
                         if not from_momentum_only:
-                            _apply_bc(d, gidx, nglob, bc, vnew)
+                            _apply_bc(d, gidx, face_lo, face_hi, bc, vnew)
                             if nreg:
                                 _apply_regions(d, gidx, origin, h, regions, normal, vnew)
                     if from_momentum_only:

@@ -31,7 +31,9 @@ SEPARATION_METRICS = ("hanging_bar", "tension_bar")  # the kinds that count sepa
 TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method", "gravity",
             "damping", "boundary", "time", "output", "metrics", "decomposition", "checkpoint",
             "manufactured")
-GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost")
+GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost", "exterior")
+#: the widest grid.exterior layer: a support reaches at most the ghost width past a face
+MAX_EXTERIOR = 64
 MATERIAL_KEYS = ("model", "density", "youngs_modulus", "poisson_ratio", "damage")
 DAMAGE_KEYS = ("criterion", "onset", "fracture", "softening", "freeze")
 METHOD_KEYS = ("interpolator", "lcr", "update", "flip")
@@ -115,8 +117,13 @@ def _grid(c: _Checker, raw: Any, dim: int) -> dict:
     ghost = t.get("ghost", "auto")
     if ghost != "auto":
         c.integer("grid.ghost", ghost, '"auto" or an integer >= 1', lambda g: g >= 1)
+    exterior = t.get("exterior", "auto")  # cells kept outside every face (parmpm.stepper)
+    if exterior != "auto":
+        c.integer("grid.exterior", exterior, f'"auto" or an integer from 0 to {MAX_EXTERIOR} '
+                  "(cells kept outside every face)", lambda n: 0 <= n <= MAX_EXTERIOR)
     return {"origin": origin, "cell_size": cell_size, "cells": cells,
-            "patch_size": [min(p, n) for p, n in zip(patch, cells)], "ghost": ghost}
+            "patch_size": [min(p, n) for p, n in zip(patch, cells)], "ghost": ghost,
+            "exterior": exterior}
 
 
 def _materials(c: _Checker, raw: Any) -> dict:

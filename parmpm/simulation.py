@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from decomposition import PatchLayout, PatchSet, SerialComm, allreduce_max
+from decomposition import PatchSet, SerialComm, allreduce_max
 from parmpm.errors import ParmpmError, RunInterrupted, SimulationError
 from parmpm.grid import BC_CODES
 from parmpm.log import get_logger
@@ -26,7 +26,7 @@ from parmpm.particles import Particles, locate_patches
 from parmpm.seeding import seed_bodies
 from parmpm.progress import Progress
 from parmpm.shapes import CPDI, INTERPOLATORS
-from parmpm.stepper import PHASES, WORK_PHASES, Discretisation, Stepper, fmt_vec
+from parmpm.stepper import PHASES, WORK_PHASES, Discretisation, Stepper, exterior_cells, fmt_vec
 from parmpm.transfer import max_speed
 
 log = get_logger(__name__)
@@ -51,10 +51,11 @@ class Simulation(Measures):
         ghost = grid["ghost"]
         if ghost == "auto":
             ghost = interp.ghost_width(self.lcr, scene.min_dx)
-        layout = PatchLayout(tuple(grid["cells"]), tuple(grid["patch_size"]), int(ghost))
-        self.disc = Discretisation(d, interp.code, self.lcr or 0.0,
-                                   np.asarray(grid["origin"], float),
-                                   np.asarray(grid["cell_size"], float), layout)
+        # the patches cover the grid and its exterior layer (grid.exterior), the face conditions
+        # stay on the user's faces (parmpm.stepper.exterior_cells)
+        self.disc = Discretisation.from_grid(d, interp.code, self.lcr or 0.0, grid, int(ghost),
+                                             exterior_cells(data, int(ghost)))
+        layout = self.disc.layout
         self.params, names = material_table(data["materials"])
         self.restart = checkpoint
         P = seeds = counts = where = None
@@ -416,7 +417,10 @@ class Simulation(Measures):
             "wall_seconds": wall,
             "particle_steps_per_second": (self.n_total * warm_steps / loop
                                           if warm_steps and loop > 0 else None),
-            "grid": {"cells": list(lay.cells), "cell_size": list(map(float, self.disc.h)),
+            "grid": {"cells": [int(c) for c in self.disc.cells],
+                     "exterior": [[int(c) for c in self.disc.exterior_lo],
+                                  [int(c) for c in self.disc.exterior_hi]],
+                     "cell_size": list(map(float, self.disc.h)),
                      "patch_size": list(lay.patch_size), "patches": int(self.patches.ids.size),
                      "ghost": lay.ghost},
             "decomposition": self.decomposition_report(),

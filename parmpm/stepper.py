@@ -42,7 +42,13 @@ WORK_PHASES = ("p2g", "grid", "g2p", "sort")
 
 @dataclass
 class Discretisation:
-    """Everything the kernels need to know about the grid, method and patches (3-axis padded)."""
+    """Everything the kernels need to know about the grid, method and patches (3-axis padded).
+
+    ``origin`` and ``layout`` describe the computational grid: the user's (physical) grid widened
+    by ``exterior_lo[k]`` cells below and ``exterior_hi[k]`` cells above each axis (the exterior
+    layer, :func:`exterior_cells`). Its physical faces are the global nodes ``face_lo3``,
+    ``face_hi3``, where the grid update applies the face conditions; :attr:`cells` and
+    :attr:`physical_origin` give the user's grid back. Without a layer both coincide."""
 
     dim: int
     method: int
@@ -50,15 +56,45 @@ class Discretisation:
     origin: np.ndarray
     h: np.ndarray
     layout: PatchLayout
+    exterior_lo: np.ndarray | None = None   # (dim,) cells below each axis' first face
+    exterior_hi: np.ndarray | None = None   # (dim,) cells above each axis' last face
 
     def __post_init__(self):
         pad = 3 - self.dim
+        zeros = np.zeros(self.dim, np.int64)
+        self.exterior_lo = zeros if self.exterior_lo is None else np.asarray(self.exterior_lo, np.int64)
+        self.exterior_hi = zeros if self.exterior_hi is None else np.asarray(self.exterior_hi, np.int64)
         self.origin3 = np.concatenate([self.origin, np.zeros(pad)])
         self.h3 = np.concatenate([self.h, np.ones(pad)])
         self.inv_h3 = 1.0 / self.h3
         self.nloc = self.layout.local_nodes3
         self.nglob = self.layout.global_nodes3
+        # global node index of the physical faces (padded axes: the single node 0)
+        self.face_lo3 = np.concatenate([self.exterior_lo, np.zeros(pad, np.int64)])
+        self.face_hi3 = self.nglob - 1 - np.concatenate([self.exterior_hi, np.zeros(pad, np.int64)])
         self.set_patches(np.arange(self.layout.n_patches))
+
+    @classmethod
+    def from_grid(cls, dim: int, method: int, lcr: float, grid: dict, ghost: int,
+                  exterior: tuple[np.ndarray, np.ndarray] | None = None) -> Discretisation:
+        """The discretisation of a resolved ``[grid]`` table with ``ghost`` ghost cells and an
+        exterior layer of ``exterior = (lo, hi)`` cells per axis (None: none): the patch layout
+        covers ``cells + lo + hi`` cells from ``origin − lo·Δx``."""
+        h = np.asarray(grid["cell_size"], float)
+        lo, hi = (np.zeros(dim, np.int64),) * 2 if exterior is None else exterior
+        cells = np.asarray(grid["cells"], np.int64) + lo + hi
+        layout = PatchLayout(tuple(int(c) for c in cells), tuple(grid["patch_size"]), int(ghost))
+        return cls(dim, method, lcr, np.asarray(grid["origin"], float) - lo * h, h, layout, lo, hi)
+
+    @property
+    def cells(self) -> np.ndarray:
+        """The user's (physical) cell count per axis, without the exterior layer."""
+        return np.asarray(self.layout.cells, np.int64) - self.exterior_lo - self.exterior_hi
+
+    @property
+    def physical_origin(self) -> np.ndarray:
+        """The user's grid origin (the first physical face's position per axis)."""
+        return self.origin + self.exterior_lo * self.h
 
     def set_patches(self, local_ids: np.ndarray) -> None:
         """Per-slot node boxes of this rank's patches (global ids ``local_ids``)."""
@@ -139,9 +175,10 @@ class Stepper:
 
     def _grid_update(self, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
         D = self.disc
-        grid_update(D.dim, D.own_lo, D.own_hi, D.base, D.nloc, D.nglob, self.bc, self.regions,
-                    self.region_normal, self.region_ranges, D.origin3, D.h3, dt, gravity,
-                    self.damping, self.mass_eps, self.gsum_block, self.gnew_block, momentum_only)
+        grid_update(D.dim, D.own_lo, D.own_hi, D.base, D.nloc, D.face_lo3, D.face_hi3, self.bc,
+                    self.regions, self.region_normal, self.region_ranges, D.origin3, D.h3, dt,
+                    gravity, self.damping, self.mass_eps, self.gsum_block, self.gnew_block,
+                    momentum_only)
 
     def _lap(self, phase: str, t0: float) -> float:
         t = time.perf_counter()
@@ -258,7 +295,7 @@ class Stepper:
             return None, None, None, None
         if bad >= 0 and self.error is None:
             self.error = (f"particle {P.gid[bad]} at {fmt_vec(P.x[bad])} left the grid "
-                          f"(origin {fmt_vec(D.origin)}, extent {fmt_vec(D.origin + D.h * lay.cells)}); "
+                          f"({grid_extent(D)}); "
                           "enlarge grid.cells or move grid.origin")
         if moved == 0:  # every particle stays in its patch, so on this rank
             keep, received = (exchange(P.fields(), None, self.comm, ps.peers) if parallel
@@ -352,9 +389,27 @@ def support_reach(stepper: Stepper, i: int) -> tuple[float, bool]:
         reach = float(np.max(P.lh0[i] * np.abs(np.diag(P.F[i]))))
     else:
         reach = float(np.max(P.lh0[i]))
-    x = P.x[i]
-    inside = np.all(x - reach >= D.origin) and np.all(x + reach <= D.origin + D.h * D.layout.cells)
+    x, half = P.x[i], support_half_widths(stepper, i)
+    inside = (np.all(x - half >= D.origin)
+              and np.all(x + half <= D.origin + D.h * np.asarray(D.layout.cells)))
     return reach, bool(inside)
+
+
+def support_half_widths(stepper: Stepper, i: int) -> np.ndarray:
+    """Half-extent per axis of particle ``i``'s support about its centre: the GIMP half-widths,
+    or the bounding box of the CPDI corners ``x ± Σ_k |R_ak|`` (as interpolated, after scaling)."""
+    from parmpm.shapes import CPDI, CPGIMP
+    from parmpm.shapes.support import domain_matrix
+
+    D, P = stepper.disc, stepper.P
+    d = D.dim
+    if D.method == CPDI:
+        R = np.zeros((3, 3))
+        domain_matrix(d, D.method, D.lcr, P.F[i], P.r0[i], R)
+        return np.abs(R[:d, :d]).sum(axis=1)
+    if D.method == CPGIMP:
+        return P.lh0[i] * np.abs(np.diag(P.F[i]))
+    return np.array(P.lh0[i], float)
 
 
 def reach_message(stepper: Stepper, i: int, phase: str) -> str:
@@ -365,6 +420,70 @@ def reach_message(stepper: Stepper, i: int, phase: str) -> str:
     x = P.x[i]
     where = "beyond the ghost layer of its patch" if inside else "outside the grid"
     hint = (f"use method.lcr <= {g}dx ({g * dmin:.4g} m) or a larger grid.ghost"
-            if inside else "enlarge the grid")
+            if inside else outside_hint(D, stepper.bc, x, support_half_widths(stepper, i)))
     return (f"particle {P.gid[i]} at {fmt_vec(x)} reaches {where} in {phase} "
             f"(domain reach {reach:.4g} m = {reach / dmin:.3g} cells, ghost width {g} cells); {hint}")
+
+
+def grid_extent(D: Discretisation) -> str:
+    """The computational grid's box in words, saying when it includes an exterior layer."""
+    text = f"origin {fmt_vec(D.origin)}, extent {fmt_vec(D.origin + D.h * D.layout.cells)}"
+    if np.any(D.exterior_lo) or np.any(D.exterior_hi):
+        text += " with the grid.exterior layer"
+    return text
+
+
+def outside_hint(D: Discretisation, bc: np.ndarray, x: np.ndarray, half: np.ndarray) -> str:
+    """What would hold a support of half-widths ``half`` at ``x`` that crosses the grid's edge:
+    the face it crosses, by how many cells, and the ``grid.exterior`` layer (cells kept outside
+    every face, the boundary conditions staying on the faces) that holds such a support wherever
+    its centre is inside the physical grid; past a free face, adding cells there also does."""
+    lo = D.origin
+    hi = D.origin + D.h * np.asarray(D.layout.cells)
+    for k in range(D.dim):
+        for side, past in ((0, lo[k] - (x[k] - half[k])), (1, x[k] + half[k] - hi[k])):
+            if past <= 0:
+                continue
+            face = f"{'xyz'[k]}_{('min', 'max')[side]}"
+            cells = math.ceil(past / D.h[k] - 1e-9)
+            pad = (D.exterior_lo, D.exterior_hi)[side][k]
+            # the ghost width holds any bounded support whose centre is inside the physical grid
+            need = max(int(D.layout.ghost), math.ceil(half[k] / D.h[k] - 1e-9), int(pad) + cells)
+            text = (f"it crosses the {face} face by {past / D.h[k]:.3g} cells: set grid.exterior = "
+                    f"{need} (cells kept outside every face; the boundary conditions stay on the faces)")
+            if bc[k, side] == 0:  # a free face: moving it outwards changes nothing else
+                text += (f" or add {cells} cell{'s' * (cells != 1)} on the {face} side "
+                         "(grid.cells, grid.origin)")
+            return text
+    return "enlarge the grid"
+
+
+def exterior_cells(data: dict, ghost: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cells of the exterior layer below and above each axis of a resolved scene: ``grid.exterior``
+    cells on every face when it is an integer; with ``"auto"``, ``ghost`` cells (the width of the
+    ghost layer, i.e. the interpolator's reach: 0 for mpm, whose support never leaves the grid)
+    on each face that a body's bounding box comes within one cell of, and none elsewhere, so a
+    scene whose bodies start away from the faces runs bit for bit as without a layer."""
+    grid, d = data["grid"], data["dim"]
+    ext = grid.get("exterior", "auto")
+    if ext != "auto":
+        n = np.full(d, int(ext), np.int64)
+        return n, n.copy()
+    from parmpm.scene_bodies import rotated_box_bounds
+
+    h = np.asarray(grid["cell_size"], float)
+    glo = np.asarray(grid["origin"], float)
+    ghi = glo + h * np.asarray(grid["cells"])
+    lo, hi = np.zeros(d, np.int64), np.zeros(d, np.int64)
+    for body in data["bodies"]:
+        if body["shape"] == "box":
+            bmin, bmax = body["min"], body["max"]
+            if body.get("angle"):
+                bmin, bmax = rotated_box_bounds(bmin, bmax, body["angle"])
+        else:
+            bmin = [c - body["radius"] for c in body["center"]]
+            bmax = [c + body["radius"] for c in body["center"]]
+        near = 1.0 - 1e-9  # within one cell: a support at the body's edge can reach the face
+        lo[(np.asarray(bmin) - glo) / h < near] = ghost
+        hi[(ghi - np.asarray(bmax)) / h < near] = ghost
+    return lo, hi

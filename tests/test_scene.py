@@ -73,7 +73,7 @@ def test_hanging_bar_resolved():
     d = scene.data
     assert scene.dim == 2
     assert d["grid"] == {"origin": [-0.5, -3.0], "cell_size": [0.1, 0.1], "cells": [20, 32],
-                         "patch_size": [8, 8], "ghost": "auto"}
+                         "patch_size": [8, 8], "ghost": "auto", "exterior": "auto"}
     assert d["boundary"] == {"x_min": "free", "x_max": "free", "y_min": "free", "y_max": "free",
                              "fixed_regions": [{"min": [-0.5, 0.0], "max": [1.5, 0.2]}],
                              "slip_regions": []}
