@@ -16,7 +16,9 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   ``dim`` (1, 2 or 3; required).
 * ``[grid]``: ``origin`` (default 0), ``cell_size`` (> 0, required), ``cells`` (ints > 0,
   required), ``patch_size`` (ints > 0, default 64 in 1D/2D, 16 in 3D; clipped to ``cells``),
-  ``ghost`` ("auto" or int >= 1, default "auto").
+  ``ghost`` ("auto" or int >= 1, default "auto"), ``exterior`` ("auto" or int 0..64, default
+  "auto": cells kept outside the faces, the face conditions staying on the faces; "auto" gives the
+  ghost width on each face a body starts within one cell of, :func:`parmpm.stepper.exterior_cells`).
 * ``[materials.NAME]`` (at least one): ``model`` ("linear_elastic" | "neo_hookean"),
   ``density`` (> 0), ``youngs_modulus`` (> 0), ``poisson_ratio`` (-1 < nu < 0.5); all required.
   Optional ``[materials.NAME.damage]``: ``onset`` (stretch >= 1, required), ``fracture``
