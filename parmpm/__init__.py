@@ -25,10 +25,11 @@ def __getattr__(name):
     raise AttributeError(f"module 'parmpm' has no attribute {name!r}")
 
 
-def run(source, overrides=(), out_dir=None, quiet=True) -> dict:
-    """Load a scene (built-in name or TOML path), run it on this process, return its summary."""
+def run(source, overrides=(), out_dir=None, quiet=True, overwrite=False) -> dict:
+    """Load a scene (built-in name or TOML path), run it on this process, return its summary.
+    ``out_dir`` holding another run is refused unless ``overwrite`` (:mod:`parmpm.io.run_folder`)."""
     from parmpm.simulation import Simulation
-    return Simulation(load_scene(source, overrides), out_dir, quiet=quiet).run()
+    return Simulation(load_scene(source, overrides), out_dir, quiet=quiet, overwrite=overwrite).run()
 
 
 __all__ = ["Scene", "Simulation", "run", "domain_corners", "domain_sizes", "domain_vectors", "load_scene", "builtin_scenes", "parse_lcr",

@@ -8,7 +8,13 @@
 
 Exit codes: 0 success; 2 a user error (bad scene, bad ``--set``, a run that cannot go on:
 every ``ParmpmError``), printed as one line ``parmpm: error: <message>`` without a traceback;
-130 interrupted; 1 a bug (full traceback; under MPI the job is aborted so that no rank hangs).
+130 interrupted (SIGINT or SIGTERM: inside the time loop after writing a checkpoint, named in the
+message; before it, at once); 1 a bug (full traceback; under MPI the job is aborted so that no
+rank hangs). Options before any command mean ``run``: ``parmpm --quiet`` runs the default scene.
+
+Output folders are never taken from another run (:mod:`parmpm.io.run_folder`): the default
+``parmpm-out/<scene>`` becomes ``<scene>_2``, ``_3``, … when taken; an explicit ``--out`` that holds
+another run is refused unless ``--overwrite`` is given.
 
 Under MPI a user error that every rank raises (a bad scene is read by every rank) is printed once,
 by rank 0, and every rank exits with 2. An error raised by some ranks only is printed by each of
@@ -62,8 +68,28 @@ def _version() -> str:
         return "unknown (not installed)"
 
 
+def _launcher_rank() -> int:
+    """This process's rank as the MPI launcher announces it (0 when not launched by one), read
+    from the environment so that argument errors need not start MPI."""
+    for var in ("PMI_RANK", "OMPI_COMM_WORLD_RANK", "PMIX_RANK", "MV2_COMM_WORLD_RANK",
+                "SLURM_PROCID"):
+        value = os.environ.get(var, "")
+        if value.isdigit():
+            return int(value)
+    return 0
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that prints (usage, errors, help) on rank 0 only: under ``mpirun -n 4`` a
+    mistyped option is reported once; every rank still exits with code 2."""
+
+    def _print_message(self, message, file=None):
+        if _launcher_rank() == 0:
+            super()._print_message(message, file)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="parmpm",
         description="MPI-parallel explicit Material Point Method solver (mpm, ugimp, cpgimp, cpdi "
         "with CPDI domain scaling). Run it under mpirun for several ranks.",
@@ -81,14 +107,18 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=_RUN_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    run.add_argument("scene", metavar="SCENE",
-                     help="a built-in scene name (see 'parmpm scenes') or the path to a TOML scene file")
+    run.add_argument("scene", metavar="SCENE", nargs="?", default=DEFAULT_SCENE,
+                     help="a built-in scene name (see 'parmpm scenes') or the path to a TOML scene "
+                     f"file (default: {DEFAULT_SCENE})")
     run.add_argument("-s", "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scene value (repeatable; applied after the scene file)")
     run.add_argument("-o", "--out", type=Path, default=None, metavar="DIR",
                      help=f"output folder (default: {DEFAULT_OUT}/<scene name>/)")
     run.add_argument("-q", "--quiet", action="store_true",
                      help="no progress bar, no info messages (warnings and errors still show)")
+    run.add_argument("--overwrite", action="store_true",
+                     help="if the --out folder holds another run, delete that run's results and "
+                     "write there (without it such a folder is refused)")
 
     restart = commands.add_parser(
         "restart", help="continue a run from a checkpoint (any number of ranks)",
@@ -103,6 +133,8 @@ def build_parser() -> argparse.ArgumentParser:
                          help="output folder (default: restart_<step>/ beside the checkpoint)")
     restart.add_argument("-q", "--quiet", action="store_true",
                          help="no progress bar, no info messages (warnings and errors still show)")
+    restart.add_argument("--overwrite", action="store_true",
+                         help="if the --out folder holds another run, delete that run's results")
 
     commands.add_parser("scenes", help="list the built-in scenes",
                         description="List the built-in scenes: name and one-line description.")
@@ -169,8 +201,8 @@ def _cmd_run(args: argparse.Namespace, rank: int, comm) -> int:
     from parmpm.io.summary import format_summary
     from parmpm.simulation import Simulation
 
-    out_dir = args.out if args.out is not None else DEFAULT_OUT / scene.name
-    summary = Simulation(scene, out_dir, quiet=args.quiet or rank != 0, comm=comm).run()
+    summary = Simulation(scene, args.out, quiet=args.quiet or rank != 0, comm=comm,
+                         overwrite=args.overwrite).run()
     if rank == 0:
         print(format_summary(summary), flush=True)
     return 0
@@ -181,7 +213,8 @@ def _cmd_restart(args: argparse.Namespace, rank: int, comm) -> int:
     from parmpm.simulation import Simulation
 
     sim = Simulation.from_checkpoint(args.checkpoint, args.overrides, args.out,
-                                     quiet=args.quiet or rank != 0, comm=comm)
+                                     quiet=args.quiet or rank != 0, comm=comm,
+                                     overwrite=args.overwrite)
     summary = sim.run()
     if rank == 0:
         print(format_summary(summary), flush=True)
@@ -195,10 +228,26 @@ def _cmd_bench(args: argparse.Namespace, rank: int, comm) -> int:
     return 0
 
 
+def _interrupt_on_sigterm() -> None:
+    """SIGTERM (a batch system's time limit, ``timeout``, ``kill``) stops parmpm like Ctrl-C:
+    outside a running time loop, as KeyboardInterrupt (nothing is lost: there is nothing to save
+    yet, or the run has finished), exit code 130 and one line; inside it, the run's own handler
+    takes over and writes a checkpoint first (:meth:`parmpm.simulation.Simulation.run`)."""
+    import signal
+    import threading
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, interrupt)
+
+
 def _run_guarded(args: argparse.Namespace) -> int:
     """``run`` with MPI set up and the error policy of the module docstring applied."""
     from parmpm.log import setup_logging
 
+    _interrupt_on_sigterm()
     rank, size, comm = _world()
     setup_logging(rank, size, quiet=args.quiet)
     # A private communicator for the error handshake, so that it can never match a collective
@@ -231,11 +280,18 @@ def _run_guarded(args: argparse.Namespace) -> int:
         return 1
 
 
+def _default_command(argv: list[str]) -> list[str]:
+    """``run`` is the default command: ``parmpm``, ``parmpm --quiet`` and ``parmpm --set k=v``
+    mean ``parmpm run hanging_bar ...`` (the top-level --help and --version stay)."""
+    if not argv or (argv[0].startswith("-") and argv[0] not in ("-h", "--help", "--version")):
+        return ["run", *argv]
+    return argv
+
+
 def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the command and return the exit code."""
-    args = build_parser().parse_args(argv)
-    if args.command is None:  # `python -m parmpm` = `python -m parmpm run hanging_bar`
-        args = argparse.Namespace(command="run", scene=DEFAULT_SCENE, overrides=[], out=None, quiet=False)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(_default_command(argv))
     if args.command == "scenes":
         try:
             return _cmd_scenes()

@@ -121,6 +121,20 @@ def _particle_count(text: str) -> int:
     return int(round(value))
 
 
+def _positive(cast):
+    """An option that must be a positive (finite) number of type ``cast``."""
+    def parse(text: str):
+        try:
+            value = cast(text)
+        except ValueError:
+            value = None
+        if value is None or not math.isfinite(value) or value <= 0:
+            kind = "integer" if cast is int else "number"
+            raise argparse.ArgumentTypeError(f"expected a positive {kind}, got {text!r}")
+        return value
+    return parse
+
+
 def _choices(allowed, cast=str):
     """A comma-separated list of ``allowed`` values, or ``all``."""
     def parse(text: str) -> list:
@@ -148,19 +162,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="USL or MUSL (default auto: usl for cpdi, musl for the others)")
     parser.add_argument("--particles", type=_particle_count, default=1_000_000, metavar="N",
                         help="about how many particles (default 1e6)")
-    parser.add_argument("--ppc", type=int, default=2, help="particles per cell per axis (default 2)")
-    parser.add_argument("--steps", type=int, default=10,
+    parser.add_argument("--ppc", type=_positive(int), default=2, help="particles per cell per axis (default 2)")
+    parser.add_argument("--steps", type=_positive(int), default=10,
                         help="time steps, the first excluded from timings (default 10)")
-    parser.add_argument("--patch-size", type=int, default=None, metavar="CELLS",
+    parser.add_argument("--patch-size", type=_positive(int), default=None, metavar="CELLS",
                         help="cells per patch per axis (default: the scene default, 64 in 1D/2D, 16 in 3D)")
-    parser.add_argument("--speed", type=float, default=1.0,
+    parser.add_argument("--speed", type=_positive(float), default=1.0,
                         help="scale of the block velocity (1, 0.5, 0.25) m/s (default 1)")
     parser.add_argument("--json", type=Path, default=None, metavar="FILE",
                         help="write the result as JSON (rank 0; a list when several cases run)")
     parser.add_argument("--csv", type=Path, default=None, metavar="FILE",
                         help="write one CSV row per case (rank 0)")
     parser.add_argument("-o", "--out", type=Path, default=None, metavar="DIR",
-                        help="folder for summary.json (default: a temporary folder, removed)")
+                        help="folder for the runs' output, one subfolder per case named after its "
+                        "scene (default: a temporary folder, removed)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no info messages")
 
 
@@ -212,7 +227,7 @@ def run_bench(args: argparse.Namespace, comm=None) -> dict:
                               args.patch_size, getattr(args, "speed", 1.0), update)
     warmup = _warm_up(args.dim, args.method, update, comm)
     tmp = tempfile.mkdtemp(prefix="parmpm-bench-") if args.out is None and rank == 0 else None
-    out_dir = Path(tmp) if tmp else args.out
+    out_dir = Path(tmp) if tmp else (args.out / scene.name if args.out is not None else None)
     try:
         _reset_peak_rss()
         rss0 = _rss_mb()

@@ -1,7 +1,10 @@
 """Grid phase on owned nodes: velocities from summed mass, momentum and force; boundary conditions.
 
-``v_old = (mv)_i / m_i``, ``v_new = v_old + Δt (f_i / m_i + g − c·v_old)`` (gravity applied as
-``m_i g``, optional mass-proportional damping ``c``), then per-face conditions on the nodes of the
+``v_old = (mv)_i / m_i``, ``v_new = [v_old + Δt (f_i / m_i + g)] / (1 + c Δt)`` (gravity applied
+as ``m_i g``; optional mass-proportional damping ``c``, taken implicitly — backward Euler in its
+own term — so that any ``c`` is stable: explicit ``−c·v_old`` flips the velocity's sign once
+``c Δt > 1`` and grows without bound past 2, which sent a body with ``c = 1e12`` off the grid),
+then per-face conditions on the nodes of the
 physical boundary faces and on every node of the exterior layer beyond them (``grid.exterior``:
 cells kept outside the faces so that a particle domain next to a wall has nodes to reach; the
 nodes there carry mass and momentum like any other) — fixed: ``v = 0``; slip: the normal
@@ -140,8 +143,8 @@ def _grid_loop(dim, own_lo, own_hi, base, nloc, face_lo, face_hi, bc, regions, n
                         for a in range(d):
                             vold[a] = G[1 + a, node] / m
                             if not from_momentum_only:
-                                vnew[a] = vold[a] + dt * (G[1 + d + a, node] / m + gvec[a]
-                                                          - damping * vold[a])
+                                vnew[a] = ((vold[a] + dt * (G[1 + d + a, node] / m + gvec[a]))
+                                           / (1.0 + damping * dt))
                     else:
                         for a in range(d):
                             vold[a] = 0.0

@@ -55,7 +55,9 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   start on the exact field and get its body force every step).
 * ``[time]``: ``end`` (> 0 s) and/or ``steps`` (int > 0), at least one; the run stops at
   whichever comes first (a missing one resolves to None). ``cfl`` (0 < cfl < 1, default 0.4),
-  ``dt_max`` (> 0 s, default None).
+  ``dt_max`` (> 0 s, default None), ``max_energy_growth`` (> 0 or "off", default 1.0: the run
+  stops when the body holds more energy than it started with plus the work of gravity by more
+  than this fraction of that; :mod:`parmpm.energy`).
 * ``[output]``: ``every`` (simulated seconds) and/or ``every_steps``; a snapshot is due whenever
   either schedule fires. If neither is given: ``every_steps = max(1, steps // 20)`` when
   ``time.steps`` is set, else ``every = end / 20``. ``snapshots``, ``figure`` (bools, default true).

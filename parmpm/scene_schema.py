@@ -40,7 +40,7 @@ METHOD_KEYS = ("interpolator", "lcr", "update", "flip")
 GRAVITY_KEYS = ("g", "ramp_time")
 DAMPING_KEYS = ("coefficient",)
 MANUFACTURED_KEYS = ("amplitude",)
-TIME_KEYS = ("end", "steps", "cfl", "dt_max")
+TIME_KEYS = ("end", "steps", "cfl", "dt_max", "max_energy_growth")
 OUTPUT_KEYS = ("every", "every_steps", "snapshots", "figure")
 METRICS_KEYS = ("kind", "every_steps", "axis", "stop_on_separation", "grip")
 DECOMPOSITION_KEYS = ("rebalance_threshold", "rebalance_cooldown")
@@ -276,7 +276,16 @@ def _time(c: _Checker, raw: Any) -> dict:
         "cfl": c.number("time.cfl", cfl, "a number with 0 < cfl < 1", lambda x: 0 < x < 1),
         "dt_max": None if dt_max is None else c.number("time.dt_max", dt_max,
                                                        "a number > 0 (s)", lambda x: x > 0),
+        # the blow-up watch (parmpm.energy): "off" or the largest growth of the energy balance
+        "max_energy_growth": _energy_limit(c, t.get("max_energy_growth", 1.0)),
     }
+
+
+def _energy_limit(c: _Checker, value: Any) -> float | str:
+    if value == "off":
+        return value
+    return c.number("time.max_energy_growth", value, 'a number > 0 (a fraction of the energy '
+                    'the body was given) or "off"', lambda x: 0 < x < 1e300)
 
 
 def _output(c: _Checker, raw: Any, time: dict) -> dict:

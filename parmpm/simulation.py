@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+import uuid
 from pathlib import Path
 
 import numpy as np
@@ -22,9 +23,12 @@ from parmpm.grid import BC_CODES
 from parmpm.log import get_logger
 from parmpm.measures import Measures
 from parmpm.materials import material_table
-from parmpm.particles import Particles, locate_patches
+from parmpm.checkpointing import load_particles, write_checkpoint
+from parmpm.energy import ENERGY_EVERY, EnergyWatch, energy_totals
+from parmpm.particles import locate_patches
 from parmpm.seeding import seed_bodies
 from parmpm.progress import Progress
+from parmpm.schedule import Schedule
 from parmpm.shapes import CPDI, INTERPOLATORS
 from parmpm.stepper import PHASES, WORK_PHASES, Discretisation, Stepper, exterior_cells, fmt_vec
 from parmpm.transfer import max_speed
@@ -36,10 +40,15 @@ class Simulation(Measures):
     """One run of a resolved scene on this process's patches (``comm``: an mpi4py communicator;
     None runs every patch here)."""
 
-    def __init__(self, scene, out_dir=None, quiet: bool = False, comm=None, checkpoint=None):
+    def __init__(self, scene, out_dir=None, quiet: bool = False, comm=None, checkpoint=None,
+                 overwrite: bool = False):
         self.scene = scene
         self.data = data = scene.data
+        # an explicit folder is used or refused; the default one is never taken from another run
+        # (parmpm.io.run_folder)
+        self.out_explicit = out_dir is not None
         self.out_dir = Path(out_dir) if out_dir else Path("parmpm-out") / scene.name
+        self.overwrite = overwrite
         self.quiet = quiet
         self.comm = comm = comm if comm is not None else SerialComm()
         self.rank, self.size = comm.Get_rank(), comm.Get_size()
@@ -102,15 +111,8 @@ class Simulation(Measures):
                 del seeds
             elif mine.size != P.n:
                 P.permute(mine)
-        else:  # collective: a damaged block found by one rank stops every rank
-            problem = None
-            try:
-                P = self._load_particles(checkpoint, mine)
-            except ParmpmError as exc:
-                problem = str(exc)
-            problems = [p for p in comm.allgather(problem) if p]
-            if problems:
-                raise ParmpmError(problems[0])
+        else:
+            P = load_particles(comm, checkpoint, d, self.n_total, self.params.shape[0], mine)
         if where is not None:
             P.patch = where[mine]
         else:  # the lattice path: locate only this rank's particles
@@ -135,9 +137,18 @@ class Simulation(Measures):
             self._manufactured(data["manufactured"]["amplitude"])
         self.t, self.nstep, self.last_dt = 0.0, 0, 0.0
         self.next_out = None
+        self.out_schedule: Schedule | None = None
+        self.last_checkpoint: tuple[int, Path | None] = (-1, None)
         # callables f(simulation), run (collectively) at every output time after the snapshot:
         # how studies look at the state without files
         self.observers: list = []
+        limit = data["time"]["max_energy_growth"]
+        limit = None if limit == "off" else limit
+        self.energy = EnergyWatch(None if self.stepper.forcing is not None else limit)
+        # the run's identity: its folder's marker and its checkpoints carry it, so that pruning
+        # touches only its own checkpoints (parmpm.io.run_folder); a restart is a run of its own
+        self.run_id = comm.bcast(uuid.uuid4().hex if self.rank == 0 else None, root=0)
+        self.continues = None  # the run a restart continues: (its run id, the checkpoint)
         if checkpoint is None:
             vmax = max_speed(d, P.v, P.F, P.mat, self.params)
             self.vmax = float(allreduce_max(comm, np.array([vmax]))[0])
@@ -149,6 +160,9 @@ class Simulation(Measures):
             self.next_out = state.get("next_output")
             if self.metrics is not None and state.get("metrics"):
                 self.metrics.restore(state["metrics"])
+            self.energy.restore(state.get("energy"))
+            self.continues = {"run_id": (state.get("run") or {}).get("id"),
+                              "checkpoint": str(checkpoint.path)}
 
     def _manufactured(self, A: float) -> None:
         """Drive the run with the manufactured solution's body force (:mod:`parmpm.manufactured`)."""
@@ -161,49 +175,46 @@ class Simulation(Measures):
         self.stepper.forcing = lambda t, P, out: body_force(d, P.x0, t, A, c, lam, mu, rho, out)
 
     @classmethod
-    def from_checkpoint(cls, path, overrides=(), out_dir=None, quiet=False, comm=None):
+    def from_checkpoint(cls, path, overrides=(), out_dir=None, quiet=False, comm=None,
+                        overwrite=False):
         """Continue the run saved in ``path`` (on any number of ranks); ``overrides`` apply to
         the stored scene (e.g. ``time.end=...``)."""
         from parmpm.io.checkpoint import CheckpointReader
         from parmpm.scene import scene_from_toml
 
-        reader = CheckpointReader(path)
-        if out_dir is None:  # never over earlier output: a folder of its own beside the file
-            out_dir = Path(path).parent / f"restart_{int(reader.attrs['step']):08d}"
+        reader = CheckpointReader(path, warn=comm is None or comm.Get_rank() == 0)
         try:
             scene = scene_from_toml(str(reader.attrs["scene"]), f"{path}", overrides)
-            return cls(scene, out_dir, quiet=quiet, comm=comm, checkpoint=reader)
+            if scene.data["dim"] != int(reader.attrs["dim"]):
+                raise ParmpmError(f"checkpoint '{path}' holds a {int(reader.attrs['dim'])}D run; "
+                                  f"dim cannot change on restart (got dim = {scene.data['dim']})")
+            sim = cls(scene, out_dir, quiet=quiet, comm=comm, checkpoint=reader,
+                      overwrite=overwrite)
         finally:
             reader.close()
-
-    def _load_particles(self, reader, mine: np.ndarray) -> Particles:
-        """This rank's rows of the checkpoint, read block by block (``mine`` ascending)."""
-        from parmpm.io.checkpoint import FIELDS
-
-        P = Particles(self.dim, mine.size)
-        block = 1 << 18
-        for name in FIELDS:
-            if not reader.has(name):  # an older format: the field keeps its initial value
-                continue
-            dst = getattr(P, name)
-            for lo in range(0, self.n_total, block):
-                hi = min(lo + block, self.n_total)
-                a, b = np.searchsorted(mine, [lo, hi])
-                if b > a:
-                    dst[a:b] = reader.read(name, lo, hi)[mine[a:b] - lo]
-        if not np.array_equal(P.gid, mine):
-            raise ParmpmError(f"checkpoint '{reader.path}': damaged: particle ids out of order")
-        return P
+        if out_dir is None:  # never over earlier output: a folder of its own beside the file
+            sim.out_dir = Path(path).parent / f"restart_{sim.nstep:08d}"
+        return sim
 
     # --- clock --------------------------------------------------------------------------------
     def next_dt(self) -> float:
+        """The CFL step, capped by ``time.dt_max`` and the end time; ``dt_limit`` names the key
+        that set it, so that a blow-up can say which one to lower."""
         tm = self.data["time"]
         dt = tm["cfl"] * float(self.disc.h.min()) / self.vmax
-        if tm["dt_max"]:
-            dt = min(dt, tm["dt_max"])
+        self.dt_limit = "time.cfl"
+        if tm["dt_max"] and tm["dt_max"] < dt:
+            dt, self.dt_limit = tm["dt_max"], "time.dt_max"
         if tm["end"] is not None:
             dt = min(dt, tm["end"] - self.t)
         return dt
+
+    def _unstable_hint(self) -> str:
+        tm = self.data["time"]
+        if getattr(self, "dt_limit", "time.cfl") == "time.dt_max":
+            return (f"Δt = {self.last_dt:.3g} s was set by time.dt_max, below the CFL step: try a "
+                    f"smaller time.dt_max (now {tm['dt_max']:.3g} s)")
+        return f"try a smaller time.cfl (now {tm['cfl']:g})"
 
     def done(self) -> bool:
         tm = self.data["time"]
@@ -230,73 +241,84 @@ class Simulation(Measures):
         g = self.gather({"x": P.x, "velocity": P.v, "stress": P.stress.reshape(P.n, self.dim * self.dim),
                          "stretch": self.axial_stretch(), "damage": P.damage,
                          "rank": np.full(P.n, float(self.rank)), "gid": P.gid.astype(float)})
-        if writer is None or g is None:
-            return
-        x = g.pop("x")
-        writer.write(self.t, x, g)
+        problem = None
+        if writer is not None and g is not None:
+            try:
+                x = g.pop("x")
+                writer.write(self.t, x, g)
+            except ParmpmError as exc:
+                problem = str(exc)
+            except OSError as exc:
+                problem = f"cannot write snapshot to '{self.out_dir}': {exc.strerror or exc}"
+        problem = self.comm.bcast(problem, root=0)
+        if problem:
+            raise ParmpmError(problem)
 
     def write_checkpoint(self) -> Path:
-        """Write ``checkpoint_<step>.h5`` (collective): blocks of global ids gathered to rank 0,
-        which writes them; atomic; the oldest beyond ``checkpoint.keep`` are deleted."""
+        """Write ``checkpoint_<step>.h5`` (collective, atomic; :mod:`parmpm.checkpointing`)."""
         import json
 
-        from parmpm.io.checkpoint import FIELDS, CheckpointWriter, checkpoint_name, prune
+        from parmpm.io.checkpoint import checkpoint_name
 
-        P, root = self.particles, self.rank == 0
-        order = np.argsort(P.gid, kind="stable")
-        gids = P.gid[order]
-        path = self.out_dir / checkpoint_name(self.nstep)
         state = {"metrics": self.metrics.state() if self.metrics is not None else None,
-                 "next_output": self.next_out}
+                 "next_output": self.out_schedule.next_time if self.out_schedule else None,
+                 "energy": self.energy.state(),
+                 "run": {"id": self.run_id}}
         attrs = {"scene": self.scene.to_toml(), "step": self.nstep, "time": self.t,
                  "dt": self.last_dt, "vmax": self.vmax, "method": self.interp.name,
                  "lcr": self.lcr if self.lcr is not None else float("nan"), "ranks": self.size,
-                 "particles": self.n_total, "dim": self.dim, "state": json.dumps(state)}
-        writer, problem = None, None
-        if root:
-            try:
-                writer = CheckpointWriter(path, self.n_total,
-                                          {k: getattr(P, k)[:0] for k in FIELDS}, attrs)
-            except ParmpmError as exc:
-                problem = str(exc)
-        problem = self.comm.bcast(problem, root=0)
-        if problem:
-            raise ParmpmError(problem)
-        block = 1 << 18  # ids per gather: bounds rank 0's extra memory
-        for lo in range(0, self.n_total, block):
-            hi = min(lo + block, self.n_total)
-            a, b = np.searchsorted(gids, [lo, hi])
-            part = {k: getattr(P, k)[order[a:b]] for k in FIELDS}
-            parts = self.comm.gather(part, root=0)
-            if root and problem is None:
-                try:
-                    merged = {k: np.concatenate([q[k] for q in parts]) for k in FIELDS}
-                    o = np.argsort(merged["gid"], kind="stable")
-                    merged = {k: v[o] for k, v in merged.items()}
-                    if not np.array_equal(merged["gid"], np.arange(lo, hi)):
-                        raise ParmpmError(f"checkpoint: particle ids {lo}..{hi - 1} incomplete")
-                    writer.write(lo, merged)
-                except (OSError, ParmpmError) as exc:
-                    problem = f"cannot write checkpoint '{path}': {exc}"
-        if root:
-            try:
-                if problem is None:
-                    writer.commit()
-                    prune(self.out_dir, self.data["checkpoint"]["keep"])
-                else:
-                    writer.abort()
-            except OSError as exc:
-                problem = f"cannot write checkpoint '{path}': {exc}"
-        problem = self.comm.bcast(problem, root=0)
-        if problem:
-            raise ParmpmError(problem)
+                 "particles": self.n_total, "dim": self.dim, "state": json.dumps(state),
+                 "lineage": self.run_id}
+        path = write_checkpoint(self.comm, self.particles, self.out_dir / checkpoint_name(self.nstep),
+                                self.n_total, attrs, self.data["checkpoint"]["keep"], self.run_id)
+        self.last_checkpoint = (self.nstep, path)
         log.info("wrote %s (step %d, t = %.6g s)", path, self.nstep, self.t)
         return path
 
+    def _close_snapshots(self, writer) -> str | None:
+        """Close the snapshot series (rank 0); the problem as one line, or None."""
+        if writer is None:
+            return None
+        try:
+            writer.close()
+        except ParmpmError as exc:
+            return str(exc)
+        except OSError as exc:
+            return f"cannot write snapshots to '{self.out_dir}': {exc.strerror or exc}"
+        return None
+
+    # --- checks ------------------------------------------------------------------------------
+    def check_energy(self) -> None:
+        """The blow-up watch (collective, :mod:`parmpm.energy`): stop when the energy balance
+        has grown past ``time.max_energy_growth``."""
+        totals = energy_totals(self.comm, self.patches.local_ids, self.particles, self.params,
+                               self.gravity(self.t))
+        growth = self.energy.sample(totals)
+        if growth is not None:
+            k, psi, work = self.energy.last
+            raise SimulationError(
+                f"the run is unstable: at step {self.nstep} (t = {self.t:.6g} s) the body holds "
+                f"{k + psi:.4g} J (kinetic {k:.3g} J, elastic {psi:.3g} J) but was given "
+                f"{self.energy.initial + work:.4g} J (a growth of {growth:.3g} times that; "
+                f"time.max_energy_growth = {self.energy.limit:g}); {self._unstable_hint()}")
+
+    def _stop_agreed(self) -> bool:
+        """Whether any rank got SIGTERM/SIGINT (collective; outside the step loop)."""
+        flag = np.array([1.0 if self.stepper.stop_flag else 0.0])
+        return bool(allreduce_max(self.comm, flag)[0] > 0)
+
+    def _interrupted(self) -> RunInterrupted:
+        """A stop signal was agreed: the final checkpoint (unless this step has one), then the
+        exception that ends the run with exit code 130."""
+        path = self.last_checkpoint[1] if self.last_checkpoint[0] == self.nstep else self.write_checkpoint()
+        return RunInterrupted(f"interrupted at step {self.nstep} (t = {self.t:.6g} s); "
+                              f"continue with: parmpm restart {path}")
+
     # --- signals ------------------------------------------------------------------------------
     def _trap_signals(self):
-        """SIGTERM/SIGINT (a batch system's time limit, Ctrl-C) only raise a flag; the ranks agree
-        on it at the end of the step, write a checkpoint and stop together."""
+        """SIGTERM/SIGINT (a batch system's time limit, Ctrl-C) only raise a flag from here to the
+        end of :meth:`run`; the ranks agree on it at the end of a step (or at the next collective
+        check after the loop), write a checkpoint and stop together."""
         import signal
         import threading
 
@@ -316,6 +338,31 @@ class Simulation(Measures):
             signal.signal(sig, handler)
 
     # --- the loop -----------------------------------------------------------------------------
+    def _claim_output(self) -> None:
+        """Claim the output folder (collective; :mod:`parmpm.io.run_folder`): before anything is
+        written, so a folder that cannot be written or holds another run fails here."""
+        from parmpm.io.checkpoint import remove_stale_tmp
+        from parmpm.io.run_folder import claim
+
+        name = self.data["name"]
+        files = ["summary.json", f"{self.series}.xdmf", f"{self.series}.h5", f"{name}.png"]
+        marker = {"run_id": self.run_id, "continues": self.continues, "scene": name,
+                  "ranks": self.size, "files": files}
+        folder, problem = None, None
+        if self.rank == 0:
+            try:
+                folder = claim(self.out_dir, marker, explicit=self.out_explicit,
+                               overwrite=self.overwrite)
+                if folder != self.out_dir:
+                    log.info("%s holds another run: writing to %s", self.out_dir, folder)
+                remove_stale_tmp(folder)
+            except ParmpmError as exc:
+                problem = str(exc)
+        folder, problem = self.comm.bcast((folder, problem), root=0)
+        if problem:
+            raise ParmpmError(problem)
+        self.out_dir = folder
+
     def run(self) -> dict:
         """Step to the end (collective). Every rank returns the same summary; rank 0 writes the
         shared files (summary.json, snapshots, figure)."""
@@ -325,22 +372,31 @@ class Simulation(Measures):
         data = self.data
         out = data["output"]
         root = self.rank == 0
-        problem = None
-        if root:
+        self.series = data["name"] if self.restart is None else f"{data['name']}_from_{self.nstep:08d}"
+        old_handlers = self._trap_signals()
+        try:
+            self._claim_output()
+            return self._run(write_summary, SnapshotWriter, out, root)
+        finally:
+            self._restore_signals(old_handlers)
+
+    def _run(self, write_summary, SnapshotWriter, out, root) -> dict:
+        data = self.data
+        writer, problem = None, None
+        if out["snapshots"] and root:
             try:
-                self.out_dir.mkdir(parents=True, exist_ok=True)
+                writer = SnapshotWriter(self.out_dir, self.series, self.dim)
+            except ParmpmError as exc:
+                problem = str(exc)
             except OSError as exc:
-                problem = f"cannot create output folder '{self.out_dir}': {exc.strerror}"
+                problem = f"cannot write snapshots to '{self.out_dir}': {exc.strerror or exc}"
         problem = self.comm.bcast(problem, root=0)
         if problem:
             raise ParmpmError(problem)
-        series = data["name"] if self.restart is None else f"{data['name']}_from_{self.nstep:08d}"
-        writer = SnapshotWriter(self.out_dir, series, self.dim) if out["snapshots"] and root else None
-        every_t, every_n = out["every"], out["every_steps"]
-        if self.next_out is None:
-            self.next_out = every_t if every_t else math.inf
+        self.out_schedule = Schedule(out["every"], out["every_steps"], self.t, self.next_out)
         ck = data["checkpoint"]
-        next_ck = ck["every"] * (math.floor(self.t / ck["every"] + 1e-9) + 1) if ck["every"] else math.inf
+        ck_schedule = Schedule(ck["every"], ck["every_steps"], self.t)
+        self.last_checkpoint = (-1, None)
         ck_wall = time.monotonic()
         me = data["metrics"]["every_steps"]
         stop_on_sep = data["metrics"]["stop_on_separation"]
@@ -349,11 +405,11 @@ class Simulation(Measures):
                             enabled=not self.quiet and root)
         wall0 = time.perf_counter()
         warm_wall, warm_steps = None, 0
-        old_handlers = self._trap_signals()
         try:
             if self.restart is None:  # a restarted run has these from before
                 self.sample_metrics()
                 self.output(writer)
+                self.check_energy()
             while not self.done():
                 dt = self.next_dt()
                 self.vmax = self.stepper.step(dt, self.gravity(self.t), self.t)
@@ -362,44 +418,48 @@ class Simulation(Measures):
                 self.last_dt = dt
                 if not math.isfinite(self.vmax):
                     raise SimulationError(f"non-finite velocity or stress at step {self.nstep} "
-                                          f"(t = {self.t:.6g} s); try a smaller time.cfl")
+                                          f"(t = {self.t:.6g} s); {self._unstable_hint()}")
                 if warm_wall is None:
                     warm_wall = time.perf_counter()  # the first step includes JIT compilation
                     self.stepper.timers = dict.fromkeys(self.stepper.timers, 0.0)
                 else:
                     warm_steps += 1
+                if self.nstep % ENERGY_EVERY == 0:
+                    self.check_energy()
                 if self.nstep % me == 0 and self.sample_metrics() > 1 and stop_on_sep:
                     self.stopped = "separated"
                     log.info("material separated at t = %.6g s: stopping (metrics.stop_on_separation)", self.t)
                     self.output(writer)
                     break
-                due = (every_n and self.nstep % every_n == 0) or self.t >= self.next_out * (1 - 1e-12)
-                if due or self.done():
+                if self.out_schedule.due(self.t, self.nstep) or self.done():
                     self.output(writer)
-                    while self.next_out <= self.t * (1 + 1e-12):
-                        self.next_out += every_t
+                    self.out_schedule.advance(self.t)
                 if self.stepper.stop_requested:
-                    path = self.write_checkpoint()
-                    raise RunInterrupted(f"interrupted at step {self.nstep} (t = {self.t:.6g} s); "
-                                         f"continue with: parmpm restart {path}")
-                ck_due = (ck["every_steps"] and self.nstep % ck["every_steps"] == 0) or \
-                    self.t >= next_ck * (1 - 1e-12) or (ck["at_end"] and self.done())
+                    raise self._interrupted()
+                ck_due = ck_schedule.due(self.t, self.nstep) or (ck["at_end"] and self.done())
                 if ck["wall_minutes"]:
                     waited = allreduce_max(self.comm, np.array([time.monotonic() - ck_wall]))[0]
                     ck_due = ck_due or waited >= 60.0 * ck["wall_minutes"]
                 if ck_due:
                     self.write_checkpoint()
                     ck_wall = time.monotonic()
-                    while next_ck <= self.t * (1 + 1e-12):
-                        next_ck += ck["every"]
+                    ck_schedule.advance(self.t)
                 elapsed = time.perf_counter() - (warm_wall or wall0)
                 rate = self.n_total * warm_steps / elapsed if warm_steps and elapsed > 0 else 0.0
                 progress.update(self.nstep, self.t, rate)
+            if self.nstep % ENERGY_EVERY:
+                self.check_energy()
+            if ck["at_end"] and self.last_checkpoint[0] != self.nstep:
+                self.write_checkpoint()  # also when the run stopped early (separation)
+            if self._stop_agreed():
+                raise self._interrupted()
         finally:
-            self._restore_signals(old_handlers)
             progress.close()
-            if writer is not None:
-                writer.close()
+            closing = self._close_snapshots(writer)  # never raises: a failing run's error wins
+        closing = self.comm.bcast(closing, root=0)
+        if closing:
+            raise ParmpmError(closing)
+        self.next_out = self.out_schedule.next_time
         wall = time.perf_counter() - wall0
         loop = time.perf_counter() - warm_wall if warm_wall else wall
         wall, loop = (float(v) for v in allreduce_max(self.comm, np.array([wall, loop])))
@@ -414,6 +474,7 @@ class Simulation(Measures):
             "lcr": self.lcr, "update": self.update, "flip": data["method"]["flip"],
             "ranks": self.size, "particles": self.n_total, "steps": self.nstep, "time": self.t,
             "stopped": self.stopped or "end",
+            "output_dir": str(self.out_dir),
             "wall_seconds": wall,
             "particle_steps_per_second": (self.n_total * warm_steps / loop
                                           if warm_steps and loop > 0 else None),
@@ -425,6 +486,7 @@ class Simulation(Measures):
                      "ghost": lay.ghost},
             "decomposition": self.decomposition_report(),
             "final": self.totals(),
+            "energy": self.energy.report(),
             "phase_seconds_per_step": ({k: float(v) / warm_steps for k, v in zip(PHASES, phase)}
                                        if warm_steps else None),
             "rank_work_seconds_per_step": ({"min": float(work.min()) / warm_steps,
@@ -433,8 +495,17 @@ class Simulation(Measures):
                                            if warm_steps else None),
             "metrics": self.metrics.result() if self.metrics is not None else {},
         }
+        problem = None
         if root:
-            write_summary(self.out_dir, summary)
+            try:
+                write_summary(self.out_dir, summary)
+            except OSError as exc:
+                problem = f"cannot write '{self.out_dir / 'summary.json'}': {exc.strerror or exc}"
+        problem = self.comm.bcast(problem, root=0)
+        if problem:
+            raise ParmpmError(problem)
+        if self._stop_agreed():  # a signal while the summary was made: no figure
+            raise self._interrupted()
         if out["figure"]:
             P = self.particles
             corners = self.domain_corners()
@@ -444,7 +515,12 @@ class Simulation(Measures):
             g = self.gather(fields)
             if root:
                 from parmpm.io.figures import plot_particles
-                plot_particles(self.out_dir / f"{data['name']}.png", g["x"], g["stretch"],
-                               self.dim, corners=g.get("corners"),
-                               title=f"{data['name']} · {self.interp.name} · t = {self.t:.3g} s")
+                try:
+                    plot_particles(self.out_dir / f"{data['name']}.png", g["x"], g["stretch"],
+                                   self.dim, corners=g.get("corners"),
+                                   title=f"{data['name']} · {self.interp.name} · t = {self.t:.3g} s")
+                except OSError as exc:
+                    log.warning("no figure: cannot write %s: %s", self.out_dir, exc.strerror or exc)
+        if self._stop_agreed():  # a signal while the figure was drawn
+            raise self._interrupted()
         return summary

@@ -127,6 +127,7 @@ class Stepper:
         mmin = float(allreduce_max(self.comm, np.array([-mmin]))[0])
         self.mass_eps = 1e-12 * (-mmin if math.isfinite(mmin) else 1.0)
         self.error: str | None = None
+        self.error_key: tuple[int, int] | None = None  # (patch, id) of the particle it names
         self.stop_flag = False          # set by a signal handler
         self.stop_requested = False     # some rank got a signal (agreed at the end of a step)
         self.timers = dict.fromkeys(PHASES, 0.0)
@@ -166,12 +167,17 @@ class Stepper:
         D = self.disc
         return (D.method, D.dim, D.lcr, self.P.start, D.base, D.nloc, D.nglob, D.origin3, D.inv_h3)
 
+    def _fail(self, i: int, message: str) -> None:
+        """Note the first problem of this step (particle ``i``); :meth:`finish` raises it."""
+        if self.error is None:
+            self.error = message
+            self.error_key = (int(self.P.patch[i]), int(self.P.gid[i]))
+
     def _check(self, phase: str) -> None:
         i = int(self.err[0])
         if i >= 0:
             self.err[0] = -1
-            if self.error is None:
-                self.error = reach_message(self, i, phase)
+            self._fail(i, reach_message(self, i, phase))
 
     def _grid_update(self, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
         D = self.disc
@@ -291,12 +297,12 @@ class Stepper:
             bad, moved = locate_patches(D.dim, P.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
                                         lay.patches_per_axis, P.patch, new)
         parallel = is_parallel(self.comm)
+        if bad >= 0:  # before any early return: the same on any rank count
+            self._fail(bad, f"particle {P.gid[bad]} at {fmt_vec(P.x[bad])} left the grid at "
+                       f"{math.hypot(*P.v[bad]):.4g} m/s ({grid_extent(D)}); enlarge grid.cells "
+                       "or move grid.origin, or check what drives it (gravity, velocities)")
         if moved == 0 and not parallel:  # nothing to regroup, nothing to send
             return None, None, None, None
-        if bad >= 0 and self.error is None:
-            self.error = (f"particle {P.gid[bad]} at {fmt_vec(P.x[bad])} left the grid "
-                          f"({grid_extent(D)}); "
-                          "enlarge grid.cells or move grid.origin")
         if moved == 0:  # every particle stays in its patch, so on this rank
             keep, received = (exchange(P.fields(), None, self.comm, ps.peers) if parallel
                               else (None, None))
@@ -305,9 +311,8 @@ class Stepper:
         lost = dest < 0
         if np.any(lost):  # moved past a neighbour patch in one step (CFL > 1): stay, and stop
             i = int(np.flatnonzero(lost)[0])
-            if self.error is None:
-                self.error = (f"particle {P.gid[i]} at {fmt_vec(P.x[i])} moved more than one patch "
-                              "in one step; reduce time.cfl")
+            self._fail(i, f"particle {P.gid[i]} at {fmt_vec(P.x[i])} moved more than one patch "
+                       "in one step; reduce time.cfl")
             new[lost] = P.patch[lost]
             dest[lost] = ps.rank
         keep, received, fields = None, None, None
@@ -348,8 +353,9 @@ class Stepper:
                           1.0 if self.stop_flag else 0.0])
         g = allreduce_max(self.comm, local)
         self.stop_requested = bool(g[4] > 0)
-        if g[1] > 0:
-            msg = self.comm.bcast(self.error, root=int(g[1]) - 1)
+        if g[1] > 0:  # the error of the first particle in (patch, id) order, as on one rank
+            keys = self.comm.allgather(self.error_key or (math.inf, math.inf))
+            msg = self.comm.bcast(self.error, root=min(range(len(keys)), key=keys.__getitem__))
             raise SimulationError(msg)
         if g[2] > 0:
             if ps.update(ps.gather_counts(np.diff(P.start))):

@@ -102,7 +102,8 @@ def run_case(scene, overrides=(), comm=None, observers=(), out_dir=None) -> tupl
     with contextlib.ExitStack() as stack:
         if out_dir is None:
             out_dir = stack.enter_context(scratch_folder(comm, "parmpm-study-"))
-        sim = parmpm.Simulation(scene, out_dir, quiet=True, comm=comm)
+        # a study owns its folders: a rerun replaces its own earlier case
+        sim = parmpm.Simulation(scene, out_dir, quiet=True, comm=comm, overwrite=True)
         sim.observers.extend(observers)
         comm.Barrier()
         t0 = time.perf_counter()

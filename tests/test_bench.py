@@ -78,7 +78,8 @@ def test_run_bench_serial(argv, tmp_path, capsys):
     assert r["halo_share"] == pytest.approx(r["phase_share"]["accumulate"] + r["phase_share"]["fill"])
     assert sum(r["phase_share"][p] for p in PHASES) <= 1.0 + 1e-9  # one rank: phases add up
     assert json.loads((tmp_path / "bench.json").read_text())["particles"] == r["particles"]
-    assert (tmp_path / "out" / "summary.json").is_file()
+    case = f"bench_{args.dim[0] if isinstance(args.dim, list) else args.dim}d_{r['method']}"
+    assert (tmp_path / "out" / case / "summary.json").is_file()  # one folder per case
     assert "time per step" in capsys.readouterr().out
     assert r["jit_warmup_seconds"] > 0 and r["bytes_per_particle"] >= 0
     assert 0 < r["stress_in_g2p_seconds_per_step"]

@@ -61,6 +61,7 @@ def test_hanging_bar_runs_every_method(scene, method):
 def test_rigid_translation_is_stress_free_and_conserves_momentum(method):
     sim = parmpm.Simulation(parmpm.load_scene("hanging_bar", QUIET + [
         f'method.interpolator="{method}"', "gravity.g=[0.0, 0.0]", "boundary.fixed_regions=[]",
+        "boundary.slip_regions=[]",
         "bodies.0.velocity=[3.0, -2.0]", "time.steps=30", 'metrics.kind="none"']), quiet=True)
     P = sim.particles
     p0 = (P.mass[:, None] * P.v).sum(0)

@@ -53,6 +53,12 @@ def to_jsonable(obj):
     return str(obj)
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def write_summary(out_dir, summary: dict) -> Path:
     """Write ``<out_dir>/summary.json`` (indent 2) atomically and return its path."""
     out_dir = Path(out_dir)
@@ -61,6 +67,7 @@ def write_summary(out_dir, summary: dict) -> Path:
     text = json.dumps(to_jsonable(summary), indent=2, allow_nan=False) + "\n"
     fd, tmp = tempfile.mkstemp(prefix=".summary.", suffix=".tmp", dir=out_dir)
     try:
+        os.fchmod(fd, 0o666 & ~_umask())  # mkstemp's 0600 would hide it from the group
         with os.fdopen(fd, "w", encoding="utf-8") as f:
             f.write(text)
             f.flush()

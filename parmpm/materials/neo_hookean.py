@@ -32,3 +32,18 @@ def neo_hookean_stress(d, F, lam, mu, out):
                 out[a, b] = (mu * (bab - 1.0) + p) / J
             else:
                 out[a, b] = mu * bab / J
+
+
+@helper_kernel
+def neo_hookean_energy(d, F, lam, mu):
+    """Stored energy per unit reference volume, ``ψ = μ/2 (tr b − d) − μ ln J + λ/2 (ln J)²``,
+    whose Kirchhoff stress is ``J σ`` above (the out-of-plane stretch is 1 in 2D and 1D)."""
+    J = det_d(d, F)
+    if not J > 0.0:
+        return math.inf
+    trb = 0.0
+    for a in range(d):
+        for k in range(d):
+            trb += F[a, k] * F[a, k]
+    lnJ = math.log(J)
+    return 0.5 * mu * (trb - d) - mu * lnJ + 0.5 * lam * lnJ * lnJ
