@@ -1,21 +1,21 @@
 """Numerical separation gallery: the self-weighted bar with mpm, uGIMP, cpGIMP and CPDI (± l_cr).
 
 Physics. The self-weighted elastic bar of Sadeghirad, Brannon & Burghardt (2011): a 1 m × 1 m
-neo-Hookean bar (E = 1 MPa, ν = 0.3, ρ = 1050 kg/m³; plane strain) hangs from held grid nodes
-(y ≥ 0); gravity of 1000 m/s² is switched on at t = 0 and the bar overshoots its static stretch,
-peaking (largest stretch ≈ 4.6, at the top) at t ≈ 0.09 s and again at 0.27 s (unscaled CPDI,
-ppc 3). Built-in scenes ``hanging_bar`` (2D), ``hanging_bar_1d``, ``hanging_bar_3d``. A bar is
-*numerically separated* (``metrics.kind = "hanging_bar"``) when the graph "particles linked
-through grid nodes they both weight" has more than one component: the pieces no longer exchange
-momentum. This script also notes when the bar *tears off its support*: no particle's support
-(domain corners; the particle itself for mpm) reaches above ``−Δx``, so no particle weights a
-held node.
+neo-Hookean bar (E = 1 MPa, ν = 0.3, ρ = 1050 kg/m³; plane strain) hangs from grid nodes (y ≥ 0)
+held vertically only (a roller, as published); gravity of 1000 m/s² is switched on at t = 0 and
+the bar overshoots its static stretch, peaking (largest stretch ≈ 4.4, at the top) at t ≈ 0.09 s
+(unscaled CPDI, ppc 3). Built-in scenes ``hanging_bar`` (2D), ``hanging_bar_1d``,
+``hanging_bar_3d``. A bar is *numerically separated* (``metrics.kind = "hanging_bar"``) when the
+graph "particles linked through grid nodes they both weight" has more than one component: the
+pieces no longer exchange momentum. This script also notes when the bar *tears off its support*:
+no particle's support (domain corners; the particle itself for mpm) reaches above ``−Δx``, so no
+particle weights a held node.
 
-Cases (``--cases`` picks by glob over the ids ``<dim>d_<method>_ppc<ppc>_dx<Δx>``): methods mpm,
-ugimp, cpgimp, cpdi (unscaled), cpdi with l_cr = 5.0·Δx/3, 1.8·Δx/3, 1.2·Δx/3 and 2·Δx (the
-default); 2D at ppc (particles per cell per axis) 2, 3, 4 with Δx = 0.1 m and 0.2 m; 1D at ppc 2
-(Δx = 0.1 m); 3D at ppc 2 with Δx = 0.2 m (the built-in 3D grid: 5 cells across the bar; at
-0.1 m a single 3D cpdi run to 0.3 s takes ~2 min, too long for this study). Every run goes to
+Cases (``--cases`` picks by glob over the ids ``<dim>d_<method>_ppc<ppc>_dx<Δx>[_<support>_t<end>]``):
+methods mpm, ugimp, cpgimp, cpdi (unscaled), cpdi with l_cr = 5.0·Δx/3, 1.8·Δx/3, 1.2·Δx/3 and
+2·Δx (the default); 2D at ppc (particles per cell per axis) 2, 3, 4 with Δx = 0.1 m and 0.2 m; 1D
+at ppc 2 (Δx = 0.1 m); 3D at ppc 2 with Δx = 0.2 m (the built-in 3D grid: 5 cells across the bar;
+at 0.1 m a single 3D cpdi run to 0.3 s takes ~2 min, too long for this study). Every run goes to
 0.3 s with ``metrics.stop_on_separation = true``: a separated piece falls freely at 1000 m/s²,
 drops through the 2 m of grid below the bar within ~0.06 s and stops the run with "left the
 grid" (which loses the summary); what this study measures is the *first* separation, and after it
@@ -23,6 +23,13 @@ the runs are no longer the bar of the paper. Runs that do not separate are unaff
 0.3 s. Unscaled cpdi and cpgimp domains are unbounded: if one outgrows the ghost layer (the step's
 reach check stops the run, or the observer sees a reach larger than ``grid.ghost`` at a sample),
 the case is rerun with ``grid.ghost`` one cell beyond the reach (printed; the CSV's ``ghost``).
+
+The l_cr series (ids ending ``_roller_t1`` / ``_clamped_t1``): CPDI with κ = 1.0, 1.2, 1.5, 1.8,
+2.2, 2.6, 3.0, 4.0, 5.0, 6.0 (= 2·Δx) and unscaled, on the roller and clamped (both components of
+the same nodes held), at (Δx, ppc) = (0.1 m, 3), (0.1 m, 2), (0.2 m, 3), each to 1 s; the CSV's
+``corner_growth`` is the longest centre-to-corner vector seen (at the frames) over its rest
+length, so an unscaled run gives κ* = 3·growth·√2/(2·ppc) below which a cap engages. Chart
+``gallery_lcr_separation.png``: stretch at separation and separation time against κ.
 
 How we read "l_cr = κ·Δx/3": ``method.lcr = "κdx/3"``, a cap of κ·Δx/3 metres on every
 centre-to-corner vector of a CPDI domain (Δx the grid cell). At rest that vector is
@@ -34,33 +41,36 @@ None of κ = 5.0, 1.8, 1.2, 6 (= 2·Δx) does in 1D/2D — the CSV's ``lcr_over_
 every domain from the start. The bar's corner vectors grow by at most 3.7× (ppc 3, unscaled),
 so at Δx = 0.1 m, ppc ≥ 3, l_cr = 5.0·Δx/3 and 2·Δx never engage: bit for bit the unscaled run.
 
-Expected (the seed) and found, 2D, Δx = 0.1 m; separation time in s (axial stretch then):
+Expected (the seed) and found, 2D, Δx = 0.1 m, roller; separation time in s (axial stretch then):
 
     method          ppc 2                         ppc 3             ppc 4
-    mpm             0.031 (2.3)                   0.038 (3.2)       0.050 (9.8)
-    ugimp           0.039 (2.7)                   0.044 (5.3)       0.059 (7.5)
-    cpgimp          0.046 (3.3)                   0.055 (4.2)       0.080 (12.8)
-    cpdi            tears off 0.105, splits 0.136 holds (max 4.60)  holds (max 4.74)
-    cpdi 5.0·Δx/3   tears off 0.105, splits 0.136 holds = unscaled  holds = unscaled
-    cpdi 1.8·Δx/3   0.055 (3.0)                   0.085 (3.8)       holds (max 4.71)
-    cpdi 1.2·Δx/3   0.050 (3.0)                   0.067 (3.6)       tears off 0.103, splits 0.136
+    mpm             0.030 (2.3)                   0.037 (2.9)       0.045 (4.6)
+    ugimp           0.038 (2.4)                   0.043 (3.1)       0.062 (4.1)
+    cpgimp          0.043 (2.4)                   0.057 (3.5)       0.073 (5.3)
+    cpdi            tears off 0.095, splits 0.127 holds (max 4.42)  holds (max 4.46)
+    cpdi 5.0·Δx/3   tears off 0.095, splits 0.127 holds = unscaled  holds = unscaled
+    cpdi 1.8·Δx/3   0.053 (2.8)                   0.080 (4.1)       holds (max 4.46)
+    cpdi 1.2·Δx/3   0.050 (2.8)                   0.063 (3.3)       holds (max 4.30)
     cpdi 2·Δx       = unscaled                    = unscaled        = unscaled
 
 * mpm, uGIMP, cpGIMP separate — as the seed says — in every case (1D, 2D, 3D, every ppc and
-  Δx), mpm first, then uGIMP (its fixed half-width bridges a wider gap between particle rows),
-  then cpGIMP (its half-widths grow with F_yy); at Δx = 0.1 m during the first stretch upswing,
-  in the top half metre, where the stretch is largest.
+  Δx), in 1D and 2D mpm first, then uGIMP (its fixed half-width bridges a wider gap between
+  particle rows), then cpGIMP (its half-widths grow with F_yy); in 3D at Δx = 0.2 m uGIMP first
+  (0.043 s), then mpm (0.049), cpGIMP (0.054); during the first stretch upswing.
 * Unscaled CPDI holds at ppc 3 and 4 (and in 1D), as the seed says. At ppc 2 it does not split
-  while hanging, but it does not hold either: the clamped top corners shear into wedges, the
-  support's load goes through ever fewer particles, and at ~0.10 s the bar tears off its support
-  (the falling bar then splits, 0.136 s). The seed's "holds at ppc 2" is not reproduced.
+  while hanging, but it does not hold either: at ~0.095 s no particle's domain reaches a held
+  node any more, the bar tears off its support and the falling bar then splits (0.127 s). The
+  seed's "holds at ppc 2" is not reproduced (on either support).
 * Domain scaling, the seed's order (1.2 earliest, 1.8 later, 5.0 no or late) holds at ppc 2 and 3
-  and in 1D and 3D; at ppc 4, 1.8·Δx/3 holds and 1.2·Δx/3 necks under the support and tears off.
-  A smaller cap decouples neighbouring domains at a smaller stretch, hence earlier.
-* At Δx = 0.2 m (5 cells across the bar) unscaled CPDI misbehaves in 2D — it tears off at
-  ppc 2 and stretches to 7.8–22 at ppc 3 and 4 — and in 3D (also Δx = 0.2 m) it separates at
-  0.150 s into 9 pieces at stretch 11: those rows say little about the seed's CPDI claims; the
-  mpm < uGIMP < cpGIMP and l_cr orders are the same as at Δx = 0.1 m.
+  and in 1D and 3D; at ppc 4, 1.8·Δx/3 and 1.2·Δx/3 hold to 0.3 s.
+* The l_cr series (full study, 1 s): on the roller at ppc 3 the unscaled bar's corner vectors
+  grow at most 3.19× (Δx = 0.1 m; 3.12× at 0.2 m), κ* = 2.26 (2.20): κ ≤ 1.8 separates
+  (0.062–0.080 s at stretch 3.3–4.1), κ ≥ 2.2 holds to 1 s. Clamped, the top corners keep
+  straining (unscaled: stretch 11, corners 9.7× by 1 s): κ = 2.6, 3.0 separate at 0.59, 0.65 s,
+  4.0 and 5.0 hold to 1 s; at Δx = 0.2 m clamped every κ ≥ 2.6 and the unscaled bar separate at
+  0.30–0.31 s (after tearing off). At ppc 2 every κ separates on both supports, κ ≥ 4 as the
+  unscaled bar. So κ = 5.0 separates where unscaled CPDI fails too (ppc 2, the coarse clamped
+  bar), never through its cap on the published support at ppc 3.
 
 Outputs: ``gallery.csv`` (one row per case) in ``--out`` (default
 ``run_scripts/out/stability_gallery``); figures in ``docs/figures`` (``--quick``: in ``--out``):
@@ -69,17 +79,20 @@ stretch peak, the loss of the support, separation or 0.2 s, the end), particle d
 interpolation sees them (mpm: its nominal box) coloured by axial stretch |F e_y| on one colour
 scale for all figures — and ``gallery_summary.png``, separation time and stretch at separation
 per method and (dim, Δx, ppc), hatched where the bar held to 0.3 s, ▼ where it tore off.
+``gallery_lcr_separation.png``: the l_cr series (stretch at separation and separation time
+against κ; see :func:`lcr_figure`).
 
-Runtime, one core: full (64 cases) 75 s on an idle core, about 60 s of it in the runs (1D < 1 s,
-2D ~40 s, 3D ~15 s; the rest is start-up and figures); ``--quick`` (11 2D cases at Δx = 0.1 m:
-mpm, ugimp, cpgimp, cpdi at ppc 2 and 3, cpdi with l_cr = 5.0, 1.8, 1.2·Δx/3 at ppc 3) ~20 s,
-~35 s under ``mpirun -n 2`` on two busy cores. Results are identical on any number of ranks (only
-``wall_seconds`` differs)::
+Runtime: full (64 gallery cases + 66 of the l_cr series) ~20 min on a core shared with other
+jobs (the gallery ~2 min of it, the series' 1 s runs of the bars that hold ~10–45 s each);
+``--quick`` (11 2D cases at Δx = 0.1 m: mpm, ugimp, cpgimp, cpdi at ppc 2 and 3, cpdi with
+l_cr = 5.0, 1.8, 1.2·Δx/3 at ppc 3) ~30 s, ~35 s under ``mpirun -n 2`` on two busy cores. Results
+are identical on any number of ranks (only ``wall_seconds`` differs)::
 
     python run_scripts/stability_gallery.py                  # full study, figures to docs/figures
     python run_scripts/stability_gallery.py --quick          # the smoke test's mode
     mpirun -n 2 python run_scripts/stability_gallery.py --quick
     python run_scripts/stability_gallery.py --cases '2d_cpdi*_ppc3_dx0.1' --out /tmp/g
+    python run_scripts/stability_gallery.py --cases '*_t1' --out /tmp/lcr   # the l_cr series only
 """
 from __future__ import annotations
 
@@ -100,6 +113,12 @@ PEAK_WINDOW = 0.15    # s: the first stretch peak is the largest stretch before 
 PEAK_AFTER = 0.02     # s the run must go on after a stretch maximum for it to count as a peak
 STRETCH_RANGE = (1.0, 5.0)  # the shared colour scale of every gallery figure
 SCENES = {1: "hanging_bar_1d", 2: "hanging_bar", 3: "hanging_bar_3d"}
+# the l_cr series: κ of l_cr = κ·Δx/3 (6.0 = 2·Δx; None = unscaled), run LCR_END s on the published
+# (roller) support and clamped, at (Δx, ppc) = LCR_GROUPS, 2D
+LCR_KAPPAS = (1.0, 1.2, 1.5, 1.8, 2.2, 2.6, 3.0, 4.0, 5.0, 6.0, None)
+LCR_END = 1.0
+LCR_GROUPS = ((0.1, 3), (0.1, 2), (0.2, 3))
+SUPPORTS = ("roller", "clamped")
 
 
 @dataclass(frozen=True)
@@ -130,16 +149,33 @@ METHODS = (
 BY_LABEL = {m.label: m for m in METHODS}
 
 
+def lcr_method(kappa: float | None) -> Method:
+    """CPDI with l_cr = κ·Δx/3 (``None``: unscaled)."""
+    if kappa is None:
+        return BY_LABEL["cpdi"]
+    return Method(f"cpdi_lcr{kappa:.1f}dx3", "cpdi", f"{kappa:.1f}dx/3")
+
+
+def kappa_of(lcr: str) -> float | None:
+    """κ of a method.lcr spec ``"κdx/3"`` or ``"2dx"`` (= 6); None for "none"."""
+    if lcr == "none":
+        return None
+    return 3.0 * float(lcr[:-2]) if lcr.endswith("dx") else float(lcr.split("dx")[0])
+
+
 @dataclass(frozen=True)
 class Case:
     dim: int
     method: Method
     ppc: int
     cell: float
+    support: str = "roller"   # the published support; "clamped" holds both components
+    end: float = END
 
     @property
     def id(self) -> str:
-        return f"{self.dim}d_{self.method.label}_ppc{self.ppc}_dx{self.cell:g}"
+        tail = "" if (self.support, self.end) == ("roller", END) else f"_{self.support}_t{self.end:g}"
+        return f"{self.dim}d_{self.method.label}_ppc{self.ppc}_dx{self.cell:g}{tail}"
 
     @property
     def rest_corner(self) -> float:
@@ -154,10 +190,15 @@ class Case:
         cells = [round(n * h0 / self.cell) for n in base["cells"]]  # the same extent
         if any(abs(n * self.cell - m * h0) > 1e-9 for n, m in zip(cells, base["cells"])):
             raise ValueError(f"{self.id}: cell {self.cell} does not divide the scene's grid")
-        return [f"method.interpolator={self.method.interpolator}", f"method.lcr={self.method.lcr}",
+        over = [f"method.interpolator={self.method.interpolator}", f"method.lcr={self.method.lcr}",
                 f"bodies.0.ppc={self.ppc}", f"grid.cell_size={self.cell}",
-                f"grid.cells=[{', '.join(map(str, cells))}]", f"time.end={END}",
+                f"grid.cells=[{', '.join(map(str, cells))}]", f"time.end={self.end}",
                 "metrics.stop_on_separation=true", f"output.every={FRAME_EVERY}"]
+        if self.support == "clamped":  # the same nodes, both components held
+            b = parmpm.load_scene(SCENES[self.dim]).data["boundary"]["slip_regions"][0]
+            over += ["boundary.slip_regions=[]", "boundary.fixed_regions=[{min=[%s], max=[%s]}]" % (
+                ", ".join(map(repr, b["min"])), ", ".join(map(repr, b["max"])))]
+        return over
 
 
 def full_cases() -> list[Case]:
@@ -165,7 +206,13 @@ def full_cases() -> list[Case]:
     cases += [Case(2, m, p, 0.2) for p in (2, 3, 4) for m in METHODS]  # the 3D runs' resolution
     cases += [Case(1, m, 2, 0.1) for m in METHODS]
     cases += [Case(3, m, 2, 0.2) for m in METHODS]
-    return cases
+    return cases + lcr_cases()
+
+
+def lcr_cases() -> list[Case]:
+    """The l_cr series: every κ, both supports, each (Δx, ppc) group, to LCR_END."""
+    return [Case(2, lcr_method(k), ppc, cell, support, LCR_END)
+            for cell, ppc in LCR_GROUPS for support in SUPPORTS for k in LCR_KAPPAS]
 
 
 def quick_cases() -> list[Case]:
@@ -182,7 +229,7 @@ class Watch:
     rank 0 the 2D frames (domain polygons and axial stretch of every particle) for the figures.
 
     The support is the held grid nodes at and above ``y_s`` (the lowest edge of the scene's fixed
-    regions). Weights are hats, so a particle exchanges momentum with a held node only if its
+    regions and of its slip regions normal to the bar's axis: the roller). Weights are hats, so a particle exchanges momentum with a held node only if its
     support reaches above ``y_s − Δx``: the domain corners (uGIMP, cpGIMP, CPDI), the particle
     itself (mpm). Below that for every particle, the bar hangs from nothing: it tore off."""
 
@@ -190,6 +237,7 @@ class Watch:
         self.keep_frames = frames
         self.support_lost = None
         self.reach = 0.0  # the largest support reach seen, in cells from the particle, any axis
+        self.corner = 0.0  # the largest centre-to-corner length of a domain seen (m; 0 for mpm)
         self.t, self.corners, self.stretch = [], [], []
 
     def __call__(self, sim) -> None:
@@ -198,19 +246,24 @@ class Watch:
 
         P, d = sim.particles, sim.dim
         axis = sim.data["metrics"]["axis"]
-        y_s = min(r["min"][axis] for r in sim.data["boundary"]["fixed_regions"])
+        b = sim.data["boundary"]
+        y_s = min(r["min"][axis] for r in b["fixed_regions"] + [
+            r for r in b["slip_regions"] if r["normal"] == "xyz"[axis]])
         h = sim.data["grid"]["cell_size"][axis]
         if sim.interp.name == "mpm":
-            tops, reach = P.x[:, axis], np.zeros(1)
+            tops, reach, corner = P.x[:, axis], np.zeros(1), np.zeros(1)
         else:
             corners = parmpm.domain_corners(d, sim.interp.code, sim.lcr, P.x, P.F, P.r0, P.lh0)
             tops = corners[:, :, axis].max(axis=1)
             reach = np.abs(corners - P.x[:, None, :]).max(axis=1) / sim.data["grid"]["cell_size"]
-        top, reach = allreduce_max(sim.comm, np.array([tops.max() if P.n else -np.inf,
-                                                       reach.max() if reach.size else 0.0]))
+            corner = np.linalg.norm(corners - P.x[:, None, :], axis=2)
+        top, reach, corner = allreduce_max(sim.comm, np.array([
+            tops.max() if P.n else -np.inf, reach.max() if reach.size else 0.0,
+            corner.max() if corner.size else 0.0]))
         if self.support_lost is None and top <= y_s - h:
             self.support_lost = float(sim.t)
         self.reach = max(self.reach, float(reach))
+        self.corner = max(self.corner, float(corner))
         if self.keep_frames and d == 2:
             g = sim.gather({"corners": sim.domain_corners(), "stretch": sim.axial_stretch()})
             if g is not None:
@@ -302,7 +355,10 @@ def row(case: Case, summary: dict, wall: float, watch: Watch) -> dict:
         "case": case.id, "dim": case.dim, "method": case.method.label,
         "interpolator": case.method.interpolator, "lcr": case.method.lcr,
         "lcr_m": lcr_m, "lcr_over_rest_corner": lcr_m / case.rest_corner if lcr_m else None,
-        "ppc": case.ppc, "cell_size": case.cell, "ghost": summary["grid"]["ghost"],
+        "ppc": case.ppc, "cell_size": case.cell, "support": case.support, "run_to": case.end,
+        "kappa": kappa_of(case.method.lcr) if case.method.interpolator == "cpdi" else None,
+        "corner_growth": watch.corner / case.rest_corner if watch.corner else None,
+        "ghost": summary["grid"]["ghost"],
         "separated": bool(m["separated"]), "separation_time": m["separation_time"],
         "stretch_at_separation": m["stretch_at_separation"], "max_stretch": m["max_stretch"],
         "max_components": m["max_components"], "support_lost_time": watch.support_lost,
@@ -384,7 +440,8 @@ def summary_figure(rows: list[dict], path: Path) -> Path:
     largest stretch of a bar that held), per method and (dim, Δx, ppc) series."""
     from matplotlib.patches import Patch
 
-    table = {(r["dim"], r["cell_size"], r["ppc"], r["method"]): r for r in rows}
+    table = {(r["dim"], r["cell_size"], r["ppc"], r["method"]): r for r in rows
+             if (r["support"], r["run_to"]) == ("roller", END)}
     series = [s for s in SERIES if any(k[:3] == s for k in table)]
     methods = [m for m in METHODS if any(k[3] == m.label for k in table)]
     fig, axes = figure(2, 1, size=(11.0, 6.8))
@@ -425,6 +482,71 @@ def summary_figure(rows: list[dict], path: Path) -> Path:
     return save(fig, path)
 
 
+def lcr_figure(rows: list[dict], path: Path) -> Path:
+    """Stretch at separation (top) and separation time (bottom) against κ of l_cr = κ·Δx/3, per
+    (Δx, ppc) group (colour) and support (marker); open markers: held to the end of the run
+    (the largest stretch and the run's end); × marks a bar that tore off its support first. The
+    unscaled run sits at the right; a dotted line per group marks κ* = 3·(largest centre-to-corner
+    length of its unscaled roller run)/Δx: no cap above it engages on the published support."""
+    from matplotlib.lines import Line2D
+
+    cpdi = [r for r in rows if r["dim"] == 2 and r["interpolator"] == "cpdi"]
+    if any(r["run_to"] == LCR_END for r in cpdi):  # the series; else (--quick) the 0.3 s runs
+        cpdi = [r for r in cpdi if r["run_to"] == LCR_END]
+    groups = sorted({(r["cell_size"], r["ppc"]) for r in cpdi}, key=lambda g: (g[0], -g[1]))
+    kappas = sorted({r["kappa"] for r in cpdi if r["kappa"] is not None})
+    k_free = (max(kappas) if kappas else 6.0) + 1.0  # where the unscaled runs are drawn
+    fig, axes = figure(2, 1, size=(7.6, 6.6))
+    marker = {"roller": "o", "clamped": "s"}
+    for g, (cell, ppc) in enumerate(groups):
+        colour = f"C{g}"
+        mine = [r for r in cpdi if (r["cell_size"], r["ppc"]) == (cell, ppc)]
+        free = [r["corner_growth"] * math.sqrt(2) * cell / (2 * ppc) for r in mine
+                if r["kappa"] is None and r["corner_growth"] and r["support"] == "roller"]
+        for support in SUPPORTS:
+            pts = sorted(((k_free if r["kappa"] is None else r["kappa"], r) for r in mine
+                          if r["support"] == support), key=lambda p: p[0])
+            for ax, key in zip(axes[:, 0], ("stretch", "time")):
+                for x, r in pts:
+                    sep = r["separated"]
+                    if key == "stretch":
+                        y = r["stretch_at_separation"] if sep else r["max_stretch"]
+                    else:
+                        y = r["separation_time"] if sep else r["end_time"]
+                    x_at = x + (0.04 if support == "clamped" else -0.04)
+                    ax.plot(x_at, y, marker[support], ms=5, color=colour, mfc=colour if sep else "none")
+                    if r["support_lost_time"] is not None:
+                        ax.plot(x_at, y, "x", color="k", ms=4, mew=0.8)
+                xs = [x for x, r in pts if r["separated"]]
+                ys = [(r["stretch_at_separation"] if key == "stretch" else r["separation_time"])
+                      for x, r in pts if r["separated"]]
+                ax.plot(xs, ys, "-" if support == "roller" else "--", color=colour, lw=0.7)
+        if free:
+            for ax in axes[:, 0]:
+                ax.axvline(3.0 * max(free) / cell, color=colour, lw=0.8, ls=":")
+    for ax in axes[:, 0]:
+        ax.set_xticks(kappas + [k_free])
+        ax.set_xticklabels([f"{k:g}" for k in kappas] + ["none"], fontsize=7)
+        ax.grid(color="0.9")
+        ax.set_axisbelow(True)
+    axes[0, 0].set_ylabel("axial stretch at separation")
+    axes[1, 0].set_ylabel("separation time (s)")
+    axes[1, 0].set_xlabel("κ of l_cr = κ·Δx/3 (6 = 2·Δx)")
+    handles = [Line2D([], [], color=f"C{g}", lw=3, label=f"Δx = {c:g} m, ppc {p}")
+               for g, (c, p) in enumerate(groups)]
+    handles += [Line2D([], [], marker=marker[s], color="0.3", ls="-" if s == "roller" else "--",
+                       label=f"{s} support" + (" (published)" if s == "roller" else ""))
+                for s in SUPPORTS]
+    handles += [Line2D([], [], marker="o", mfc="none", color="0.3", ls="",
+                       label="held (largest stretch; end of run)"),
+                Line2D([], [], marker="x", color="k", ls="", label="tore off its support first"),
+                Line2D([], [], color="0.3", ls=":", label="κ* (roller): a cap engages only below")]
+    axes[0, 0].legend(handles=handles, fontsize=6.5, ncol=2, loc="upper left", framealpha=0.9)
+    axes[0, 0].set_title("Self-weighted bar, CPDI with domain scaling: separation against l_cr",
+                         fontsize=9)
+    return save(fig, path)
+
+
 # --- main --------------------------------------------------------------------------------------
 def main() -> int:
     ap = parser(__doc__)
@@ -440,7 +562,8 @@ def main() -> int:
     t_start = time.perf_counter()
     with scratch_folder(comm, "parmpm-gallery-") as scratch:
         for case in cases:
-            want_frames = case.dim == 2 and case.cell == min(c.cell for c in cases if c.dim == 2)
+            want_frames = (case.dim == 2 and (case.support, case.end) == ("roller", END)
+                           and case.cell == min(c.cell for c in cases if c.dim == 2))
             summary, wall, watch = run_one(case, comm, scratch, want_frames)
             r = row(case, summary, wall, watch)
             rows.append(r)
@@ -461,7 +584,10 @@ def main() -> int:
         extent = [(o, o + n * h) for o, n, h in zip(g["origin"], g["cells"], g["cell_size"])]
         written = [gallery_figure(BY_LABEL[k], v, figs / f"gallery_{k}.png", extent)
                    for k, v in panels.items()]
-        written.append(summary_figure(rows, figs / "gallery_summary.png"))
+        if any((r["support"], r["run_to"]) == ("roller", END) for r in rows):
+            written.append(summary_figure(rows, figs / "gallery_summary.png"))
+        if any(r["interpolator"] == "cpdi" and r["dim"] == 2 for r in rows):
+            written.append(lcr_figure(rows, figs / "gallery_lcr_separation.png"))
         print(f"{len(rows)} cases in {total:.0f} s on {comm.Get_size()} rank(s) ("
               + ", ".join(f"{d}D {s:.0f} s" for d, s in sorted(by_dim.items())) + ")")
         print(f"wrote {out / 'gallery.csv'}")

@@ -1,15 +1,17 @@
 """``run_scripts/stability_gallery.py --quick``: the self-weighted bar's separation outcomes
-(2D, Δx = 0.1 m), and the same CSV on 2 MPI ranks.
+(2D, Δx = 0.1 m, the published roller support), and the same CSV on 2 MPI ranks.
 
 What is asserted is what the solver finds and the script's docstring explains:
 
 * mpm, uGIMP and cpGIMP separate during the first stretch upswing, in that order (a wider support
   bridges a wider gap between particle rows; cpGIMP's grows with F_yy);
 * unscaled CPDI holds at ppc 3; at ppc 2 the bar does not split while hanging — it first tears
-  off its support (the clamped top corners shear into wedges), and the falling bar then splits;
-* l_cr = 5.0·Δx/3 is never reached (7.07 × the rest corner length, the stretch peaks at ~4.6):
-  bit for bit the unscaled run; l_cr = 1.2·Δx/3 caps the domains at a smaller stretch than
-  1.8·Δx/3, so its bar separates earlier.
+  off its support (no particle's domain reaches a held node any more), and the falling bar then
+  splits;
+* l_cr = 5.0·Δx/3 is never reached (7.07 × the rest corner length; the longest centre-to-corner
+  vector grows less than that): bit for bit the unscaled run; l_cr = 1.2·Δx/3 caps the domains at
+  a smaller stretch than 1.8·Δx/3, so its bar separates earlier;
+* the l_cr series' cases (support, run length) have their own ids and overrides.
 """
 import csv
 import os
@@ -94,13 +96,37 @@ def test_domain_scaling_order(quick):
     assert r12["separated"] == "True" and r18["separated"] == "True"
     assert _t(r12) < _t(r18)
     assert float(r12["stretch_at_separation"]) < float(r18["stretch_at_separation"])
+    # why 5.0·Δx/3 never engages: the longest centre-to-corner vector stays shorter than the cap
+    assert r50["corner_growth"] == unscaled["corner_growth"]
+    assert 1.0 < float(r50["corner_growth"]) < float(r50["lcr_over_rest_corner"])
+    assert float(r12["corner_growth"]) <= float(r12["lcr_over_rest_corner"]) * (1 + 1e-12)
+    assert {r["support"] for r in rows.values()} == {"roller"} and r50["kappa"] == "5.0"
+
+
+def test_lcr_series_cases():
+    sys.path.insert(0, str(SCRIPT.parent))
+    import stability_gallery as g
+
+    cases = g.lcr_cases()
+    assert len(cases) == len(g.LCR_KAPPAS) * len(g.SUPPORTS) * len(g.LCR_GROUPS)
+    assert len({c.id for c in cases}) == len(cases)
+    c = g.Case(2, g.lcr_method(5.0), 3, 0.1, "clamped", 1.0)
+    assert c.id == "2d_cpdi_lcr5.0dx3_ppc3_dx0.1_clamped_t1"
+    over = c.overrides()
+    assert "time.end=1.0" in over and "method.lcr=5.0dx/3" in over
+    assert "boundary.slip_regions=[]" in over
+    assert "boundary.fixed_regions=[{min=[-0.5, 0.0], max=[1.5, 0.2]}]" in over
+    roller = g.Case(2, g.lcr_method(5.0), 3, 0.1)
+    assert roller.id == "2d_cpdi_lcr5.0dx3_ppc3_dx0.1" and roller.method == g.BY_LABEL["cpdi_lcr5.0dx3"]
+    assert not any("fixed_regions" in o for o in roller.overrides())
+    assert [g.kappa_of(x) for x in ("5.0dx/3", "2dx", "none")] == [5.0, 6.0, None]
 
 
 def test_quick_writes_csv_and_figures(quick):
     out, rows = quick
     assert len(rows) == 11
     labels = {r["method"] for r in rows.values()}
-    for name in [f"gallery_{k}.png" for k in labels] + ["gallery_summary.png"]:
+    for name in [f"gallery_{k}.png" for k in labels] + ["gallery_summary.png", "gallery_lcr_separation.png"]:
         path = out / name
         assert path.is_file() and 10_000 < path.stat().st_size < 300_000, name
 
