@@ -12,8 +12,10 @@ component is 0; free: nothing — then ``v = 0``
 on every node inside a fixed region (a grip, e.g. the hanging bar's support) and ``v·n = 0`` inside
 a slip region (a symmetry plane inside the grid, e.g. the manufactured solution's faces) — applied to both
 ``v_old`` and ``v_new`` so the FLIP increment ``Δv = v_new − v_old`` respects them too. Nodes with
-mass below ``mass_eps`` get zero velocity (they carry no material). Ghost nodes are left to
-``fill``.
+mass below ``mass_eps`` get no force term (``f/m`` is unbounded as ``m → 0``) but keep
+``v = (mv)/m``, a mean of their particles' velocities (all weights are ≥ 0): a GIMP domain that
+overlaps a node by ``δ`` gives it ``φ ∝ δ²`` but ``∇φ ∝ δ``, so zeroing its velocity stressed a
+rigidly translating body. Only empty nodes get ``v = 0``. Ghost nodes are left to ``fill``.
 """
 import numpy as np
 from numba import literal_unroll, literally
@@ -139,11 +141,12 @@ def _grid_loop(dim, own_lo, own_hi, base, nloc, face_lo, face_hi, bc, regions, n
                     node = row0 + i0
                     g0 = base[p, 0] + i0
                     m = G[0, node]
-                    if m > mass_eps:
+                    if m > 0.0:
                         for a in range(d):
                             vold[a] = G[1 + a, node] / m
                             if not from_momentum_only:
-                                vnew[a] = ((vold[a] + dt * (G[1 + d + a, node] / m + gvec[a]))
+                                fm = G[1 + d + a, node] / m if m > mass_eps else 0.0
+                                vnew[a] = ((vold[a] + dt * (fm + gvec[a]))
                                            / (1.0 + damping * dt))
                     else:
                         for a in range(d):
