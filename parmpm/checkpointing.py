@@ -15,16 +15,10 @@ import numpy as np
 from parmpm.errors import ParmpmError
 from parmpm.io.checkpoint import FIELDS, CheckpointWriter, prune
 from parmpm.particles import Particles
+from parmpm.run_files import agree
 
 #: global ids per gathered block: bounds the writer's extra memory
 BLOCK = 1 << 18
-
-
-def _agree(comm, problem: str | None, root: int = 0) -> None:
-    """Raise ``problem`` (known on ``root``) on every rank."""
-    problem = comm.bcast(problem, root=root)
-    if problem:
-        raise ParmpmError(problem)
 
 
 def write_checkpoint(comm, P: Particles, path: Path, n_total: int, attrs: dict, keep: int,
@@ -40,7 +34,7 @@ def write_checkpoint(comm, P: Particles, path: Path, n_total: int, attrs: dict, 
             writer = CheckpointWriter(path, n_total, {k: getattr(P, k)[:0] for k in FIELDS}, attrs)
         except ParmpmError as exc:
             problem = str(exc)
-    _agree(comm, problem)
+    agree(comm, problem)
     for lo in range(0, n_total, BLOCK):
         hi = min(lo + BLOCK, n_total)
         a, b = np.searchsorted(gids, [lo, hi])
@@ -68,7 +62,7 @@ def write_checkpoint(comm, P: Particles, path: Path, n_total: int, attrs: dict, 
             problem = str(exc)
         except OSError as exc:
             problem = f"cannot write checkpoint '{path}': {exc}"
-    _agree(comm, problem)
+    agree(comm, problem)
     return path
 
 

@@ -28,6 +28,7 @@ from parmpm.energy import ENERGY_EVERY, EnergyWatch, energy_totals
 from parmpm.particles import locate_patches
 from parmpm.seeding import seed_bodies
 from parmpm.progress import Progress
+from parmpm.run_files import RunFiles, agree
 from parmpm.schedule import Schedule
 from parmpm.shapes import CPDI, INTERPOLATORS
 from parmpm.stepper import PHASES, WORK_PHASES, Discretisation, Stepper, exterior_cells, fmt_vec
@@ -228,31 +229,20 @@ class Simulation(Measures):
         f = min(1.0, t / ramp) if ramp > 0 else 1.0
         return np.concatenate([np.asarray(g["g"], float) * f, np.zeros(3 - self.dim)])
 
-    def output(self, writer) -> None:
+    def output(self) -> None:
         """An output time: the snapshot (if enabled), then every observer (collective)."""
-        self.snapshot(writer)
+        self.snapshot()
         for observe in self.observers:
             observe(self)
 
-    def snapshot(self, writer) -> None:
+    def snapshot(self) -> None:
         if not self.data["output"]["snapshots"]:
             return
         P = self.particles
         g = self.gather({"x": P.x, "velocity": P.v, "stress": P.stress.reshape(P.n, self.dim * self.dim),
                          "stretch": self.axial_stretch(), "damage": P.damage,
                          "rank": np.full(P.n, float(self.rank)), "gid": P.gid.astype(float)})
-        problem = None
-        if writer is not None and g is not None:
-            try:
-                x = g.pop("x")
-                writer.write(self.t, x, g)
-            except ParmpmError as exc:
-                problem = str(exc)
-            except OSError as exc:
-                problem = f"cannot write snapshot to '{self.out_dir}': {exc.strerror or exc}"
-        problem = self.comm.bcast(problem, root=0)
-        if problem:
-            raise ParmpmError(problem)
+        self.files.write_snapshot(self.t, g)
 
     def write_checkpoint(self) -> Path:
         """Write ``checkpoint_<step>.h5`` (collective, atomic; :mod:`parmpm.checkpointing`)."""
@@ -274,18 +264,6 @@ class Simulation(Measures):
         self.last_checkpoint = (self.nstep, path)
         log.info("wrote %s (step %d, t = %.6g s)", path, self.nstep, self.t)
         return path
-
-    def _close_snapshots(self, writer) -> str | None:
-        """Close the snapshot series (rank 0); the problem as one line, or None."""
-        if writer is None:
-            return None
-        try:
-            writer.close()
-        except ParmpmError as exc:
-            return str(exc)
-        except OSError as exc:
-            return f"cannot write snapshots to '{self.out_dir}': {exc.strerror or exc}"
-        return None
 
     # --- checks ------------------------------------------------------------------------------
     def check_energy(self) -> None:
@@ -338,61 +316,27 @@ class Simulation(Measures):
             signal.signal(sig, handler)
 
     # --- the loop -----------------------------------------------------------------------------
-    def _claim_output(self) -> None:
-        """Claim the output folder (collective; :mod:`parmpm.io.run_folder`): before anything is
-        written, so a folder that cannot be written or holds another run fails here."""
-        from parmpm.io.checkpoint import remove_stale_tmp
-        from parmpm.io.run_folder import claim
-
-        name = self.data["name"]
-        files = ["summary.json", f"{self.series}.xdmf", f"{self.series}.h5", f"{name}.png"]
-        marker = {"run_id": self.run_id, "continues": self.continues, "scene": name,
-                  "ranks": self.size, "files": files}
-        folder, problem = None, None
-        if self.rank == 0:
-            try:
-                folder = claim(self.out_dir, marker, explicit=self.out_explicit,
-                               overwrite=self.overwrite)
-                if folder != self.out_dir:
-                    log.info("%s holds another run: writing to %s", self.out_dir, folder)
-                remove_stale_tmp(folder)
-            except ParmpmError as exc:
-                problem = str(exc)
-        folder, problem = self.comm.bcast((folder, problem), root=0)
-        if problem:
-            raise ParmpmError(problem)
-        self.out_dir = folder
-
     def run(self) -> dict:
         """Step to the end (collective). Every rank returns the same summary; rank 0 writes the
-        shared files (summary.json, snapshots, figure)."""
-        from parmpm.io.summary import write_summary
-        from parmpm.io.xdmf import SnapshotWriter
-
-        data = self.data
-        out = data["output"]
-        root = self.rank == 0
-        self.series = data["name"] if self.restart is None else f"{data['name']}_from_{self.nstep:08d}"
+        shared files (summary.json, snapshots, figure) into the folder the run claims first."""
         old_handlers = self._trap_signals()
         try:
-            self._claim_output()
-            return self._run(write_summary, SnapshotWriter, out, root)
+            name = self.data["name"]
+            series = name if self.restart is None else f"{name}_from_{self.nstep:08d}"
+            self.files = RunFiles(self.comm, self.out_dir, self.out_explicit, self.overwrite)
+            self.out_dir = self.files.claim({
+                "run_id": self.run_id, "continues": self.continues, "scene": name,
+                "ranks": self.size,
+                "files": ["summary.json", f"{series}.xdmf", f"{series}.h5", f"{name}.png"]})
+            if self.data["output"]["snapshots"]:
+                self.files.open_snapshots(series, self.dim)
+            return self._run()
         finally:
             self._restore_signals(old_handlers)
 
-    def _run(self, write_summary, SnapshotWriter, out, root) -> dict:
+    def _run(self) -> dict:
         data = self.data
-        writer, problem = None, None
-        if out["snapshots"] and root:
-            try:
-                writer = SnapshotWriter(self.out_dir, self.series, self.dim)
-            except ParmpmError as exc:
-                problem = str(exc)
-            except OSError as exc:
-                problem = f"cannot write snapshots to '{self.out_dir}': {exc.strerror or exc}"
-        problem = self.comm.bcast(problem, root=0)
-        if problem:
-            raise ParmpmError(problem)
+        out = data["output"]
         self.out_schedule = Schedule(out["every"], out["every_steps"], self.t, self.next_out)
         ck = data["checkpoint"]
         ck_schedule = Schedule(ck["every"], ck["every_steps"], self.t)
@@ -402,13 +346,13 @@ class Simulation(Measures):
         stop_on_sep = data["metrics"]["stop_on_separation"]
         self.stopped = None
         progress = Progress(total_steps=data["time"]["steps"], end_time=data["time"]["end"],
-                            enabled=not self.quiet and root)
+                            enabled=not self.quiet and self.rank == 0)
         wall0 = time.perf_counter()
         warm_wall, warm_steps = None, 0
         try:
             if self.restart is None:  # a restarted run has these from before
                 self.sample_metrics()
-                self.output(writer)
+                self.output()
                 self.check_energy()
             while not self.done():
                 dt = self.next_dt()
@@ -429,10 +373,10 @@ class Simulation(Measures):
                 if self.nstep % me == 0 and self.sample_metrics() > 1 and stop_on_sep:
                     self.stopped = "separated"
                     log.info("material separated at t = %.6g s: stopping (metrics.stop_on_separation)", self.t)
-                    self.output(writer)
+                    self.output()
                     break
                 if self.out_schedule.due(self.t, self.nstep) or self.done():
-                    self.output(writer)
+                    self.output()
                     self.out_schedule.advance(self.t)
                 if self.stepper.stop_requested:
                     raise self._interrupted()
@@ -455,10 +399,8 @@ class Simulation(Measures):
                 raise self._interrupted()
         finally:
             progress.close()
-            closing = self._close_snapshots(writer)  # never raises: a failing run's error wins
-        closing = self.comm.bcast(closing, root=0)
-        if closing:
-            raise ParmpmError(closing)
+            closing = self.files.close_snapshots()  # never raises: a failing run's error wins
+        agree(self.comm, closing)
         self.next_out = self.out_schedule.next_time
         wall = time.perf_counter() - wall0
         loop = time.perf_counter() - warm_wall if warm_wall else wall
@@ -495,15 +437,7 @@ class Simulation(Measures):
                                            if warm_steps else None),
             "metrics": self.metrics.result() if self.metrics is not None else {},
         }
-        problem = None
-        if root:
-            try:
-                write_summary(self.out_dir, summary)
-            except OSError as exc:
-                problem = f"cannot write '{self.out_dir / 'summary.json'}': {exc.strerror or exc}"
-        problem = self.comm.bcast(problem, root=0)
-        if problem:
-            raise ParmpmError(problem)
+        self.files.write_summary(summary)
         if self._stop_agreed():  # a signal while the summary was made: no figure
             raise self._interrupted()
         if out["figure"]:
@@ -512,15 +446,8 @@ class Simulation(Measures):
             fields = {"x": P.x, "stretch": self.axial_stretch()}
             if corners is not None:
                 fields["corners"] = corners
-            g = self.gather(fields)
-            if root:
-                from parmpm.io.figures import plot_particles
-                try:
-                    plot_particles(self.out_dir / f"{data['name']}.png", g["x"], g["stretch"],
-                                   self.dim, corners=g.get("corners"),
-                                   title=f"{data['name']} · {self.interp.name} · t = {self.t:.3g} s")
-                except OSError as exc:
-                    log.warning("no figure: cannot write %s: %s", self.out_dir, exc.strerror or exc)
+            self.files.write_figure(data["name"], self.gather(fields), self.dim,
+                                    f"{data['name']} · {self.interp.name} · t = {self.t:.3g} s")
         if self._stop_agreed():  # a signal while the figure was drawn
             raise self._interrupted()
         return summary
