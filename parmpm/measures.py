@@ -5,7 +5,8 @@ A mixin of :class:`parmpm.simulation.Simulation`, split off along the seam betwe
 run (set-up, clock, output, checkpoints: ``simulation.py``) and *measuring* it. Every method is
 collective (every rank calls it) and reduces in patch order, so its result is the same on any
 number of ranks. It reads the simulation's ``particles``, ``disc``, ``patches``, ``comm``,
-``metrics``, ``stepper``, ``data``, ``t``, ``last_dt`` and ``update``.
+``metrics``, ``stepper``, ``data``, ``t``, ``last_dt`` and ``update`` (and, for the summary, the
+run's identity, clock and energy watch).
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import numpy as np
 
 from decomposition import allreduce_max, ordered_sum
 from parmpm.errors import SimulationError
-from parmpm.stepper import reach_message, support_reach
+from parmpm.stepper import PHASES, WORK_PHASES, reach_message, support_reach
 from parmpm.transfer import support_nodes
 
 
@@ -127,4 +128,40 @@ class Measures:
             "imbalance": float(loads.max() / loads.mean() - 1.0) if loads.mean() > 0 else 0.0,
             "halo_bytes_per_step": int(halo_bytes),
             "rebalances": ps.rebalances, "patch_set_changes": ps.rebuilds,
+        }
+
+    def summary(self, wall: float, loop: float, warm_steps: int) -> dict:
+        """The run's record for ``summary.json`` (collective; the same on every rank). ``wall``:
+        the run's wall time, ``loop``: the time of the ``warm_steps`` steps after the first."""
+        data, lay = self.data, self.disc.layout
+        timers = self.stepper.timers
+        per_rank = np.array(self.comm.allgather([timers[k] for k in PHASES]))  # (ranks, phases)
+        phase = per_rank.max(axis=0)
+        # each rank's own work (the phases that wait for no one): how unevenly it is spread
+        work = per_rank[:, [PHASES.index(k) for k in WORK_PHASES]].sum(axis=1)
+        return {
+            "scene": data["name"], "dim": self.dim, "method": self.interp.name,
+            "lcr": self.lcr, "update": self.update, "flip": data["method"]["flip"],
+            "ranks": self.size, "particles": self.n_total, "steps": self.nstep, "time": self.t,
+            "stopped": self.stopped or "end",
+            "output_dir": str(self.out_dir),
+            "wall_seconds": wall,
+            "particle_steps_per_second": (self.n_total * warm_steps / loop
+                                          if warm_steps and loop > 0 else None),
+            "grid": {"cells": [int(c) for c in self.disc.cells],
+                     "exterior": [[int(c) for c in self.disc.exterior_lo],
+                                  [int(c) for c in self.disc.exterior_hi]],
+                     "cell_size": list(map(float, self.disc.h)),
+                     "patch_size": list(lay.patch_size), "patches": int(self.patches.ids.size),
+                     "ghost": lay.ghost},
+            "decomposition": self.decomposition_report(),
+            "final": self.totals(),
+            "energy": self.energy.report(),
+            "phase_seconds_per_step": ({k: float(v) / warm_steps for k, v in zip(PHASES, phase)}
+                                       if warm_steps else None),
+            "rank_work_seconds_per_step": ({"min": float(work.min()) / warm_steps,
+                                            "mean": float(work.mean()) / warm_steps,
+                                            "max": float(work.max()) / warm_steps}
+                                           if warm_steps else None),
+            "metrics": self.metrics.result() if self.metrics is not None else {},
         }

@@ -31,7 +31,7 @@ from parmpm.progress import Progress
 from parmpm.run_files import RunFiles, agree
 from parmpm.schedule import Schedule
 from parmpm.shapes import CPDI, INTERPOLATORS
-from parmpm.stepper import PHASES, WORK_PHASES, Discretisation, Stepper, exterior_cells, fmt_vec
+from parmpm.stepper import Discretisation, Stepper, exterior_cells, fmt_vec
 from parmpm.transfer import max_speed
 
 log = get_logger(__name__)
@@ -405,38 +405,7 @@ class Simulation(Measures):
         wall = time.perf_counter() - wall0
         loop = time.perf_counter() - warm_wall if warm_wall else wall
         wall, loop = (float(v) for v in allreduce_max(self.comm, np.array([wall, loop])))
-        timers = self.stepper.timers
-        per_rank = np.array(self.comm.allgather([timers[k] for k in PHASES]))  # (ranks, phases)
-        phase = per_rank.max(axis=0)
-        # each rank's own work (the phases that wait for no one): how unevenly it is spread
-        work = per_rank[:, [PHASES.index(k) for k in WORK_PHASES]].sum(axis=1)
-        lay = self.disc.layout
-        summary = {
-            "scene": data["name"], "dim": self.dim, "method": self.interp.name,
-            "lcr": self.lcr, "update": self.update, "flip": data["method"]["flip"],
-            "ranks": self.size, "particles": self.n_total, "steps": self.nstep, "time": self.t,
-            "stopped": self.stopped or "end",
-            "output_dir": str(self.out_dir),
-            "wall_seconds": wall,
-            "particle_steps_per_second": (self.n_total * warm_steps / loop
-                                          if warm_steps and loop > 0 else None),
-            "grid": {"cells": [int(c) for c in self.disc.cells],
-                     "exterior": [[int(c) for c in self.disc.exterior_lo],
-                                  [int(c) for c in self.disc.exterior_hi]],
-                     "cell_size": list(map(float, self.disc.h)),
-                     "patch_size": list(lay.patch_size), "patches": int(self.patches.ids.size),
-                     "ghost": lay.ghost},
-            "decomposition": self.decomposition_report(),
-            "final": self.totals(),
-            "energy": self.energy.report(),
-            "phase_seconds_per_step": ({k: float(v) / warm_steps for k, v in zip(PHASES, phase)}
-                                       if warm_steps else None),
-            "rank_work_seconds_per_step": ({"min": float(work.min()) / warm_steps,
-                                            "mean": float(work.mean()) / warm_steps,
-                                            "max": float(work.max()) / warm_steps}
-                                           if warm_steps else None),
-            "metrics": self.metrics.result() if self.metrics is not None else {},
-        }
+        summary = self.summary(wall, loop, warm_steps)
         self.files.write_summary(summary)
         if self._stop_agreed():  # a signal while the summary was made: no figure
             raise self._interrupted()
