@@ -75,14 +75,15 @@ def test_hanging_bar_resolved():
     assert d["grid"] == {"origin": [-0.5, -3.0], "cell_size": [0.1, 0.1], "cells": [20, 32],
                          "patch_size": [8, 8], "ghost": "auto", "exterior": "auto"}
     assert d["boundary"] == {"x_min": "free", "x_max": "free", "y_min": "free", "y_max": "free",
-                             "fixed_regions": [{"min": [-0.5, 0.0], "max": [1.5, 0.2]}],
-                             "slip_regions": []}
+                             "fixed_regions": [],  # the published roller: y held only
+                             "slip_regions": [{"min": [-0.5, 0.0], "max": [1.5, 0.2], "normal": "y"}]}
     assert d["materials"]["bar"]["model"] == "neo_hookean"
     assert d["bodies"][0]["ppc"] == [3, 3]
     assert d["bodies"][0]["vibration"] is None
     assert d["method"] == {"interpolator": "cpdi", "lcr": "2dx", "update": "auto", "flip": 1.0}
     assert d["gravity"] == {"g": [0.0, -1000.0], "ramp_time": 0.0}
-    assert d["time"] == {"end": 0.3, "steps": None, "cfl": 0.4, "dt_max": None}
+    assert d["time"] == {"end": 0.3, "steps": None, "cfl": 0.4, "dt_max": None,
+                         "max_energy_growth": 1.0}
     assert d["output"]["every"] == 0.05
     assert d["metrics"] == {"kind": "hanging_bar", "every_steps": 1, "axis": 1,
                             "stop_on_separation": True, "grip": None}
@@ -98,7 +99,8 @@ def test_other_builtins_resolved():
     assert bar1["metrics"]["axis"] == 0
     bar3 = load_scene("hanging_bar_3d").data
     assert bar3["grid"]["cells"] == [9, 16, 9] and bar3["metrics"]["axis"] == 1
-    assert bar3["boundary"]["fixed_regions"][0]["min"][1] == 0.0 and len(bar3["boundary"]) == 8
+    assert bar3["boundary"]["slip_regions"][0]["min"][1] == 0.0 and len(bar3["boundary"]) == 8
+    assert bar3["boundary"]["slip_regions"][0]["normal"] == "y"
     vib = load_scene("vibrating_bar").data
     assert vib["materials"]["bar"]["poisson_ratio"] == 0.0
     assert vib["bodies"][0]["vibration"] == {"amplitude": 0.1, "mode": 1, "axis": 0}
