@@ -2,16 +2,24 @@
 
 With a uniform grid velocity ``v`` the velocity gradient ``L_p = Σ_i v_i ⊗ ∇φ_ip = v ⊗ Σ_i ∇φ_ip``
 vanishes by the partition of unity, so ``F`` stays ``I`` and the stress zero; only round-off is
-left. What broke this for ugimp and cpgimp was not the weights but the grid: a node whose mass was
-below ``mass_eps`` (1e-12 of the lightest particle) got zero velocity. A GIMP domain that overlaps
-a node by ``δ`` grid units gives it ``φ ∝ δ²`` but ``∇φ ∝ δ`` (Bardenhagen & Kober 2004: the
-weight is the hat's integral over the domain, the gradient its end values), so when the leading
-corner of a translating box first crosses a node line the new node is grazed (``φ ~ 1e-13``) but
-its gradient weight (``~ 3e-7`` in 1D) is not negligible, and ``v_i = 0`` there put
-``−v ⊗ ∇φ_i`` into ``L``: σ/E ≈ 1e-12 and a velocity drift up to 3e-8·|v| before the fix.
-mpm and cpdi weights are linear in ``δ`` like their gradients (``∇φ/φ`` bounded), so they were not
-hit. Now such a node keeps ``v = (mv)/m`` (a mean of its particles' velocities, bounded since
-``φ ≥ 0``) and only its force term is dropped.
+left — provided every node with a gradient weight also has the true velocity. The GIMP weights
+themselves keep ``Σφ = 1`` and ``Σ∇φ = 0`` to an ulp even 1e5 cells from the origin (they are
+evaluated relative to each node); two things broke it:
+
+* the grid gave a node whose mass was below ``mass_eps`` (1e-12 of the lightest particle) zero
+  velocity. A GIMP domain that overlaps a node by ``δ`` grid units gives it ``φ ∝ δ²`` but
+  ``∇φ ∝ δ`` (Bardenhagen & Kober 2004: the weight is the hat's integral over the domain, the
+  gradient its end values), so when the leading corner of a translating box first crosses a node
+  line the new node is grazed (``φ ~ 1e-13``) while its gradient weight (``~3e-7`` in 1D) is not
+  negligible, and ``v_i = 0`` put ``−v ⊗ ∇φ_i`` into ``L``: σ/E ≈ 1e-12, drift up to 3e-8·|v|.
+  The same hit mpm, whose weight ``f`` and gradient ``1/Δx`` at a node are not proportional, for
+  a particle within round-off of a node (one particle per cell off the node lines: σ/E 5e-3).
+  Now such a node keeps ``v = (mv)/m`` (a mean of its particles' velocities, bounded since
+  ``φ ≥ 0``) and only its force term is dropped;
+* an mpm particle exactly on a node gave the cell's other node weight 0 (no mass at all: zero
+  velocity) but gradient ``±1/Δx``; its fraction is now at least ``2⁻⁶⁰`` (node weights unchanged
+  to the last bit, the other node holds some mass). cpdi's gradient weights vanish with its
+  weights, so it was never hit.
 
 Bounds. Each step the grid velocity differs from ``v`` by a few ulps (``(mv)/m`` rounded), the
 velocity gradient is that times ``Σ|∇φ|``, and ``F ← (I + Δt L) F`` adds at most about one ulp of 1
@@ -42,13 +50,13 @@ def _vec(a):
 
 
 def translate(tmp_path, dim, method, velocity, lo, hi, ppc=2, update="auto", origin=0.0,
-              cells=14, steps=STEPS, tag="box"):
+              cells=14, steps=STEPS, tag="box", h=H):
     """Run a free neo-Hookean box of ``ppc`` particles per cell at uniform ``velocity`` (no
     gravity, free faces) for ``steps`` steps; return (max |σ|/E, max |v − v0| / |v0|)."""
     text = f"""dim = {dim}
 [grid]
 origin = {_vec([origin] * dim)}
-cell_size = {H}
+cell_size = {h}
 cells = {[cells] * dim}
 [materials.m]
 model = "neo_hookean"
@@ -110,12 +118,27 @@ def test_translating_box_stays_unstressed(tmp_path, dim, method, update):
 def test_translating_box_off_the_grid_lines_stays_unstressed(tmp_path, method, ppc):
     """2D, the box shifted off the node lines by half a cell (ppc 1: every particle within
     round-off of a node, so the supports graze nodes that no other particle reaches) and by an
-    irrational-looking amount, at 3 m/s (0.03 cells per step)."""
+    irrational-looking amount, at 3 m/s (0.03 cells per step). Before the fix mpm at ppc 1 gave
+    σ/E 5e-3 (a particle within round-off of a node: its far node's mass fell below the grid's
+    threshold); ugimp, cpgimp and cpdi passed."""
     for shift in (0.05, 0.0123):
         s, dv = translate(tmp_path, 2, method, [3.0, -2.0], [0.3 + shift] * 2,
                           [0.9 + shift] * 2, ppc=ppc, tag=f"shift{shift}")
         assert s <= STEPS * 2 * EPS, (shift, s)
         assert dv <= STEPS * 2 * EPS, (shift, dv)
+
+
+@pytest.mark.parametrize("update", ["usl", "musl"])
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_particles_exactly_on_nodes_stay_unstressed(tmp_path, dim, method, update):
+    """One particle per cell exactly on the nodes (Δx = 0.125, binary-exact positions): a
+    particle's far node got weight 0 but gradient ±1/Δx and, lying outside the box, no mass and
+    so zero velocity (mpm before the fix: σ/E 9e-4..4e-3, drift 2e-4..1e-2)."""
+    s, dv = translate(tmp_path, dim, method, [3.0, -2.0, 1.0][:dim], [0.4375] * dim,
+                      [1.0625] * dim, ppc=1, update=update, h=0.125)
+    assert s <= STEPS * 2 * EPS, s
+    assert dv <= STEPS * 2 * EPS, dv
 
 
 @pytest.mark.parametrize("compiled", [True, False])

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from parmpm.jit import inline_kernel
-from parmpm.shapes.hat import SNAP
+from parmpm.shapes.hat import F_MIN, SNAP
 
 
 @inline_kernel
@@ -35,6 +35,14 @@ def cell_of(xi, base, jlo, jhi):
     if j < jlo or j > jhi:
         return -1, 0.0
     return j - base, f
+
+
+@inline_kernel
+def hat_cell_of(xi, base, jlo, jhi):
+    """:func:`cell_of` for standard MPM, whose fraction is at least ``F_MIN``: a particle exactly on
+    a node still gives the cell's other node some mass (:mod:`parmpm.shapes.hat`)."""
+    j, f = cell_of(xi, base, jlo, jhi)
+    return j, max(f, F_MIN)
 
 
 @inline_kernel

@@ -9,7 +9,7 @@ gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇�
 import math
 
 from parmpm.jit import loop_kernel
-from parmpm.kernels2d.cells import cell_of, note_patch
+from parmpm.kernels2d.cells import hat_cell_of, note_patch
 from parmpm.kernels2d.cpdi import G2P_MUSL_DEFORM, G2P_USL
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.particles import patch_id2
@@ -29,8 +29,8 @@ def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, 
         bx, by = base[p, 0], base[p, 1]
         jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
         for i in range(start[p], start[p + 1]):
-            jx, fx = cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
-            jy, fy = cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
+            jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
+            jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if jx < 0 or jy < 0:
                 if err[0] < 0:
                     err[0] = i
@@ -68,8 +68,8 @@ def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r
         bx, by = base[p, 0], base[p, 1]
         jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
         for i in range(start[p], start[p + 1]):
-            jx, fx = cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
-            jy, fy = cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
+            jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
+            jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if jx < 0 or jy < 0:
                 if err[0] < 0:
                     err[0] = i
@@ -101,8 +101,8 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
         jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
         for i in range(start[p], start[p + 1]):
             xx, xy = x[i, 0], x[i, 1]
-            jx, fx = cell_of((xx - ox) * ihx, bx, jlx, jhx)
-            jy, fy = cell_of((xy - oy) * ihy, by, jly, jhy)
+            jx, fx = hat_cell_of((xx - ox) * ihx, bx, jlx, jhx)
+            jy, fy = hat_cell_of((xy - oy) * ihy, by, jly, jhy)
             if jx < 0 or jy < 0:
                 if err[0] < 0:
                     err[0] = i

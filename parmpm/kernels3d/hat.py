@@ -10,7 +10,7 @@ full step). Grid rows as in :mod:`parmpm.kernels3d.cpdi`; node ``i0 + L0 (i1 + L
 import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
-from parmpm.kernels2d.cells import cell_of, note_patch
+from parmpm.kernels2d.cells import hat_cell_of, note_patch
 from parmpm.kernels3d.cpdi import G2P_MUSL_DEFORM, G2P_USL
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.particles import patch_id3
@@ -69,9 +69,9 @@ def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, 
         jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
         jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
         for i in range(start[p], start[p + 1]):
-            jx, fx = cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
-            jy, fy = cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
-            jz, fz = cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
+            jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
+            jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
+            jz, fz = hat_cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
             if jx < 0 or jy < 0 or jz < 0:
                 if err[0] < 0:
                     err[0] = i
@@ -114,9 +114,9 @@ def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r
         jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
         jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
         for i in range(start[p], start[p + 1]):
-            jx, fx = cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
-            jy, fy = cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
-            jz, fz = cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
+            jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
+            jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
+            jz, fz = hat_cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
             if jx < 0 or jy < 0 or jz < 0:
                 if err[0] < 0:
                     err[0] = i
@@ -150,9 +150,9 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
         jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
         for i in range(start[p], start[p + 1]):
             xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
-            jx, fx = cell_of((xx - ox) * ihx, bx, jlx, jhx)
-            jy, fy = cell_of((xy - oy) * ihy, by, jly, jhy)
-            jz, fz = cell_of((xz - oz) * ihz, bz, jlz, jhz)
+            jx, fx = hat_cell_of((xx - ox) * ihx, bx, jlx, jhx)
+            jy, fy = hat_cell_of((xy - oy) * ihy, by, jly, jhy)
+            jz, fz = hat_cell_of((xz - oz) * ihz, bz, jlz, jhz)
             if jx < 0 or jy < 0 or jz < 0:
                 if err[0] < 0:
                     err[0] = i

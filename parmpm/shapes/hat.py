@@ -3,12 +3,21 @@
 In grid units (``ξ = (x − origin)/Δx``) the hat of node ``j`` is ``S(ξ − j) = max(0, 1 − |ξ − j|)``;
 a point in cell ``⌊ξ⌋`` touches nodes ``⌊ξ⌋`` and ``⌊ξ⌋ + 1`` with weights ``1 − f`` and ``f``,
 ``f = ξ − ⌊ξ⌋``, and gradients ``∓1/Δx``.
+
+Standard MPM gives a point exactly on node ``j`` (``f = 0``) the fraction ``F_MIN = 2⁻⁶⁰``
+instead (:func:`mpm_axis`; :func:`parmpm.kernels2d.cells.hat_cell_of` in the 2D/3D kernels): node
+``j + 1`` then gets a weight far below round-off (``1 − f`` still rounds to 1, so node ``j``'s
+weight is unchanged) but not zero, so every node that the particle's gradient ``±1/Δx`` reaches
+also holds some of its mass and the grid gives it the particle's velocity, not an empty node's
+zero (which put ``−v/Δx`` into a rigidly translating body's velocity gradient). CPDI keeps the
+exact hat: its gradient weights vanish with its weights.
 """
 import math
 
 from parmpm.jit import helper_kernel
 
 SNAP = 1e-9  # grid units: round-off tolerance at the edge of the grid or of a patch's box
+F_MIN = 2.0 ** -60  # smallest fraction in a cell: 1 − F_MIN == 1 (see the module doc)
 
 
 @helper_kernel
@@ -35,3 +44,14 @@ def hat_axis(xi, base, nloc, nglob, inv_h, jk, wk, dwk, a):
     dwk[a, 0] = -inv_h
     dwk[a, 1] = inv_h
     return 2
+
+
+@helper_kernel
+def mpm_axis(xi, base, nloc, nglob, inv_h, jk, wk, dwk, a):
+    """:func:`hat_axis` for standard MPM: a point exactly on its cell's first node gives the
+    other node the weight ``F_MIN`` (module doc), as the 2D/3D kernels'
+    :func:`parmpm.kernels2d.cells.hat_cell_of` does."""
+    n = hat_axis(xi, base, nloc, nglob, inv_h, jk, wk, dwk, a)
+    if n > 0 and wk[a, 1] < F_MIN:
+        wk[a, 1] = F_MIN
+    return n

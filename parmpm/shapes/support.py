@@ -12,7 +12,7 @@ grid or beyond the patch's ghost layer.
 from parmpm.jit import helper_kernel
 from parmpm.shapes.cpdi import cpdi_support
 from parmpm.shapes.gimp import gimp_axis
-from parmpm.shapes.hat import hat_axis
+from parmpm.shapes.hat import mpm_axis
 from parmpm.shapes.scaling import scale_domain
 
 MPM, UGIMP, CPGIMP, CPDI = 0, 1, 2, 3
@@ -72,7 +72,7 @@ def particle_support(method, d, xi, F, lh0, R, C, base, nloc, nglob, inv_h,
                             jk, wk, dwk, idx, w, g)
     for k in range(d):
         if method == MPM:
-            nk[k] = hat_axis(xi[k], base[k], nloc[k], nglob[k], inv_h[k], jk, wk, dwk, k)
+            nk[k] = mpm_axis(xi[k], base[k], nloc[k], nglob[k], inv_h[k], jk, wk, dwk, k)
         else:
             half = lh0[k] * inv_h[k]
             if method == CPGIMP:
