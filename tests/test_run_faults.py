@@ -105,7 +105,8 @@ def test_sigterm_during_set_up_is_one_line_and_exit_130(tmp_path):
                              "import parmpm.simulation as s\n"
                              "orig = s.Simulation.__init__\n"
                              "def slow(self, *a, **k):\n"
-                             "    print('setting up', flush=True); time.sleep(60)\n"
+                             "    print('setting up', flush=True); t = time.time()\n"
+                             "    while time.time() - t < 100: pass  # busy, as set-up is\n"
                              "s.Simulation.__init__ = slow\n"
                              "sys.exit(main(['run', 'hanging_bar_1d', '--quiet', '-o', sys.argv[1]]))",
                              str(tmp_path / "o")],
