@@ -8,7 +8,8 @@ belong to a patch" and nothing of MPM. :mod:`~decomposition.layout` is index ari
 (locally and over MPI); :mod:`~decomposition.migrate` moves records between ranks;
 :mod:`~decomposition.patchset` keeps the live picture consistent on every rank.
 """
-from decomposition.comm import SerialComm, allreduce_max, is_parallel, ordered_sum, world
+from decomposition.comm import (SerialComm, allreduce_max, is_parallel, ordered_sum,
+                                ranks_on_this_node, world)
 from decomposition.halo import HaloPlan, accumulate, fill, halo_pairs
 from decomposition.layout import PatchLayout
 from decomposition.migrate import exchange, migrate
@@ -17,4 +18,4 @@ from decomposition.patchset import PatchSet
 
 __all__ = ["PatchLayout", "PatchSet", "HaloPlan", "accumulate", "fill", "halo_pairs", "migrate", "exchange",
            "active_patches", "assign", "imbalance", "morton_order", "SerialComm", "world",
-           "is_parallel", "allreduce_max", "ordered_sum"]
+           "is_parallel", "allreduce_max", "ordered_sum", "ranks_on_this_node"]

@@ -46,6 +46,19 @@ def is_parallel(comm) -> bool:
     return comm is not None and comm.Get_size() > 1
 
 
+def ranks_on_this_node(comm) -> int:
+    """How many ranks of ``comm`` share this node's memory (collective under MPI)."""
+    if not is_parallel(comm):
+        return 1
+    from mpi4py import MPI
+
+    node = comm.Split_type(MPI.COMM_TYPE_SHARED)
+    try:
+        return node.Get_size()
+    finally:
+        node.Free()
+
+
 def allreduce_max(comm, values: np.ndarray) -> np.ndarray:
     """Element-wise maximum of a float64 vector over all ranks (exact: max has no rounding)."""
     values = np.ascontiguousarray(values, dtype=np.float64)

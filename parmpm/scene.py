@@ -12,22 +12,26 @@ Scene reference (resolved form; "(default X)" marks optional keys; per-axis quan
 scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors (``min``,
 ``max``, ``center``, ``velocity``, ``g``) take a list of ``dim`` numbers, or a scalar in 1D):
 
-* top level: ``name`` (default: file stem / built-in name), ``description`` (default ""),
-  ``dim`` (1, 2 or 3; required).
+* top level: ``name`` (default: file stem / built-in name; 1 to 100 letters, digits, spaces,
+  ``_ - . +``, starting with a letter or digit: it names the output files), ``description``
+  (default ""), ``dim`` (1, 2 or 3; required). A scene file is a regular file of at most 1 MiB.
 * ``[grid]``: ``origin`` (default 0), ``cell_size`` (> 0, required), ``cells`` (ints > 0,
   required), ``patch_size`` (ints > 0, default 64 in 1D/2D, 16 in 3D; clipped to ``cells``),
-  ``ghost`` ("auto" or int >= 1, default "auto"), ``exterior`` ("auto" or int 0..64, default
+  ``ghost`` ("auto" or int from 1 to the largest cell count, default "auto"); every node
+  coordinate must resolve a cell (``|origin|`` and the extent below 1e12 cells), ``exterior`` ("auto" or int 0..64, default
   "auto": cells kept outside the faces, the face conditions staying on the faces; "auto" gives the
   ghost width on each face a body starts within one cell of, :func:`parmpm.stepper.exterior_cells`).
 * ``[materials.NAME]`` (at least one): ``model`` ("linear_elastic" | "neo_hookean"),
-  ``density`` (> 0), ``youngs_modulus`` (> 0), ``poisson_ratio`` (-1 < nu < 0.5); all required.
+  ``density`` (> 0), ``youngs_modulus`` (> 0), ``poisson_ratio`` (-1 < nu < 0.5); all required,
+  and together they must give a positive, finite wave speed (no subnormal moduli).
   Optional ``[materials.NAME.damage]``: ``onset`` (stretch >= 1, required), ``fracture``
   (> onset, required), ``softening`` ("linear" | "exponential", default linear), ``criterion``
   ("max_principal_stretch", the only one), ``freeze`` (0 < D <= 1 or "never", default 1: the damage at which a CPDI
   domain freezes, :mod:`parmpm.shapes.freeze`).
 * ``[[bodies]]`` (at least one): ``shape`` ("box", "disk" in 2D, "sphere" in 3D; default "box");
   box: ``min``, ``max``; disk/sphere: ``center``, ``radius``; ``material`` (required);
-  ``ppc`` (particles per cell per axis, default 2); ``velocity`` (default 0); optional
+  ``ppc`` (particles per cell per axis, 1 to 1000, default 2; a disk or sphere must hold at
+  least one point of its lattice); ``velocity`` (default 0); optional
   ``[bodies.vibration]`` (box only): ``amplitude`` (required), ``mode`` (default 1), ``axis``
   (default 0): initial velocity along ``axis`` is ``amplitude·sin(β_n (X − min[axis]))`` with
   ``β_n = (2n − 1)π / (2L)``, ``L`` the box length along ``axis`` (the first mode of a bar fixed
@@ -40,7 +44,8 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   its CPDI domains (GIMP domains stay axis-aligned). Every body's (turned) bounding box lies
   inside the grid.
 * ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi", default "cpdi"), ``lcr``
-  (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none"; default "2dx" for cpdi,
+  (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none", at most the grid's
+  extent; default "2dx" for cpdi,
   "none" otherwise, and any other value is an error with another interpolator), ``update``
   ("auto" | "usl" | "musl", default "auto": USL for cpdi, whose domains then keep tiling the body exactly, MUSL for the others, which USL destabilises through nearly empty nodes — see README), ``flip`` (0..1, default 1.0).
 * ``[gravity]``: ``g`` (default 0), ``ramp_time`` (>= 0 s, default 0: applied suddenly).
@@ -196,6 +201,10 @@ def builtin_scenes() -> dict[str, str]:
     return dict(sorted(out.items()))
 
 
+#: a scene file is a page of TOML; anything this large is not one (and would be read whole)
+MAX_SCENE_BYTES = 1 << 20
+
+
 def load_scene(source: str | Path, overrides: Iterable[str] = ()) -> Scene:
     """Load a scene: a built-in name (``"hanging_bar"``) or a path to a ``.toml`` file.
 
@@ -212,7 +221,12 @@ def load_scene(source: str | Path, overrides: Iterable[str] = ()) -> Scene:
         raise SceneError(one_line(
             f"scene '{text}': not a file and not a built-in scene (built-ins: "
             + ", ".join(builtin_scenes()) + ")"))
+    if path.exists() and not path.is_file():  # a FIFO or device would block or never end
+        raise SceneError(one_line(f"scene '{text}': not a regular file"))
     try:
+        if path.stat().st_size > MAX_SCENE_BYTES:
+            raise SceneError(one_line(f"scene '{text}': {path.stat().st_size} bytes; a scene "
+                                      f"file is at most {MAX_SCENE_BYTES} bytes"))
         body = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
@@ -231,6 +245,9 @@ def scene_from_toml(text: str, source: str = "<string>", overrides: Iterable[str
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(one_line(f"{where}: TOML syntax error: {exc}")) from None
+    except RecursionError:
+        raise SceneError(f"{where}: TOML nested too deeply (arrays or tables within each other "
+                         "hundreds of levels deep)") from None
     origins = apply_overrides(raw, overrides, where)
     if default_name is None:
         default_name = source.removeprefix("builtin:")

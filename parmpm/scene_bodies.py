@@ -20,6 +20,12 @@ _SHAPE_ONLY_KEYS = ("min", "max", "center", "radius")
 VIBRATION_KEYS = ("amplitude", "mode", "axis")
 
 
+#: the most particles per cell per axis: beyond it one cell holds more particles than a machine
+#: does, and counts overflow the integers arrays are indexed with (the memory check,
+#: parmpm.footprint, bounds the whole scene)
+MAX_PPC = 1000
+
+
 def _bodies(c: _Checker, raw: Any, dim: int, grid: dict, materials: dict) -> list:
     if isinstance(raw, dict):
         c.fail("bodies", "expected an array of tables ([[bodies]]), got a single table [bodies]")
@@ -80,6 +86,9 @@ def _body(c: _Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: d
                         f"[{lo[axis]!r}, {hi[axis]!r}]")
     out["material"] = material
     out["ppc"] = c.vector(f"{key}.ppc", t.get("ppc", 2), dim, "int>0")
+    if max(out["ppc"]) > MAX_PPC:
+        c.expected(f"{key}.ppc", f"integers from 1 to {MAX_PPC} (particles per cell per axis)",
+                   t.get("ppc"))
     out["velocity"] = c.vector(f"{key}.velocity", t.get("velocity", [0.0] * dim), dim, "float",
                                False)
     out["angular_velocity"] = None

@@ -14,8 +14,11 @@ Pure Python: no numpy, no MPI.
 
 from __future__ import annotations
 
+import math
+import re
 from typing import Any
 
+from parmpm.materials import lame
 from parmpm.scene_bodies import (BODY_KEYS, SHAPE_DIMS, SHAPE_KEYS, VIBRATION_KEYS,  # noqa: F401
                                  _bodies, rotated_box_bounds)
 from parmpm.scene_check import AXIS_NAMES, _Checker, lcr_length, show
@@ -52,6 +55,14 @@ DEFAULT_LCR = "2dx"
 # ---------------------------------------------------------------- sections
 
 
+#: a scene name becomes the output folder and file names, so it is kept to a safe set
+NAME_RE = re.compile(r"[A-Za-z0-9](?:[A-Za-z0-9_.+ -]{0,98}[A-Za-z0-9_.+-])?")
+NAME_EXPECTED = ("1 to 100 letters, digits, spaces, '_', '-', '.' or '+', starting with a "
+                 "letter or digit (it names the output files)")
+#: grid coordinates must resolve a cell: |origin| and the extent stay below this many cells
+MAX_COORDINATE_CELLS = 1e12
+
+
 def resolve(raw: dict, where: str, default_name: str,
             origins: dict[str, str] | None = None) -> dict:
     """Validate a raw scene dict and return the resolved scene (see module docstring)."""
@@ -59,9 +70,9 @@ def resolve(raw: dict, where: str, default_name: str,
     c.table("", raw, TOP_KEYS)
     dim = c.integer("dim", c.required("", raw, "dim", "1, 2 or 3"), "1, 2 or 3",
                     lambda d: d in DIMS)
-    name = c.string("name", raw.get("name", default_name), "a non-empty string")
-    if not name.strip():
-        c.expected("name", "a non-empty string", name)
+    name = c.string("name", raw.get("name", default_name), NAME_EXPECTED)
+    if not NAME_RE.fullmatch(name):  # it names folders and files: no paths, no surprises
+        c.expected("name", NAME_EXPECTED, name)
     out: dict[str, Any] = {
         "name": name,
         "description": c.string("description", raw.get("description", "")),
@@ -71,7 +82,8 @@ def resolve(raw: dict, where: str, default_name: str,
     out["materials"] = _materials(c, raw.get("materials", {}))
     out["bodies"] = _bodies(c, raw.get("bodies", []), dim, out["grid"], out["materials"])
     min_dx = min(out["grid"]["cell_size"])
-    out["method"] = _method(c, raw.get("method", {}), min_dx)
+    extent = max(n * h for n, h in zip(out["grid"]["cells"], out["grid"]["cell_size"]))
+    out["method"] = _method(c, raw.get("method", {}), min_dx, extent)
     out["gravity"] = _gravity(c, raw.get("gravity", {}), dim)
     damping = c.table("damping", raw.get("damping", {}), DAMPING_KEYS)
     out["damping"] = {"coefficient": c.number("damping.coefficient",
@@ -114,9 +126,18 @@ def _grid(c: _Checker, raw: Any, dim: int) -> dict:
                      dim, "int>0")
     origin = c.vector("grid.origin", t.get("origin", 0.0), dim, "float")
     patch = c.vector("grid.patch_size", t.get("patch_size", DEFAULT_PATCH_SIZE[dim]), dim, "int>0")
+    for k in range(dim):  # node coordinates must stay finite and tell cells apart
+        extent = cells[k] * cell_size[k]
+        far = max(abs(origin[k]), abs(origin[k] + extent))
+        if not math.isfinite(extent) or far > MAX_COORDINATE_CELLS * cell_size[k]:
+            c.fail("grid", f"axis {'xyz'[k]}: origin {origin[k]:g} m and {cells[k]} cells of "
+                           f"{cell_size[k]:g} m reach {far:g} m, which double precision cannot "
+                           f"resolve in cells of that size (keep |coordinates| below "
+                           f"{MAX_COORDINATE_CELLS:g} cells)")
     ghost = t.get("ghost", "auto")
     if ghost != "auto":
-        c.integer("grid.ghost", ghost, '"auto" or an integer >= 1', lambda g: g >= 1)
+        c.integer("grid.ghost", ghost, '"auto" or an integer from 1 to the largest cell count '
+                  f"({max(cells)})", lambda g: 1 <= g <= max(cells))
     exterior = t.get("exterior", "auto")  # cells kept outside every face (parmpm.stepper)
     if exterior != "auto":
         c.integer("grid.exterior", exterior, f'"auto" or an integer from 0 to {MAX_EXTERIOR} '
@@ -145,6 +166,15 @@ def _materials(c: _Checker, raw: Any) -> dict:
                 f"{key}.poisson_ratio", c.required(key, t, "poisson_ratio", "-1 < nu < 0.5"),
                 "a number with -1 < nu < 0.5", lambda x: -1 < x < 0.5),
         }
+        m = out[name]
+        lam, mu = lame(m["youngs_modulus"], m["poisson_ratio"])
+        c2 = (lam + 2 * mu) / m["density"]
+        if not (math.isfinite(c2) and c2 > 0 and math.isfinite(1 / m["density"])
+                and mu > 0 and math.isfinite(lam)):
+            c.fail(key, f"youngs_modulus {m['youngs_modulus']:g} Pa, poisson_ratio "
+                        f"{m['poisson_ratio']:g} and density {m['density']:g} give a wave speed "
+                        f"squared of {c2:g} m^2/s^2 (Lame constants {lam:g}, {mu:g}); expected a "
+                        "positive, finite wave speed (moduli and density of normal magnitude)")
         if t.get("damage") is not None:
             out[name]["damage"] = _damage(c, f"{key}.damage", t["damage"])
     return out
@@ -177,7 +207,7 @@ def _damage(c: _Checker, key: str, raw: Any) -> dict:
     }
 
 
-def _method(c: _Checker, raw: Any, min_dx: float) -> dict:
+def _method(c: _Checker, raw: Any, min_dx: float, grid_extent: float = math.inf) -> dict:
     t = c.table("method", raw, METHOD_KEYS)
     interp = c.choice("method.interpolator", t.get("interpolator", "cpdi"), INTERPOLATORS)
     lcr = t.get("lcr")
@@ -187,6 +217,10 @@ def _method(c: _Checker, raw: Any, min_dx: float) -> dict:
         length = lcr_length(lcr, min_dx)
     except ValueError as exc:
         c.expected("method.lcr", str(exc), lcr)
+    if length is not None and length > grid_extent:
+        c.fail("method.lcr", f"{show(lcr)} is {length:g} m, longer than the grid "
+                             f"({grid_extent:g} m): no domain can reach that far; use \"none\" "
+                             "for no cap, or a length within the grid")
     if interp != "cpdi" and length is not None:
         c.fail("method.lcr", f'only used by interpolator "cpdi", got {show(lcr)} with '
                              f'interpolator "{interp}" (leave it out or set it to "none")')

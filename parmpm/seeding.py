@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 
+from parmpm.errors import SceneError
 from parmpm.particles import Particles, patch_index
 
 
@@ -181,13 +182,17 @@ class Seeds:
         return P
 
 
+def fmt_spacing(spacing) -> str:
+    return ", ".join(f"{float(v):.4g}" for v in np.ravel(spacing))
+
+
 def seed_bodies(scene: dict, material_rows: dict[str, int]) -> Seeds:
     """Seed every body: ``ppc`` per cell per axis, domains tiling the body."""
     d = scene["dim"]
     h = np.asarray(scene["grid"]["cell_size"], float)
     origin = np.asarray(scene["grid"]["origin"], float)
     chunks = []
-    for body in scene["bodies"]:
+    for k, body in enumerate(scene["bodies"]):
         ppc = np.asarray(body["ppc"], float)
         turn = None
         if body["shape"] == "box":
@@ -206,6 +211,10 @@ def seed_bodies(scene: dict, material_rows: dict[str, int]) -> Seeds:
             n = np.ceil((c + r - lo) / spacing).astype(int)
             pts = _lattice(lo, lo + n * spacing, spacing)
             pts = pts[np.sum((pts - c) ** 2, axis=1) <= r * r]
+            if not len(pts):
+                raise SceneError(f"bodies.{k}: a {body['shape']} of radius {r:g} m holds no point "
+                                 f"of its particle lattice (spacing {fmt_spacing(spacing)} m); "
+                                 "enlarge the radius or raise ppc")
         chunks.append((pts, body, spacing, material_rows[body["material"]], turn))
     return Seeds(d, chunks)
 

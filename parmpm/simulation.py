@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from decomposition import PatchSet, SerialComm, allreduce_max
+from decomposition import PatchSet, SerialComm, allreduce_max, ranks_on_this_node
 from parmpm.errors import ParmpmError, RunInterrupted, SimulationError
+from parmpm.footprint import check_memory
 from parmpm.grid import BC_CODES
 from parmpm.log import get_logger
 from parmpm.measures import Measures
@@ -61,6 +62,7 @@ class Simulation(Measures):
         ghost = grid["ghost"]
         if ghost == "auto":
             ghost = interp.ghost_width(self.lcr, scene.min_dx)
+        self._check_memory(int(ghost))  # before anything of the scene's size is allocated
         # the patches cover the grid and its exterior layer (grid.exterior), the face conditions
         # stay on the user's faces (parmpm.stepper.exterior_cells)
         self.disc = Discretisation.from_grid(d, interp.code, self.lcr or 0.0, grid, int(ghost),
@@ -164,6 +166,17 @@ class Simulation(Measures):
             self.energy.restore(state.get("energy"))
             self.continues = {"run_id": (state.get("run") or {}).get("id"),
                               "checkpoint": str(checkpoint.path)}
+
+    def _check_memory(self, ghost: int) -> None:
+        """Refuse, on every rank, a scene this node's ranks cannot hold (:mod:`parmpm.footprint`)."""
+        problem = None
+        try:
+            check_memory(self.data, ghost, self.size, ranks_on_this_node(self.comm))
+        except ParmpmError as exc:
+            problem = str(exc)
+        problems = [p for p in self.comm.allgather(problem) if p]
+        if problems:
+            raise ParmpmError(problems[0])
 
     def _manufactured(self, A: float) -> None:
         """Drive the run with the manufactured solution's body force (:mod:`parmpm.manufactured`)."""

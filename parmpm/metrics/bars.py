@@ -59,7 +59,7 @@ class HangingBarMetrics(_History):
         g_axis_default = int(np.argmax(np.abs(gravity))) if np.any(gravity) else self.dim - 1
         cfg = scene_data.get("metrics") or {}
         self.axis = _axis_index(cfg.get("axis"), self.dim, g_axis_default)
-        self.g = float(np.linalg.norm(gravity))
+        self.g = math.hypot(*gravity)  # no overflow warning for an absurd g
         down = gravity[self.axis]
         self.up_sign = -1.0 if down > 0 else 1.0  # displacement · up_sign < 0 means downward
 

@@ -1,0 +1,167 @@
+"""Inputs nobody planned for: each is one line ``parmpm: error: …`` (exit 2), never a traceback,
+a hang or a machine run out of memory (issue: no input, fault or full disk hangs a run). The
+list is the one that found the defects; a bounded hypothesis fuzz feeds random values to every
+numeric scene key and requires a resolved scene or a SceneError, nothing else."""
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from parmpm.errors import ParmpmError, SceneError
+from parmpm.materials import lame
+from parmpm.footprint import available_bytes, check_memory, estimate
+from parmpm.scene import load_scene
+from parmpm.seeding import seed_bodies
+from test_cli import assert_one_line_error, parmpm as cli
+from test_mpi_ranks import mpirun
+
+QUIET = ["--quiet", "--set", "time.steps=2", "--set", "output.figure=false"]
+
+
+@pytest.mark.parametrize("scene,override,fragment", [
+    # before: ValueError from numpy (a disk that seeds no particle)
+    ("spinning_disk", "bodies.0.radius=1e-6", "holds no point of its particle lattice"),
+    # before: ValueError "dimensions are too large"
+    ("hanging_bar", "bodies.0.ppc=9223372036854775808", "integers from 1 to 1000"),
+    ("hanging_bar", "grid.cells=[1e9,1e9]", "positive integers"),
+    # before: OverflowError
+    ("hanging_bar", "grid.cell_size=1e308", "double precision cannot resolve"),
+    ("hanging_bar", "grid.origin=[1e20,0]", "double precision cannot resolve"),
+    ('hanging_bar', 'method.lcr="1e300dx"', "longer than the grid"),
+    # before: ran 180 s without output
+    ('hanging_bar', 'method.lcr="1e4dx"', "longer than the grid"),
+    # before: grew to 24 GB until the kernel killed it
+    ("hanging_bar", "grid.ghost=100000", "from 1 to the largest cell count (32)"),
+    # before: ZeroDivisionError (a subnormal modulus: zero wave speed)
+    ("hanging_bar", "materials.bar.youngs_modulus=5e-324", "wave speed"),
+    ("hanging_bar", "materials.bar.density=1e-320", "wave speed"),
+    # before: wrote outside parmpm-out/
+    ("hanging_bar", 'name="../../escaped"', "letters, digits"),
+    ("hanging_bar", 'name="a\\u0000b"', "letters, digits"),
+    ("hanging_bar", f'name="{"x" * 300}"', "1 to 100"),
+    # before: ran out of memory without a message
+    ("hanging_bar", "bodies.0.ppc=1000", "needs about"),
+])
+def test_bad_input_is_one_line(tmp_path, scene, override, fragment):
+    proc = cli("run", scene, *QUIET, "--set", override, "-o", str(tmp_path / "o"), cwd=tmp_path)
+    assert_one_line_error(proc, fragment)
+    assert not (tmp_path.parent / "escaped").exists()
+
+
+def test_deeply_nested_toml(tmp_path):
+    """Before: RecursionError from the TOML parser."""
+    path = tmp_path / "deep.toml"
+    path.write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
+    assert_one_line_error(cli("run", str(path), cwd=tmp_path), "nested too deeply")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+def test_fifo_as_scene_file(tmp_path):
+    """Before: blocked forever reading from the pipe."""
+    path = tmp_path / "pipe.toml"
+    os.mkfifo(path)
+    assert_one_line_error(cli("run", str(path), cwd=tmp_path, timeout=60), "not a regular file")
+
+
+def test_long_name_with_out_folder(tmp_path):
+    """A 300-character name used to become a file name longer than the file system allows."""
+    with pytest.raises(SceneError, match="1 to 100"):
+        load_scene("hanging_bar", [f'name="{"n" * 300}"'])
+    assert load_scene("hanging_bar", [f'name="{"n" * 100}"']).name == "n" * 100
+
+
+# --- the memory check ------------------------------------------------------------------------------
+def test_estimate_counts_what_a_run_holds():
+    data = load_scene("hanging_bar").data
+    est = estimate(data, ghost=2)
+    assert est["particles"] == 900  # 30 x 30 particles, counted from the lattice
+    assert est["nodes_per_patch"] == (8 + 2 * 2 + 1) ** 2
+    for scene in ("spinning_disk", "hanging_bar_3d"):
+        sd = load_scene(scene).data
+        seeded = seed_bodies(sd, {n: i for i, n in enumerate(sorted(sd["materials"]))}).n
+        assert 0.9 < estimate(sd, ghost=2)["particles"] / seeded < 1.1, scene
+    # more ranks: less each (the metrics' whole-scene share stays)
+    assert estimate(data, 2, ranks=4)["bytes_per_rank"] < est["bytes_per_rank"]
+
+
+def test_check_memory_refuses_with_one_line_and_respects_the_limit(monkeypatch):
+    data = load_scene("hanging_bar").data
+    need = estimate(data, 2)["bytes_per_rank"]
+    check_memory(data, 2, available=2 * need)  # fits
+    with pytest.raises(ParmpmError) as info:
+        check_memory(data, 2, ranks=1, ranks_here=1, available=need / 2)
+    assert "needs about" in str(info.value) and "\n" not in str(info.value)
+    with pytest.raises(ParmpmError, match="for the 3 rank"):
+        check_memory(data, 2, ranks=3, ranks_here=3, available=need * 0.9)
+    monkeypatch.setenv("PARMPM_MEMORY_LIMIT", "1.5K")
+    assert available_bytes() == 1536
+    with pytest.raises(ParmpmError, match="needs about"):
+        check_memory(data, 2)
+    for bad in ("lots", "-1G", "nan", "infG"):
+        monkeypatch.setenv("PARMPM_MEMORY_LIMIT", bad)
+        with pytest.raises(ParmpmError, match="PARMPM_MEMORY_LIMIT"):
+            available_bytes()
+
+
+def test_memory_limit_through_the_cli(tmp_path):
+    env = dict(os.environ, PARMPM_MEMORY_LIMIT="100K")
+    proc = subprocess.run([sys.executable, "-m", "parmpm", "run", "hanging_bar", *QUIET, "-o",
+                           str(tmp_path / "o")], capture_output=True, text=True, timeout=300,
+                          env=env, cwd=tmp_path)
+    assert_one_line_error(proc, "needs about", "which has 0.102 MB available")
+    assert not (tmp_path / "o").exists()  # refused before the folder was claimed
+
+
+@pytest.mark.mpi
+@pytest.mark.skipif(mpirun() is None, reason="no mpirun")
+def test_memory_refusal_under_two_ranks_prints_once(tmp_path):
+    env = dict(os.environ, PARMPM_MEMORY_LIMIT="100K")
+    proc = subprocess.run([mpirun(), "-n", "2", sys.executable, "-m", "parmpm", "run",
+                           "hanging_bar", *QUIET], capture_output=True, text=True, timeout=300,
+                          env=env, cwd=tmp_path)
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert proc.returncode == 2 and len(lines) == 1 and "for the 2 rank(s)" in lines[0], proc.stderr
+
+
+# --- fuzz ---------------------------------------------------------------------------------------
+NUMERIC_KEYS = ["grid.cell_size", "grid.cells", "grid.origin", "grid.patch_size", "grid.ghost",
+                "grid.exterior", "materials.bar.density", "materials.bar.youngs_modulus",
+                "materials.bar.poisson_ratio", "bodies.0.ppc", "bodies.0.min", "bodies.0.max",
+                "bodies.0.velocity", "method.lcr", "method.flip", "gravity.g", "gravity.ramp_time",
+                "damping.coefficient", "time.end", "time.steps", "time.cfl", "time.dt_max",
+                "time.max_energy_growth", "output.every", "output.every_steps",
+                "checkpoint.every", "checkpoint.keep", "metrics.every_steps"]
+NUMBERS = st.one_of(
+    st.sampled_from([0, -1, 1, 2**63, -(2**63), 1e-320, 5e-324, 1e308, -1e308]),
+    st.floats(allow_nan=True, allow_infinity=True), st.integers(-10**20, 10**20))
+VALUES = st.one_of(
+    NUMBERS.map(repr), st.lists(NUMBERS, max_size=4).map(lambda v: "[" + ",".join(map(repr, v)) + "]"),
+    st.sampled_from(['"x"', "true", "[]", "{}", '"1e999dx"', '"-2dx"', '"nan"', "nan", "inf", "-inf"]))
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(key=st.sampled_from(NUMERIC_KEYS), value=VALUES)
+def test_any_value_resolves_or_is_a_scene_error(key, value):
+    """A random value for a numeric key: a resolved scene whose numbers are finite, or a
+    SceneError with one line; never another exception."""
+    try:
+        scene = load_scene("hanging_bar", [f"{key}={value}"])
+    except SceneError as exc:
+        assert "\n" not in str(exc)
+        return
+    grid = scene.data["grid"]
+    assert all(math.isfinite(x) and x > 0 for x in grid["cell_size"])
+    assert all(math.isfinite(x) for x in grid["origin"])
+    extent = [n * h for n, h in zip(grid["cells"], grid["cell_size"])]
+    assert all(math.isfinite(x) for x in extent)  # the run's node coordinates
+    assert grid["ghost"] == "auto" or grid["ghost"] <= max(grid["cells"])
+    assert scene.lcr is None or scene.lcr <= max(extent)
+    m = scene.data["materials"]["bar"]
+    lam, mu = lame(m["youngs_modulus"], m["poisson_ratio"])
+    assert 0 < (lam + 2 * mu) / m["density"] < math.inf  # a time step exists
