@@ -11,6 +11,8 @@ estimate counts what dominates, from the resolved scene alone:
   with metrics, every rank also holds the whole scene's reference positions and masses;
 * the separation check of the bar metrics: up to ``max(4^dim, (2·ghost + 2)^dim)`` node ids per
   particle, in three tables;
+* the index arrays every rank keeps for every patch of the grid's bounding box (owner, count,
+  slot, node box: :data:`DENSE_PATCH_BYTES`);
 * patches: those within halo reach of a body's bounding box (an upper bound of what the run
   allocates), each ``(patch_size + 2·ghost + 1)^dim`` nodes of ``(1 + 4·dim)`` doubles, times
   :data:`PEAK_FACTOR` for the halo buffers.
@@ -31,6 +33,10 @@ from parmpm.errors import ParmpmError
 #: measured peak over the bare fields (a 2D cpdi run at 1e6 particles: 360 B per particle over
 #: 256 B of fields; the node blocks' halo buffers likewise)
 PEAK_FACTOR = 1.5
+#: bytes per patch of the whole (dense) patch grid that every rank keeps (measured 248 B with a
+#: 2.5e3 x 4e3 patch grid): counts, owners, slots
+#: and node boxes (decomposition.PatchLayout, PatchSet; parmpm.stepper.Discretisation)
+DENSE_PATCH_BYTES = 256
 #: metrics that count separated pieces (parmpm.measures.components: a node table per particle)
 COMPONENT_METRICS = ("hanging_bar", "tension_bar")
 #: the variable that overrides the memory available (bytes, or with a K, M, G or T suffix)
@@ -79,16 +85,18 @@ def estimate(data: dict, ghost: int, ranks: int = 1) -> dict:
             b = min(cells[k] - 1, math.floor((hi[k] - origin[k]) / h[k]) + ghost + 1)
             count *= max(0, b // psize[k] - a // psize[k] + 1)
         patches += count
-    patches = min(patches, math.prod(math.ceil(n / p) for n, p in zip(cells, psize)))
+    dense = math.prod(math.ceil(n / p) for n, p in zip(cells, psize))
+    patches = min(patches, dense)
     nodes = math.prod(p + 2 * ghost + 1 for p in psize)
     per_rank = PEAK_FACTOR * (particles * field_bytes(d) + patches * nodes * 8 * (1 + 4 * d)) / ranks
+    per_rank += DENSE_PATCH_BYTES * dense  # every rank indexes every patch of the bounding grid
     kind = data["metrics"]["kind"]
     if kind != "none":  # whole-scene x0, mass and patch of every particle
         per_rank += particles * 8 * (d + 2)
     if kind in COMPONENT_METRICS:  # the separation check's node table: K node ids per particle
         K = max(4 ** d, (2 * ghost + 2) ** d)
         per_rank += 3 * 8 * K * particles / ranks
-    return {"particles": particles, "patches": patches, "nodes_per_patch": nodes,
+    return {"particles": particles, "patches": patches, "dense_patches": dense, "nodes_per_patch": nodes,
             "bytes_per_rank": per_rank}
 
 
@@ -131,7 +139,8 @@ def check_memory(data: dict, ghost: int, ranks: int = 1, ranks_here: int = 1,
         raise ParmpmError(
             f"scene '{data['name']}' needs about {_gb(est['bytes_per_rank'])} per rank "
             f"({est['particles']:.3g} particles, {est['patches']:.3g} patches of "
-            f"{est['nodes_per_patch']:.3g} nodes, ghost {ghost} cells, {ranks} rank(s)), "
+            f"{est['nodes_per_patch']:.3g} nodes of {est['dense_patches']:.3g} in the grid, "
+            f"ghost {ghost} cells, {ranks} rank(s)), "
             f"{_gb(need)} for the {ranks_here} rank(s) on this node, which has {_gb(available)} "
             f"available; use fewer particles or cells, a smaller ghost width or l_cr, or more "
             f"nodes ({LIMIT_VARIABLE} overrides the limit)")

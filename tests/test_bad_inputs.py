@@ -45,8 +45,9 @@ QUIET = ["--quiet", "--set", "time.steps=2", "--set", "output.figure=false"]
     ("hanging_bar", 'name="../../escaped"', "letters, digits"),
     ("hanging_bar", 'name="a\\u0000b"', "letters, digits"),
     ("hanging_bar", f'name="{"x" * 300}"', "1 to 100"),
-    # before: ran out of memory without a message
+    # before: ran out of memory without a message (a huge ppc; 1.6e16 patches to index)
     ("hanging_bar", "bodies.0.ppc=1000", "needs about"),
+    ("hanging_bar", "grid.cells=[1000000000,1000000000]", "of 1.56e+16 in the grid"),
 ])
 def test_bad_input_is_one_line(tmp_path, scene, override, fragment):
     proc = cli("run", scene, *QUIET, "--set", override, "-o", str(tmp_path / "o"), cwd=tmp_path)
