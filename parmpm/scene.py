@@ -44,8 +44,8 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   its CPDI domains (GIMP domains stay axis-aligned). Every body's (turned) bounding box lies
   inside the grid.
 * ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi", default "cpdi"), ``lcr``
-  (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none", at most the grid's
-  extent; default "2dx" for cpdi,
+  (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none", at most the largest
+  cell count or 64 cells, whichever is more; default "2dx" for cpdi,
   "none" otherwise, and any other value is an error with another interpolator), ``update``
   ("auto" | "usl" | "musl", default "auto": USL for cpdi, whose domains then keep tiling the body exactly, MUSL for the others, which USL destabilises through nearly empty nodes — see README), ``flip`` (0..1, default 1.0).
 * ``[gravity]``: ``g`` (default 0), ``ramp_time`` (>= 0 s, default 0: applied suddenly).

@@ -82,8 +82,9 @@ def resolve(raw: dict, where: str, default_name: str,
     out["materials"] = _materials(c, raw.get("materials", {}))
     out["bodies"] = _bodies(c, raw.get("bodies", []), dim, out["grid"], out["materials"])
     min_dx = min(out["grid"]["cell_size"])
-    extent = max(n * h for n, h in zip(out["grid"]["cells"], out["grid"]["cell_size"]))
-    out["method"] = _method(c, raw.get("method", {}), min_dx, extent)
+    # an l_cr past the grid caps nothing, and its ghost width must still be allocated
+    max_cells = max(max(out["grid"]["cells"]), MAX_EXTERIOR)
+    out["method"] = _method(c, raw.get("method", {}), min_dx, max_cells)
     out["gravity"] = _gravity(c, raw.get("gravity", {}), dim)
     damping = c.table("damping", raw.get("damping", {}), DAMPING_KEYS)
     out["damping"] = {"coefficient": c.number("damping.coefficient",
@@ -207,7 +208,8 @@ def _damage(c: _Checker, key: str, raw: Any) -> dict:
     }
 
 
-def _method(c: _Checker, raw: Any, min_dx: float, grid_extent: float = math.inf) -> dict:
+def _method(c: _Checker, raw: Any, min_dx: float, max_cells: float = math.inf) -> dict:
+    """``max_cells``: the longest l_cr in cells (it sets the ghost width)."""
     t = c.table("method", raw, METHOD_KEYS)
     interp = c.choice("method.interpolator", t.get("interpolator", "cpdi"), INTERPOLATORS)
     lcr = t.get("lcr")
@@ -217,10 +219,10 @@ def _method(c: _Checker, raw: Any, min_dx: float, grid_extent: float = math.inf)
         length = lcr_length(lcr, min_dx)
     except ValueError as exc:
         c.expected("method.lcr", str(exc), lcr)
-    if length is not None and length > grid_extent:
-        c.fail("method.lcr", f"{show(lcr)} is {length:g} m, longer than the grid "
-                             f"({grid_extent:g} m): no domain can reach that far; use \"none\" "
-                             "for no cap, or a length within the grid")
+    if length is not None and length > max_cells * min_dx:
+        c.fail("method.lcr", f"{show(lcr)} is {length / min_dx:g} cells long, more than the grid "
+                             f"spans or a ghost layer may be wide ({max_cells} cells): use "
+                             "\"none\" for no cap, or a shorter length")
     if interp != "cpdi" and length is not None:
         c.fail("method.lcr", f'only used by interpolator "cpdi", got {show(lcr)} with '
                              f'interpolator "{interp}" (leave it out or set it to "none")')
