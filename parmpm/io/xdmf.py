@@ -14,7 +14,7 @@ line, without a chained traceback: ``disk full writing '<name>.h5': N MB needed,
 when the free space (checked before each snapshot against its size) is short, or the system's
 reason otherwise. The writer then closes: the index keeps the snapshots written before, and
 :meth:`SnapshotWriter.close` does nothing more. HDF5 writes through
-:class:`parmpm.io.checkpoint.GuardedFile`, so it never sees a failed write (HDF5 crashes the
+:class:`parmpm.io.guarded_file.GuardedFile`, so it never sees a failed write (HDF5 crashes the
 process when it closes a file whose writes failed); a write error is found after each snapshot.
 
 meshio's ``TimeSeriesReader`` reads it back: ``read_points_cells()`` gives the first snapshot's
@@ -39,7 +39,7 @@ from xml.etree import ElementTree as ET
 import numpy as np
 
 from parmpm.errors import ParmpmError
-from parmpm.io.checkpoint import GuardedFile, space_message
+from parmpm.io.guarded_file import GuardedFile, space_message
 
 logger = logging.getLogger(__name__)
 
