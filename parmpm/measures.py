@@ -14,7 +14,8 @@ import numpy as np
 
 from decomposition import allreduce_max, ordered_sum
 from parmpm.errors import SimulationError
-from parmpm.stepper import PHASES, WORK_PHASES, reach_message, support_reach
+from parmpm.reach import reach_message, support_reach
+from parmpm.stepper import PHASES, WORK_PHASES
 from parmpm.transfer import support_nodes
 
 

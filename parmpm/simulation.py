@@ -32,7 +32,8 @@ from parmpm.progress import Progress
 from parmpm.run_files import RunFiles, agree
 from parmpm.schedule import Schedule
 from parmpm.shapes import CPDI, INTERPOLATORS
-from parmpm.stepper import Discretisation, Stepper, exterior_cells, fmt_vec
+from parmpm.reach import fmt_vec
+from parmpm.stepper import Discretisation, Stepper, exterior_cells
 from parmpm.transfer import max_speed
 
 log = get_logger(__name__)

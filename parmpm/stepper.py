@@ -30,6 +30,7 @@ from parmpm.materials.damage import COL_MODEL
 from parmpm.shapes import CPDI
 from parmpm.shapes.freeze import freeze_domains
 from parmpm.particles import Particles, locate_patches
+from parmpm.reach import fmt_vec, grid_extent, reach_message
 from parmpm.transfer import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL, g2p, p2g, p2g_momentum
 
 #: dimension → {interpolator code → (p2g, p2g_momentum, g2p)} of the hand-specialised kernels
@@ -192,7 +193,7 @@ class Stepper:
         return t
 
     def _p2g(self, bforce: np.ndarray) -> None:
-        P, D = self.P, self.disc
+        P = self.P
         if self.kernels is not None:
             self.kernels[0](*self._args_fast(), P.x, P.v, P.F, P.r0, P.mass, P.vol0, P.stress,
                               bforce, self.gsum_block, self.err)
@@ -374,94 +375,6 @@ class Stepper:
         self.migrated += int(np.sum(dest != ps.rank))
         P.replace(migrate(P.fields(), dest, self.comm, None))
         self._patches_changed()
-
-
-def fmt_vec(v) -> str:
-    return "(" + ", ".join(f"{float(c):.4g}" for c in np.atleast_1d(v)) + ")"
-
-
-def support_reach(stepper: Stepper, i: int) -> tuple[float, bool]:
-    """(Longest reach of particle ``i``'s support from its centre, is the support on the grid?)."""
-    from parmpm.shapes import CPDI, CPGIMP
-    from parmpm.shapes.scaling import longest_corner
-    from parmpm.shapes.support import domain_matrix
-
-    D, P = stepper.disc, stepper.P
-    if D.method == CPDI:
-        R = np.zeros((3, 3))
-        domain_matrix(D.dim, D.method, D.lcr, P.F[i], P.r0[i], R)
-        reach = longest_corner(D.dim, R)
-    elif D.method == CPGIMP:
-        reach = float(np.max(P.lh0[i] * np.abs(np.diag(P.F[i]))))
-    else:
-        reach = float(np.max(P.lh0[i]))
-    x, half = P.x[i], support_half_widths(stepper, i)
-    inside = (np.all(x - half >= D.origin)
-              and np.all(x + half <= D.origin + D.h * np.asarray(D.layout.cells)))
-    return reach, bool(inside)
-
-
-def support_half_widths(stepper: Stepper, i: int) -> np.ndarray:
-    """Half-extent per axis of particle ``i``'s support about its centre: the GIMP half-widths,
-    or the bounding box of the CPDI corners ``x ± Σ_k |R_ak|`` (as interpolated, after scaling)."""
-    from parmpm.shapes import CPDI, CPGIMP
-    from parmpm.shapes.support import domain_matrix
-
-    D, P = stepper.disc, stepper.P
-    d = D.dim
-    if D.method == CPDI:
-        R = np.zeros((3, 3))
-        domain_matrix(d, D.method, D.lcr, P.F[i], P.r0[i], R)
-        return np.abs(R[:d, :d]).sum(axis=1)
-    if D.method == CPGIMP:
-        return P.lh0[i] * np.abs(np.diag(P.F[i]))
-    return np.array(P.lh0[i], float)
-
-
-def reach_message(stepper: Stepper, i: int, phase: str) -> str:
-    """The one-line explanation of a particle whose support leaves its patch's ghost layer."""
-    D, P = stepper.disc, stepper.P
-    g, dmin = D.layout.ghost, float(D.h.min())
-    reach, inside = support_reach(stepper, i)
-    x = P.x[i]
-    where = "beyond the ghost layer of its patch" if inside else "outside the grid"
-    hint = (f"use method.lcr <= {g}dx ({g * dmin:.4g} m) or a larger grid.ghost"
-            if inside else outside_hint(D, stepper.bc, x, support_half_widths(stepper, i)))
-    return (f"particle {P.gid[i]} at {fmt_vec(x)} reaches {where} in {phase} "
-            f"(domain reach {reach:.4g} m = {reach / dmin:.3g} cells, ghost width {g} cells); {hint}")
-
-
-def grid_extent(D: Discretisation) -> str:
-    """The computational grid's box in words, saying when it includes an exterior layer."""
-    text = f"origin {fmt_vec(D.origin)}, extent {fmt_vec(D.origin + D.h * D.layout.cells)}"
-    if np.any(D.exterior_lo) or np.any(D.exterior_hi):
-        text += " with the grid.exterior layer"
-    return text
-
-
-def outside_hint(D: Discretisation, bc: np.ndarray, x: np.ndarray, half: np.ndarray) -> str:
-    """What would hold a support of half-widths ``half`` at ``x`` that crosses the grid's edge:
-    the face it crosses, by how many cells, and the ``grid.exterior`` layer (cells kept outside
-    every face, the boundary conditions staying on the faces) that holds such a support wherever
-    its centre is inside the physical grid; past a free face, adding cells there also does."""
-    lo = D.origin
-    hi = D.origin + D.h * np.asarray(D.layout.cells)
-    for k in range(D.dim):
-        for side, past in ((0, lo[k] - (x[k] - half[k])), (1, x[k] + half[k] - hi[k])):
-            if past <= 0:
-                continue
-            face = f"{'xyz'[k]}_{('min', 'max')[side]}"
-            cells = math.ceil(past / D.h[k] - 1e-9)
-            pad = (D.exterior_lo, D.exterior_hi)[side][k]
-            # the ghost width holds any bounded support whose centre is inside the physical grid
-            need = max(int(D.layout.ghost), math.ceil(half[k] / D.h[k] - 1e-9), int(pad) + cells)
-            text = (f"it crosses the {face} face by {past / D.h[k]:.3g} cells: set grid.exterior = "
-                    f"{need} (cells kept outside every face; the boundary conditions stay on the faces)")
-            if bc[k, side] == 0:  # a free face: moving it outwards changes nothing else
-                text += (f" or add {cells} cell{'s' * (cells != 1)} on the {face} side "
-                         "(grid.cells, grid.origin)")
-            return text
-    return "enlarge the grid"
 
 
 def exterior_cells(data: dict, ghost: int) -> tuple[np.ndarray, np.ndarray]:
