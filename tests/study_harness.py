@@ -5,19 +5,12 @@ from __future__ import annotations
 import csv
 import math
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPTS = REPO / "run_scripts"
-
-
-def mpirun() -> str | None:
-    """The ``mpirun`` next to this Python (the venv's MPICH wheel), else the one on PATH."""
-    beside = Path(sys.executable).parent / "mpirun"
-    return str(beside) if beside.exists() else shutil.which("mpirun")
 
 
 def run_quick(script: str, out: Path, prefix=(), extra=(), timeout=150) -> Path:

@@ -19,7 +19,7 @@ from parmpm.footprint import available_bytes, check_memory, estimate
 from parmpm.scene import load_scene
 from parmpm.seeding import seed_bodies
 from test_cli import assert_one_line_error, parmpm as cli
-from test_mpi_ranks import mpirun
+from mpi_launch import mpirun, needs_mpi
 
 QUIET = ["--quiet", "--set", "time.steps=2", "--set", "output.figure=false"]
 
@@ -119,8 +119,7 @@ def test_memory_limit_through_the_cli(tmp_path):
     assert not (tmp_path / "o").exists()  # refused before the folder was claimed
 
 
-@pytest.mark.mpi
-@pytest.mark.skipif(mpirun() is None, reason="no mpirun")
+@needs_mpi
 def test_memory_refusal_under_two_ranks_prints_once(tmp_path):
     env = dict(os.environ, PARMPM_MEMORY_LIMIT="100K")
     proc = subprocess.run([mpirun(), "-n", "2", sys.executable, "-m", "parmpm", "run",

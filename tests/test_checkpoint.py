@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from parmpm.__main__ import main
-from test_mpi_ranks import CROSSING, mpirun
+from mpi_launch import mpirun, needs_mpi
+from test_mpi_ranks import CROSSING
 
 QUIET = ["--quiet"]
 OFF = ["--set", "output.snapshots=false", "--set", "output.figure=false"]
@@ -43,7 +44,6 @@ def _same(a, b):
     assert (aa["step"], aa["time"], aa["dt"], aa["vmax"]) == (ab["step"], ab["time"], ab["dt"], ab["vmax"])
 
 
-needs_mpi = pytest.mark.skipif(mpirun() is None, reason="no mpirun (install the 'mpich' extra)")
 
 
 @pytest.fixture(scope="module")
@@ -173,6 +173,7 @@ KILL_WHILE_WRITING = """
 import os, sys
 from parmpm.io import checkpoint
 from parmpm.__main__ import main
+from mpi_launch import mpirun, needs_mpi
 orig = checkpoint.CheckpointWriter.write
 def write(self, lo, block):
     orig(self, lo, block)

@@ -11,7 +11,6 @@ from __future__ import annotations
 import io
 import logging
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -20,6 +19,7 @@ import pytest
 
 import parmpm.__main__ as cli
 from parmpm.errors import SceneError
+from mpi_launch import mpirun, needs_mpi
 
 REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 120
@@ -110,16 +110,10 @@ def test_bad_set(tmp_path, override, fragment):
     assert not (tmp_path / "out").exists()  # rejected before the run starts
 
 
-def _mpirun() -> str | None:
-    beside = Path(sys.executable).parent / "mpirun"
-    return str(beside) if beside.exists() else shutil.which("mpirun")
-
-
-@pytest.mark.mpi
-@pytest.mark.skipif(_mpirun() is None, reason="no mpirun (install the 'mpich' extra)")
+@needs_mpi
 def test_bad_scene_under_mpirun_prints_once(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    proc = subprocess.run([_mpirun(), "-n", "2", sys.executable, "-m", "parmpm", "run", "missing.toml"],
+    proc = subprocess.run([mpirun(), "-n", "2", sys.executable, "-m", "parmpm", "run", "missing.toml"],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
     assert_one_line_error(proc, "missing.toml")
 

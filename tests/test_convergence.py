@@ -14,20 +14,15 @@ What is asserted is what the script's docstring and VERIFICATION.md expect:
 """
 import csv
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from mpi_launch import mpirun, needs_mpi
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "run_scripts" / "convergence.py"
-
-
-def mpirun() -> str | None:
-    beside = Path(sys.executable).parent / "mpirun"
-    return str(beside) if beside.exists() else shutil.which("mpirun")
 
 
 def _read(path: Path) -> list[dict]:
@@ -92,8 +87,7 @@ def test_quick_writes_figures(quick):
         assert path.is_file() and 10_000 < path.stat().st_size < 300_000, name
 
 
-@pytest.mark.mpi
-@pytest.mark.skipif(mpirun() is None, reason="no mpirun (install the 'mpich' extra)")
+@needs_mpi
 def test_two_ranks_give_the_same_csv(quick, tmp_path):
     """2D manufactured solution and the bars (their observers gather and reduce over ranks)."""
     out = _run([mpirun(), "-n", "2"], tmp_path / "np2",

@@ -12,7 +12,6 @@ faces (as Uintah's extra cells).
 * 1 and 2 ranks give the same particles bit for bit (mpirun).
 """
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -24,6 +23,7 @@ import parmpm
 from parmpm.errors import SceneError, SimulationError
 from parmpm.simulation import Simulation
 from parmpm.stepper import Discretisation, exterior_cells
+from mpi_launch import mpirun, needs_mpi
 
 HERE = Path(__file__).parent
 QUIET = ["output.snapshots=false", "output.figure=false"]
@@ -232,13 +232,7 @@ def test_a_layer_nobody_reaches_changes_round_off_only(tmp_path):
     np.testing.assert_allclose(v2, v0, rtol=0, atol=1e-12)  # measured 8e-14 (|v| up to 28 m/s)
 
 
-def _mpirun():
-    beside = Path(sys.executable).parent / "mpirun"
-    return str(beside) if beside.exists() else shutil.which("mpirun")
-
-
-@pytest.mark.mpi
-@pytest.mark.skipif(_mpirun() is None, reason="no mpirun (install the 'mpich' extra)")
+@needs_mpi
 def test_rank_independent_with_a_layer(tmp_path):
     """The wall scene (GIMP domains in the layer, patches of 3 cells) and the one-cell CPDI
     particle give the same particles bit for bit on 1 and 2 ranks."""
@@ -255,7 +249,7 @@ def test_rank_independent_with_a_layer(tmp_path):
     for n in (1, 2):
         folder = tmp_path / f"np{n}"
         folder.mkdir()
-        proc = subprocess.run([_mpirun(), "-n", str(n), sys.executable, str(HERE / "mpi_driver.py"),
+        proc = subprocess.run([mpirun(), "-n", str(n), sys.executable, str(HERE / "mpi_driver.py"),
                                str(folder), str(spec)], capture_output=True, text=True, timeout=400)
         assert proc.returncode == 0, f"{n} ranks failed:\n{proc.stderr[-3000:]}"
         got[n] = folder

@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import pytest
 
-from study_harness import mpirun, num, read_csv, run_quick
+from study_harness import num, read_csv, run_quick
+from mpi_launch import mpirun, needs_mpi
 
 DX, L_BAR = 0.025, 0.8
 QUICK_MAX_STRETCH = 1.6
@@ -109,8 +110,7 @@ def test_summary_matches_the_case_rows(quick):
             assert num(s["mean"]) == pytest.approx(sum(sep) / len(sep))
 
 
-@pytest.mark.mpi
-@pytest.mark.skipif(mpirun() is None, reason="no mpirun (install the 'mpich' extra)")
+@needs_mpi
 def test_two_ranks_give_the_same_rows(quick, tmp_path):
     out, rows, _ = quick
     # one rotated case in both modes (the quick mode's 30°, offset (0, 0)), to keep the test short

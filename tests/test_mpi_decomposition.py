@@ -7,10 +7,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from mpi_launch import MPI_MARKS, mpirun
 
-from test_mpi_ranks import mpirun
 
-pytestmark = pytest.mark.skipif(mpirun() is None, reason="no mpirun (install the 'mpich' extra)")
+pytestmark = MPI_MARKS  # every test here launches mpirun
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 4])

@@ -6,9 +6,10 @@ import time
 
 import pytest
 
-from test_mpi_ranks import CROSSING, mpirun
+from mpi_launch import MPI_MARKS, mpirun
+from test_mpi_ranks import CROSSING
 
-pytestmark = pytest.mark.skipif(mpirun() is None, reason="no mpirun (install the 'mpich' extra)")
+pytestmark = MPI_MARKS  # every test here launches mpirun
 
 
 def _run2(tmp_path, *args):

@@ -9,13 +9,13 @@ Each rank count is one ``mpirun`` subprocess (with a timeout, so a hang fails) r
 through ``tests/mpi_driver.py``.
 """
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from mpi_launch import MPI_MARKS, mpirun
 
 HERE = Path(__file__).parent
 OFF = ["output.snapshots=false", "output.figure=false"]
@@ -69,12 +69,7 @@ RANKS = (1, 2, 3, 4)
 FIELDS = ("gid", "x", "v", "F", "stress", "damage")
 
 
-def mpirun() -> str | None:
-    beside = Path(sys.executable).parent / "mpirun"
-    return str(beside) if beside.exists() else shutil.which("mpirun")
-
-
-pytestmark = pytest.mark.skipif(mpirun() is None, reason="no mpirun (install the 'mpich' extra)")
+pytestmark = MPI_MARKS  # every test here launches mpirun
 
 
 @pytest.fixture(scope="module")

@@ -20,11 +20,10 @@ from parmpm.errors import ParmpmError, RunInterrupted
 from parmpm.schedule import Schedule
 from parmpm.simulation import Simulation
 from test_cli import assert_one_line_error, parmpm as cli
-from test_mpi_ranks import mpirun
+from mpi_launch import mpirun, needs_mpi
 
 QUIET = ["--quiet"]
 OFF = ["--set", "output.snapshots=false", "--set", "output.figure=false"]
-needs_mpi = pytest.mark.skipif(mpirun() is None, reason="no mpirun (install the 'mpich' extra)")
 
 
 # --- schedules -------------------------------------------------------------------------------------
@@ -266,7 +265,6 @@ def test_a_blow_up_under_dt_max_names_dt_max(tmp_path):
     assert "time.dt_max" in sim._unstable_hint() and "time.cfl" not in sim._unstable_hint()
 
 
-@pytest.mark.mpi
 @needs_mpi
 def test_huge_gravity_gives_the_same_message_on_one_and_two_ranks(tmp_path):
     """Before: 'non-finite velocity' on 1 rank, 'left the grid' on 2 (the 1-rank path skipped
@@ -318,7 +316,6 @@ def test_run_is_the_default_command_also_with_options(tmp_path):
     assert (tmp_path / "parmpm-out" / "hanging_bar" / "summary.json").is_file()
 
 
-@pytest.mark.mpi
 @needs_mpi
 def test_argument_errors_print_once_under_mpirun(tmp_path):
     proc = subprocess.run([mpirun(), "-n", "2", sys.executable, "-m", "parmpm", "run", "--bogus"],
@@ -327,7 +324,6 @@ def test_argument_errors_print_once_under_mpirun(tmp_path):
     assert proc.stderr.count("unrecognized arguments: --bogus") == 1, proc.stderr
 
 
-@pytest.mark.mpi
 @needs_mpi
 def test_new_run_errors_print_once_under_two_ranks(tmp_path):
     """The folder refusal (found on rank 0) and the blow-up (found together) end both ranks with

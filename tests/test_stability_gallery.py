@@ -15,22 +15,17 @@ What is asserted is what the solver finds and the script's docstring explains:
 """
 import csv
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from mpi_launch import mpirun, needs_mpi
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "run_scripts" / "stability_gallery.py"
 MPI_CASES = "2d_mpm_ppc2_*,2d_cpdi_ppc2_*,2d_cpdi_lcr1.2dx3_ppc3_*"
 EXTENSION = ("mpm", "ugimp", "cpgimp")
-
-
-def mpirun() -> str | None:
-    beside = Path(sys.executable).parent / "mpirun"
-    return str(beside) if beside.exists() else shutil.which("mpirun")
 
 
 def _run(prefix: list[str], out: Path, extra=(), timeout=120) -> list[dict]:
@@ -131,8 +126,7 @@ def test_quick_writes_csv_and_figures(quick):
         assert path.is_file() and 10_000 < path.stat().st_size < 300_000, name
 
 
-@pytest.mark.mpi
-@pytest.mark.skipif(mpirun() is None, reason="no mpirun (install the 'mpich' extra)")
+@needs_mpi
 def test_two_ranks_give_the_same_csv(quick, tmp_path):
     _, serial = quick
     rows = _run([mpirun(), "-n", "2"], tmp_path / "np2", ["--cases", MPI_CASES], timeout=120)

@@ -20,7 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from study_harness import mpirun, num, read_csv, run_quick
+from study_harness import num, read_csv, run_quick
+from mpi_launch import mpirun, needs_mpi
 
 METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
 
@@ -57,8 +58,7 @@ def test_rotation_cpgimp_domains_collapse_cpdi_keep_their_area(rotation):
     _png_ok(out / "rotation.png")
 
 
-@pytest.mark.mpi
-@pytest.mark.skipif(mpirun() is None, reason="no mpirun (install the 'mpich' extra)")
+@needs_mpi
 def test_rotation_two_ranks_give_the_same_csv(rotation, tmp_path):
     out, _ = rotation
     got = run_quick("rotation.py", tmp_path / "np2", prefix=[mpirun(), "-n", "2"])
