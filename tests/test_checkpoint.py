@@ -173,7 +173,6 @@ KILL_WHILE_WRITING = """
 import os, sys
 from parmpm.io import checkpoint
 from parmpm.__main__ import main
-from mpi_launch import mpirun, needs_mpi
 orig = checkpoint.CheckpointWriter.write
 def write(self, lo, block):
     orig(self, lo, block)
