@@ -10,7 +10,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from parmpm.stepper import Discretisation, Stepper
+    from parmpm.discretisation import Discretisation
+    from parmpm.stepper import Stepper
 
 
 def fmt_vec(v) -> str:

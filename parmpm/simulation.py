@@ -33,7 +33,8 @@ from parmpm.run_files import RunFiles, agree
 from parmpm.schedule import Schedule
 from parmpm.shapes import CPDI, INTERPOLATORS
 from parmpm.reach import fmt_vec
-from parmpm.stepper import Discretisation, Stepper, exterior_cells
+from parmpm.discretisation import Discretisation, exterior_cells
+from parmpm.stepper import Stepper
 from parmpm.transfer import max_speed
 
 log = get_logger(__name__)

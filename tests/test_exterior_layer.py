@@ -22,7 +22,7 @@ import pytest
 import parmpm
 from parmpm.errors import SceneError, SimulationError
 from parmpm.simulation import Simulation
-from parmpm.stepper import Discretisation, exterior_cells
+from parmpm.discretisation import Discretisation, exterior_cells
 from mpi_launch import mpirun, needs_mpi
 
 HERE = Path(__file__).parent
