@@ -25,12 +25,13 @@ from parmpm.errors import SimulationError
 from parmpm.grid import grid_block, grid_update, region_node_ranges
 from parmpm.kernels2d import KERNELS_2D
 from parmpm.kernels3d import KERNELS_3D
-from parmpm.materials.damage import COL_MODEL
+from parmpm.materials import COL_DAMAGE
 from parmpm.shapes import CPDI
 from parmpm.shapes.freeze import freeze_domains
 from parmpm.particles import Particles, locate_patches
 from parmpm.reach import fmt_vec, grid_extent, reach_message
-from parmpm.transfer import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL, g2p, p2g, p2g_momentum
+from parmpm.transfer import g2p, p2g, p2g_momentum
+from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 
 #: dimension → {interpolator code → (p2g, p2g_momentum, g2p)} of the hand-specialised kernels
 SPECIALISED = {2: KERNELS_2D, 3: KERNELS_3D}
@@ -67,7 +68,7 @@ class Stepper:
         self._new_patch = np.zeros(0, np.int64)
         self._located = None                # (first particle off the grid, moved) from G2P
         #: damage-triggered CPDI domain freeze (parmpm.shapes.freeze): CPDI and a damage model
-        self.freezing = bool(disc.method == CPDI and np.any(params[:, COL_MODEL] != 0))
+        self.freezing = bool(disc.method == CPDI and np.any(params[:, COL_DAMAGE] != 0))
         self.frozen = 0
         lay = disc.layout
         self._loc = np.array([lay.cells3, lay.psize3, lay.patches_per_axis], np.int64)

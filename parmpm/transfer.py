@@ -27,11 +27,11 @@ import numpy as np
 from numba import literal_unroll, literally
 
 from parmpm.jit import DIMS, kernel, loop_kernel
-from parmpm.materials import cauchy_stress, det_d, wave_speed
+from parmpm.kinematics import det_d, update_F
 from parmpm.materials.damage import damage_update
-from parmpm.shapes import domain_matrix, particle_support
-
-G2P_USL, G2P_MUSL_MOTION, G2P_MUSL_DEFORM = 0, 1, 2
+from parmpm.materials.laws import cauchy_stress, wave_speed
+from parmpm.shapes.support import domain_matrix, particle_support
+from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 
 
 @kernel
@@ -186,16 +186,9 @@ def _g2p_loop(mode, method, dim, lcr, start, base, nloc, nglob, origin, inv_h, d
                     for e in range(n):
                         s += gvel[p, idx[e], a] * g[e, b]
                     Lg[a, b] = s
-            for a in range(d):
-                for b in range(d):
-                    s = Fi[a, b]
-                    for k in range(d):
-                        s += dt * Lg[a, k] * Fi[k, b]
-                    Fn[a, b] = s
-            for a in range(d):
-                for b in range(d):
-                    Fi[a, b] = Fn[a, b]
-                if mode == G2P_MUSL_DEFORM:
+            update_F(d, dt, Lg, Fi, Fn)
+            if mode == G2P_MUSL_DEFORM:
+                for a in range(d):
                     x[i, a] += dx[i, a]
             prm = params[mat[i]]
             damage[i] = damage_update(d, prm, Fi, damage[i])

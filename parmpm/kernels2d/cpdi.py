@@ -14,36 +14,35 @@ corners are opposite, two stress products serve all four.
 Every corner's cell is located (and checked against the patch's box) before anything is
 scattered, so a particle that reaches past the ghost layer contributes nothing and sets ``err``.
 """
-import math
-
 from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import cells_of4, note_patch
 from parmpm.kernels2d.material import update_F_stress
+from parmpm.kinematics import det_2d
 from parmpm.particles import patch_id2
-
-G2P_USL, G2P_MUSL_MOTION, G2P_MUSL_DEFORM = 0, 1, 2
+from parmpm.shapes.cpdi import cofactor_2d
+from parmpm.shapes.scaling import cap_2d
+from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
 
 @inline_kernel
 def domain(lcr, f00, f01, f10, f11, q00, q01, q10, q11):
-    """``R = F·R0`` as (r1x, r1y, r2x, r2y), capped so no centre-to-corner vector exceeds
-    ``lcr`` (if ``lcr > 0``), exactly as :func:`parmpm.shapes.scaling.scale_domain` in 2D."""
+    """``R = F·R0`` as (r1x, r1y, r2x, r2y), capped by :func:`parmpm.shapes.scaling.cap_2d`
+    when domain scaling is on."""
     r1x = f00 * q00 + f01 * q10
     r1y = f10 * q00 + f11 * q10
     r2x = f00 * q01 + f01 * q11
     r2y = f10 * q01 + f11 * q11
     if lcr > 0.0:
-        la0, la1 = r1x + r2x, r1y + r2y
-        lb0, lb1 = r1x - r2x, r1y - r2y
-        na, nb = math.sqrt(la0 * la0 + la1 * la1), math.sqrt(lb0 * lb0 + lb1 * lb1)
-        if na > lcr or nb > lcr:
-            if na > lcr:
-                la0, la1 = la0 * (lcr / na), la1 * (lcr / na)
-            if nb > lcr:
-                lb0, lb1 = lb0 * (lcr / nb), lb1 * (lcr / nb)
-            r1x, r1y = 0.5 * (la0 + lb0), 0.5 * (la1 + lb1)
-            r2x, r2y = 0.5 * (la0 - lb0), 0.5 * (la1 - lb1)
+        r1x, r1y, r2x, r2y, _ = cap_2d(lcr, r1x, r1y, r2x, r2y)
     return r1x, r1y, r2x, r2y
+
+
+@inline_kernel
+def corner_gradients(r1x, r1y, r2x, r2y):
+    """``g`` of corners (+,+) and (+,−) (their opposites have ``−g``) from the cofactor columns,
+    and ``det R``: ``(gax, gay, gbx, gby, det)``."""
+    c1x, c1y, c2x, c2y, det = cofactor_2d(r1x, r1y, r2x, r2y)
+    return c1x + c2x, c1y + c2y, c1x - c2x, c1y - c2y, det
 
 
 @inline_kernel
@@ -147,14 +146,13 @@ def p2g_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass,
                 if err[0] < 0:
                     err[0] = i
                 continue
-            q = (f00 * f11 - f01 * f10) * vol0[i] / (4.0 * (r1x * r2y - r2x * r1y))
+            gax, gay, gbx, gby, det = corner_gradients(r1x, r1y, r2x, r2y)
+            q = det_2d(f00, f01, f10, f11) * vol0[i] / (4.0 * det)
             t00, t01, t10, t11 = stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1]
             mq = mass[i] * 0.25
             mvx, mvy = mq * v[i, 0], mq * v[i, 1]
             bfx = mq * bforce[i, 0] if forced else 0.0
             bfy = mq * bforce[i, 1] if forced else 0.0
-            gax, gay = r2y - r1y, r1x - r2x     # g of corner (+,+); (−,−) has −g
-            gbx, gby = r2y + r1y, -r1x - r2x    # g of corner (+,−); (−,+) has −g
             tax, tay = q * (t00 * gax + t01 * gay), q * (t10 * gax + t11 * gay)
             tbx, tby = q * (t00 * gbx + t01 * gby), q * (t10 * gbx + t11 * gby)
             scatter5(g, L0, jx0, jy0, fx0, fy0, mq, mvx, mvy, bfx + tax, bfy + tay)
@@ -243,15 +241,14 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             pid = patch_id2(x[i, 0], x[i, 1], origin, inv_h, loc, inv_ps)  # where it goes next
             moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             # L = (1/V) Σ v(x_α) ⊗ g_α with g = −ga, gb, −gb, ga for corners 0..3
-            gax, gay = r2y - r1y, r1x - r2x
-            gbx, gby = r2y + r1y, -r1x - r2x
+            gax, gay, gbx, gby, det = corner_gradients(r1x, r1y, r2x, r2y)
             wax, way = u3x - u0x, u3y - u0y
             wbx, wby = u1x - u2x, u1y - u2y
-            k = dt / (4.0 * (r1x * r2y - r2x * r1y))
+            k = dt / (4.0 * det)
             l00 = k * (wax * gax + wbx * gbx)
             l01 = k * (wax * gay + wbx * gby)
             l10 = k * (way * gax + wby * gbx)
             l11 = k * (way * gay + wby * gby)
-            vmax = update_F_stress(vmax, i, l00, l01, l10, l11, f00, f01, f10, f11, v, F, stress,
-                                   mat, params, damage)
+            vmax = update_F_stress(vmax, i, (l00, l01, l10, l11), (f00, f01, f10, f11), v, F,
+                                   stress, mat, params, damage)
     return vmax, moved, first_out

@@ -6,13 +6,12 @@ get ``φ = S_x S_y`` (``S = 1 − f`` or ``f``) and ``∇φ = (S'_x S_y, S_x S'_
 gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇φ``
 (:mod:`parmpm.transfer` has the full step).
 """
-import math
-
 from parmpm.jit import loop_kernel
 from parmpm.kernels2d.cells import hat_cell_of, note_patch
-from parmpm.kernels2d.cpdi import G2P_MUSL_DEFORM, G2P_USL
 from parmpm.kernels2d.material import update_F_stress
+from parmpm.kinematics import det_2d
 from parmpm.particles import patch_id2
+from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
 
 @loop_kernel
@@ -35,7 +34,7 @@ def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, 
                 if err[0] < 0:
                     err[0] = i
                 continue
-            V = (F[i, 0, 0] * F[i, 1, 1] - F[i, 0, 1] * F[i, 1, 0]) * vol0[i]
+            V = det_2d(F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]) * vol0[i]
             t00, t01 = V * stress[i, 0, 0], V * stress[i, 0, 1]
             t10, t11 = V * stress[i, 1, 0], V * stress[i, 1, 1]
             m = mass[i]
@@ -141,6 +140,6 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             l00, l01, l10, l11 = dt * l00, dt * l01, dt * l10, dt * l11
-            vmax = update_F_stress(vmax, i, l00, l01, l10, l11, f00, f01, f10, f11, v, F, stress,
-                                   mat, params, damage)
+            vmax = update_F_stress(vmax, i, (l00, l01, l10, l11), (f00, f01, f10, f11), v, F,
+                                   stress, mat, params, damage)
     return vmax, moved, first_out

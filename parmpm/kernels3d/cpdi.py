@@ -17,41 +17,24 @@ scattered, so a particle that reaches past the ghost layer contributes nothing a
 Grid rows: ``gsum[s] = (m, mv_x, mv_y, mv_z, f_x, f_y, f_z)``, ``gnew[s] = (v_x, v_y, v_z, Δv_x,
 Δv_y, Δv_z)``, node ``i0 + L0 (i1 + L1 i2)`` of the patch's ghost-inclusive box.
 """
-import math
-
 import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import note_patch
 from parmpm.kernels3d.cells import cells_of8
 from parmpm.kernels3d.material import update_F_stress
+from parmpm.kinematics import det_3d
 from parmpm.particles import patch_id3
-
-G2P_USL, G2P_MUSL_MOTION, G2P_MUSL_DEFORM = 0, 1, 2
-
-
-@inline_kernel
-def _cap(v0, v1, v2, lcr):
-    n = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-    if n > lcr:
-        f = lcr / n
-        return v0 * f, v1 * f, v2 * f, True
-    return v0, v1, v2, False
-
-
-@inline_kernel
-def _norm(v0, v1, v2):
-    return math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+from parmpm.shapes.cpdi import cofactor_3d
+from parmpm.shapes.scaling import cap_3d
+from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
 
 @inline_kernel
 def domain(lcr, f00, f01, f02, f10, f11, f12, f20, f21, f22,
            q00, q01, q02, q10, q11, q12, q20, q21, q22):
-    """``R = F·R0`` as ``(R00, R01, R02, R10, …, R22)`` (column ``m`` is ``r_{m+1}``), capped when
-    ``lcr > 0`` exactly as :func:`parmpm.shapes.scaling.scale_domain` in 3D: the corner vectors
-    ``l_a = r1+r2+r3``, ``l_b = r1−r2+r3``, ``l_c = −r1+r2+r3``, ``l_d = −r1−r2+r3`` longer than
-    ``l_cr`` are shrunk to it, ``R`` is rebuilt from them, then scaled uniformly if a rebuilt corner
-    still exceeds ``l_cr``."""
+    """``R = F·R0`` as ``(R00, R01, R02, R10, …, R22)`` (column ``m`` is ``r_{m+1}``), capped by
+    :func:`parmpm.shapes.scaling.cap_3d` when domain scaling is on."""
     R00 = f00 * q00 + f01 * q10 + f02 * q20
     R01 = f00 * q01 + f01 * q11 + f02 * q21
     R02 = f00 * q02 + f01 * q12 + f02 * q22
@@ -62,26 +45,8 @@ def domain(lcr, f00, f01, f02, f10, f11, f12, f20, f21, f22,
     R21 = f20 * q01 + f21 * q11 + f22 * q21
     R22 = f20 * q02 + f21 * q12 + f22 * q22
     if lcr > 0.0:
-        a0, a1, a2, ca = _cap(R00 + R01 + R02, R10 + R11 + R12, R20 + R21 + R22, lcr)
-        b0, b1, b2, cb = _cap(R00 - R01 + R02, R10 - R11 + R12, R20 - R21 + R22, lcr)
-        c0, c1, c2, cc = _cap(-R00 + R01 + R02, -R10 + R11 + R12, -R20 + R21 + R22, lcr)
-        e0, e1, e2, ce = _cap(-R00 - R01 + R02, -R10 - R11 + R12, -R20 - R21 + R22, lcr)
-        if ca or cb or cc or ce:
-            R00, R10, R20 = (0.25 * (a0 + b0 - c0 - e0), 0.25 * (a1 + b1 - c1 - e1),
-                             0.25 * (a2 + b2 - c2 - e2))
-            R01, R11, R21 = (0.25 * (a0 - b0 + c0 - e0), 0.25 * (a1 - b1 + c1 - e1),
-                             0.25 * (a2 - b2 + c2 - e2))
-            R02, R12, R22 = (0.25 * (a0 + b0 + c0 + e0), 0.25 * (a1 + b1 + c1 + e1),
-                             0.25 * (a2 + b2 + c2 + e2))
-            longest = max(_norm(R00 + R01 + R02, R10 + R11 + R12, R20 + R21 + R22),
-                          _norm(-R00 + R01 + R02, -R10 + R11 + R12, -R20 + R21 + R22),
-                          _norm(R00 - R01 + R02, R10 - R11 + R12, R20 - R21 + R22),
-                          _norm(-R00 - R01 + R02, -R10 - R11 + R12, -R20 - R21 + R22))
-            f = lcr / longest
-            if f < 1.0:
-                R00, R01, R02 = R00 * f, R01 * f, R02 * f
-                R10, R11, R12 = R10 * f, R11 * f, R12 * f
-                R20, R21, R22 = R20 * f, R21 * f, R22 * f
+        R00, R01, R02, R10, R11, R12, R20, R21, R22, _ = cap_3d(lcr, R00, R01, R02, R10, R11, R12,
+                                                                R20, R21, R22)
     return R00, R01, R02, R10, R11, R12, R20, R21, R22
 
 
@@ -159,14 +124,12 @@ def gather3(g, L0, L01, jx, jy, jz, fx, fy, fz):
 
 
 @inline_kernel
-def cofactor(R00, R01, R02, R10, R11, R12, R20, R21, R22):
+def corner_gradients(R00, R01, R02, R10, R11, R12, R20, R21, R22):
     """``g`` of the corners ``(+,+,+)``, ``(+,−,−)``, ``(−,+,−)``, ``(+,+,−)`` (the other four are
-    their negatives) from the cofactor columns ``c1 = r2×r3, c2 = r3×r1, c3 = r1×r2``, and
-    ``det R = r1·c1``: ``(gA, gB, gC, gD as 12 scalars, det R)``."""
-    c1x, c1y, c1z = R11 * R22 - R21 * R12, R21 * R02 - R01 * R22, R01 * R12 - R11 * R02
-    c2x, c2y, c2z = R12 * R20 - R22 * R10, R22 * R00 - R02 * R20, R02 * R10 - R12 * R00
-    c3x, c3y, c3z = R10 * R21 - R20 * R11, R20 * R01 - R00 * R21, R00 * R11 - R10 * R01
-    det = R00 * c1x + R10 * c1y + R20 * c1z
+    their negatives) from the cofactor columns of :func:`parmpm.shapes.cpdi.cofactor_3d`, and
+    ``det R``: ``(gA, gB, gC, gD as 12 scalars, det R)``."""
+    c1x, c1y, c1z, c2x, c2y, c2z, c3x, c3y, c3z, det = cofactor_3d(R00, R01, R02, R10, R11, R12,
+                                                                   R20, R21, R22)
     return (c1x + c2x + c3x, c1y + c2y + c3y, c1z + c2z + c3z,
             c1x - c2x - c3x, c1y - c2y - c3y, c1z - c2z - c3z,
             c2x - c1x - c3x, c2y - c1y - c3y, c2z - c1z - c3z,
@@ -212,10 +175,9 @@ def p2g_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass,
                 if err[0] < 0:
                     err[0] = i
                 continue
-            gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = cofactor(
+            gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = corner_gradients(
                 R00, R01, R02, R10, R11, R12, R20, R21, R22)
-            J = (f00 * (f11 * f22 - f12 * f21) - f01 * (f10 * f22 - f12 * f20)
-                 + f02 * (f10 * f21 - f11 * f20))
+            J = det_3d(f00, f01, f02, f10, f11, f12, f20, f21, f22)
             q = J * vol0[i] / (8.0 * det)
             s00, s01, s02 = stress[i, 0, 0], stress[i, 0, 1], stress[i, 0, 2]
             s10, s11, s12 = stress[i, 1, 0], stress[i, 1, 1], stress[i, 1, 2]
@@ -362,7 +324,7 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], origin, inv_h, loc, inv_ps)
             moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             # Δt L = Δt/V Σ v(x_α) ⊗ g_α, opposite corners paired (g: see p2g_cpdi)
-            gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = cofactor(
+            gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = corner_gradients(
                 R00, R01, R02, R10, R11, R12, R20, R21, R22)
             wAx, wAy, wAz = u7x - u0x, u7y - u0y, u7z - u0z
             wBx, wBy, wBz = u1x - u6x, u1y - u6y, u1z - u6z
@@ -378,8 +340,7 @@ def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
             l20 = k * (wAz * gAx + wBz * gBx + wCz * gCx + wDz * gDx)
             l21 = k * (wAz * gAy + wBz * gBy + wCz * gCy + wDz * gDy)
             l22 = k * (wAz * gAz + wBz * gBz + wCz * gCz + wDz * gDz)
-            vmax = update_F_stress(vmax, i, l00, l01, l02, l10, l11, l12, l20, l21, l22,
-                                   f00, f01, f02, f10, f11, f12, f20, f21, f22,
-                                   v, F, stress, mat, params,
-                                   damage)
+            vmax = update_F_stress(vmax, i, (l00, l01, l02, l10, l11, l12, l20, l21, l22),
+                                   (f00, f01, f02, f10, f11, f12, f20, f21, f22),
+                                   v, F, stress, mat, params, damage)
     return vmax, moved, first_out

@@ -11,9 +11,10 @@ import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import hat_cell_of, note_patch
-from parmpm.kernels3d.cpdi import G2P_MUSL_DEFORM, G2P_USL
 from parmpm.kernels3d.material import update_F_stress
+from parmpm.kinematics import det_3d
 from parmpm.particles import patch_id3
+from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
 
 @inline_kernel
@@ -79,8 +80,7 @@ def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, 
             f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
             f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
             f20, f21, f22 = F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]
-            V = (f00 * (f11 * f22 - f12 * f21) - f01 * (f10 * f22 - f12 * f20)
-                 + f02 * (f10 * f21 - f11 * f20)) * vol0[i]
+            V = det_3d(f00, f01, f02, f10, f11, f12, f20, f21, f22) * vol0[i]
             t = (V * stress[i, 0, 0], V * stress[i, 0, 1], V * stress[i, 0, 2],
                  V * stress[i, 1, 0], V * stress[i, 1, 1], V * stress[i, 1, 2],
                  V * stress[i, 2, 0], V * stress[i, 2, 1], V * stress[i, 2, 2])
@@ -191,10 +191,9 @@ def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
                 x[i, 0], x[i, 1], x[i, 2] = xx + dx[i, 0], xy + dx[i, 1], xz + dx[i, 2]
             pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], origin, inv_h, loc, inv_ps)
             moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
-            vmax = update_F_stress(vmax, i, dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
-                                   dt * l12, dt * l20, dt * l21, dt * l22,
-                                   F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
-                                   F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2],
-                                   v, F, stress, mat, params,
-                                   damage)
+            vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
+                                             dt * l12, dt * l20, dt * l21, dt * l22),
+                                   (F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
+                                    F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]),
+                                   v, F, stress, mat, params, damage)
     return vmax, moved, first_out

@@ -24,17 +24,16 @@ bar with ``freeze = "never"``: non-finite stress after failure). With ``D = 0`` 
 touched, so undamaged runs are bit for bit those of the same material without the table. The CFL
 wave speed stays the undamaged one (conservative).
 
-Parameter-table columns (:data:`parmpm.materials.PARAM`): ``damage`` (0 none, 1 linear,
-2 exponential), ``damage_onset`` (λ0), ``damage_fracture`` (λf), ``damage_freeze`` (the ``D`` at
+Parameter-table columns (:data:`parmpm.materials.PARAM`): ``damage`` (the softening code,
+:data:`parmpm.materials.SOFTENING`; 0 none), ``damage_onset`` (λ0), ``damage_fracture`` (λf), ``damage_freeze`` (the ``D`` at
 which a CPDI domain stops following the material's stretch; see :mod:`parmpm.shapes`).
 """
 import math
 
 from parmpm.jit import helper_kernel
-
-NO_DAMAGE, LINEAR, EXPONENTIAL = 0, 1, 2
-SOFTENING = {"linear": LINEAR, "exponential": EXPONENTIAL}
-COL_MODEL, COL_ONSET, COL_FRACTURE, COL_FREEZE = 8, 9, 10, 11
+from parmpm.kinematics import left_cauchy_green_2d, left_cauchy_green_3d
+from parmpm.materials import (COL_DAMAGE, COL_FRACTURE, COL_ONSET, EXPONENTIAL, LINEAR,
+                              NO_DAMAGE, SOFTENING)
 
 
 @helper_kernel
@@ -69,9 +68,7 @@ def largest_eigenvalue_sym3(a00, a01, a02, a11, a12, a22):
 @helper_kernel
 def max_stretch_2d(f00, f01, f10, f11):
     """Largest principal stretch ``√(max eig F Fᵀ)`` in 2D."""
-    b00 = f00 * f00 + f01 * f01
-    b01 = f00 * f10 + f01 * f11
-    b11 = f10 * f10 + f11 * f11
+    b00, b01, b11 = left_cauchy_green_2d(f00, f01, f10, f11)
     h = 0.5 * (b00 - b11)
     return math.sqrt(0.5 * (b00 + b11) + math.sqrt(h * h + b01 * b01))
 
@@ -79,12 +76,7 @@ def max_stretch_2d(f00, f01, f10, f11):
 @helper_kernel
 def max_stretch_3d(f00, f01, f02, f10, f11, f12, f20, f21, f22):
     """Largest principal stretch ``√(max eig F Fᵀ)`` in 3D."""
-    b00 = f00 * f00 + f01 * f01 + f02 * f02
-    b01 = f00 * f10 + f01 * f11 + f02 * f12
-    b02 = f00 * f20 + f01 * f21 + f02 * f22
-    b11 = f10 * f10 + f11 * f11 + f12 * f12
-    b12 = f10 * f20 + f11 * f21 + f12 * f22
-    b22 = f20 * f20 + f21 * f21 + f22 * f22
+    b00, b01, b02, b11, b12, b22 = left_cauchy_green_3d(f00, f01, f02, f10, f11, f12, f20, f21, f22)
     return math.sqrt(largest_eigenvalue_sym3(b00, b01, b02, b11, b12, b22))
 
 
@@ -102,7 +94,7 @@ def max_stretch(d, F):
 @helper_kernel
 def damage_update(d, prm, F, D):
     """``max(D, g(λ(F)))`` for a material row ``prm``; ``D`` itself without a damage model."""
-    code = int(prm[COL_MODEL])
+    code = int(prm[COL_DAMAGE])
     if code == NO_DAMAGE:
         return D
     return max(D, softening(code, prm[COL_ONSET], prm[COL_FRACTURE], max_stretch(d, F)))
@@ -151,20 +143,14 @@ def degrade_3d(D, pv, s00, s01, s02, s11, s12, s22):
 
 
 @helper_kernel
-def pressure_term(linear, lam, J, tr_eps):
-    """``p_v``: ``λ_L tr ε`` (linear elastic) or ``λ_L ln J / J`` (neo-Hookean; −∞ for J ≤ 0)."""
-    if linear:
-        return lam * tr_eps
-    if J > 0.0:
-        return lam * math.log(J) / J
-    return -math.inf
-
-
-@helper_kernel
 def damage_scalar(params, row, D, lam):
     """``max(D, g(λ))`` for material ``row`` of the parameter table (the specialised kernels,
     which compute ``λ`` from the entries of ``F``); ``D`` without a damage model."""
-    code = int(params[row, COL_MODEL])
+    code = int(params[row, COL_DAMAGE])
     if code == NO_DAMAGE:
         return D
     return max(D, softening(code, params[row, COL_ONSET], params[row, COL_FRACTURE], lam))
+
+
+__all__ = ["NO_DAMAGE", "LINEAR", "EXPONENTIAL", "SOFTENING", "damage_update", "damage_scalar",
+           "degrade", "degrade_2d", "degrade_3d", "max_stretch", "softening"]

@@ -1,22 +1,19 @@
 """Compressible neo-Hookean: ``σ = [μ(b − I) + λ ln J · I] / J``, ``b = F Fᵀ``, ``J = det F``.
 
 The form most MPM codes use (e.g. Sadeghirad et al. 2011, Uintah's CompNeoHook); plane strain in
-2D (``F_zz = 1``), uniaxial strain in 1D (``σ = [μ(λ² − 1) + λ_L ln λ]/λ``).
+2D (``F_zz = 1``), uniaxial strain in 1D (``σ = [μ(λ² − 1) + λ_L ln λ]/λ``). Stored energy
+``ψ = μ/2 (tr b − d) − μ ln J + λ/2 (ln J)²``. CFL speed in the current configuration:
+``ρ0 c² = μ(b_max + 1) + λ max(1, 1 − ln J)`` (:mod:`parmpm.materials.laws` explains the bound).
+Damage keeps the pressure term ``p_v = λ ln J / J`` in compression (:mod:`parmpm.materials.damage`).
+
+Forms: :func:`neo_hookean_stress` on the leading d×d block of 3×3 arrays (the generic kernels)
+and :func:`neo_hookean_2d` / :func:`neo_hookean_3d` on scalar entries (the specialised kernels,
+which take ``ln J`` and ``1/J`` once and multiply where the generic form divides by ``J``).
 """
 import math
 
 from parmpm.jit import helper_kernel
-
-
-@helper_kernel
-def det_d(d, F):
-    if d == 1:
-        return F[0, 0]
-    if d == 2:
-        return F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
-    return (F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
-            - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
-            + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]))
+from parmpm.kinematics import det_d
 
 
 @helper_kernel
@@ -36,8 +33,8 @@ def neo_hookean_stress(d, F, lam, mu, out):
 
 @helper_kernel
 def neo_hookean_energy(d, F, lam, mu):
-    """Stored energy per unit reference volume, ``ψ = μ/2 (tr b − d) − μ ln J + λ/2 (ln J)²``,
-    whose Kirchhoff stress is ``J σ`` above (the out-of-plane stretch is 1 in 2D and 1D)."""
+    """Stored energy per unit reference volume, whose Kirchhoff stress is ``J σ`` above (the
+    out-of-plane stretch is 1 in 2D and 1D)."""
     J = det_d(d, F)
     if not J > 0.0:
         return math.inf
@@ -47,3 +44,45 @@ def neo_hookean_energy(d, F, lam, mu):
             trb += F[a, k] * F[a, k]
     lnJ = math.log(J)
     return 0.5 * mu * (trb - d) - mu * lnJ + 0.5 * lam * lnJ * lnJ
+
+
+@helper_kernel
+def neo_hookean_rho_c2(lam, mu, bmax, lnJ):
+    """``ρ0 c²`` of the CFL speed from the Gershgorin bound ``bmax`` of ``b`` and ``ln J``."""
+    return mu * (bmax + 1.0) + lam * max(1.0, 1.0 - lnJ)
+
+
+@helper_kernel
+def neo_hookean_pressure(lam, J):
+    """``p_v = λ ln J / J`` (−∞ for ``J ≤ 0``)."""
+    if J > 0.0:
+        return lam * math.log(J) / J
+    return -math.inf
+
+
+@helper_kernel
+def _p_c(lam, mu, inv_rho, J, bmax):
+    """``λ ln J`` and the CFL speed (−∞ and ∞ for ``J ≤ 0``), ``ln J`` taken once."""
+    if J > 0.0:
+        lnJ = math.log(J)
+        return lam * lnJ, math.sqrt(neo_hookean_rho_c2(lam, mu, bmax, lnJ) * inv_rho)
+    return -math.inf, math.inf
+
+
+@helper_kernel
+def neo_hookean_2d(lam, mu, inv_rho, J, b00, b01, b11, bmax):
+    """``(σ_xx, σ_xy, σ_yy, c, p_v)`` from ``J`` and ``b``."""
+    p, c = _p_c(lam, mu, inv_rho, J, bmax)
+    iJ = 1.0 / J
+    pv = p / J if J > 0.0 else -math.inf
+    return (mu * (b00 - 1.0) + p) * iJ, mu * b01 * iJ, (mu * (b11 - 1.0) + p) * iJ, c, pv
+
+
+@helper_kernel
+def neo_hookean_3d(lam, mu, inv_rho, J, b00, b01, b02, b11, b12, b22, bmax):
+    """``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c, p_v)`` from ``J`` and ``b``."""
+    p, c = _p_c(lam, mu, inv_rho, J, bmax)
+    iJ = 1.0 / J
+    pv = p / J if J > 0.0 else -math.inf
+    return ((mu * (b00 - 1.0) + p) * iJ, mu * b01 * iJ, mu * b02 * iJ,
+            (mu * (b11 - 1.0) + p) * iJ, mu * b12 * iJ, (mu * (b22 - 1.0) + p) * iJ, c, pv)

@@ -22,16 +22,29 @@ def cofactor(d, R, C):
         C[0, 0] = 1.0
         return R[0, 0]
     if d == 2:
-        C[0, 0], C[1, 0] = R[1, 1], -R[0, 1]
-        C[0, 1], C[1, 1] = -R[1, 0], R[0, 0]
-        return R[0, 0] * R[1, 1] - R[0, 1] * R[1, 0]
-    for a in range(3):
-        b, c = (a + 1) % 3, (a + 2) % 3
-        # column a = r_b × r_c
-        C[0, a] = R[1, b] * R[2, c] - R[2, b] * R[1, c]
-        C[1, a] = R[2, b] * R[0, c] - R[0, b] * R[2, c]
-        C[2, a] = R[0, b] * R[1, c] - R[1, b] * R[0, c]
-    return R[0, 0] * C[0, 0] + R[1, 0] * C[1, 0] + R[2, 0] * C[2, 0]
+        C[0, 0], C[1, 0], C[0, 1], C[1, 1], det = cofactor_2d(R[0, 0], R[1, 0], R[0, 1], R[1, 1])
+        return det
+    (C[0, 0], C[1, 0], C[2, 0], C[0, 1], C[1, 1], C[2, 1], C[0, 2], C[1, 2], C[2, 2],
+     det) = cofactor_3d(R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1],
+                        R[2, 2])
+    return det
+
+
+@helper_kernel
+def cofactor_2d(r1x, r1y, r2x, r2y):
+    """Cofactor columns ``c1 = (r2y, −r2x)``, ``c2 = (−r1y, r1x)`` and ``det R``:
+    ``(c1x, c1y, c2x, c2y, det)``."""
+    return r2y, -r2x, -r1y, r1x, r1x * r2y - r2x * r1y
+
+
+@helper_kernel
+def cofactor_3d(R00, R01, R02, R10, R11, R12, R20, R21, R22):
+    """Cofactor columns ``c1 = r2×r3``, ``c2 = r3×r1``, ``c3 = r1×r2`` (``r_m`` column ``m − 1``
+    of ``R``) and ``det R = r1·c1``: ``(c1x, c1y, c1z, c2x, …, c3z, det)``."""
+    c1x, c1y, c1z = R11 * R22 - R21 * R12, R21 * R02 - R01 * R22, R01 * R12 - R11 * R02
+    c2x, c2y, c2z = R12 * R20 - R22 * R10, R22 * R00 - R02 * R20, R02 * R10 - R12 * R00
+    c3x, c3y, c3z = R10 * R21 - R20 * R11, R20 * R01 - R00 * R21, R00 * R11 - R10 * R01
+    return c1x, c1y, c1z, c2x, c2y, c2z, c3x, c3y, c3z, R00 * c1x + R10 * c1y + R20 * c1z
 
 
 @helper_kernel

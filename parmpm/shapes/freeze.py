@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from parmpm.jit import kernel
-from parmpm.materials.damage import COL_FREEZE, COL_MODEL
+from parmpm.materials import COL_DAMAGE, COL_FREEZE
 from parmpm.shapes.cpdi import cofactor
 
 
@@ -78,7 +78,7 @@ def freeze_domains(d, F, r0, rf, damage, mat, params):
     frozen = 0
     for i in range(F.shape[0]):
         row = mat[i]
-        if params[row, COL_MODEL] == 0.0:
+        if params[row, COL_DAMAGE] == 0.0:
             continue
         is_frozen = False
         for a in range(d):

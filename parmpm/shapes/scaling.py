@@ -31,38 +31,56 @@ def scale_domain(d, R, lcr):
             return True
         return False
     if d == 2:
-        la0, la1 = R[0, 0] + R[0, 1], R[1, 0] + R[1, 1]
-        lb0, lb1 = R[0, 0] - R[0, 1], R[1, 0] - R[1, 1]
-        na, nb = math.sqrt(la0 * la0 + la1 * la1), math.sqrt(lb0 * lb0 + lb1 * lb1)
-        if na <= lcr and nb <= lcr:
-            return False
-        if na > lcr:
-            la0, la1 = la0 * (lcr / na), la1 * (lcr / na)
-        if nb > lcr:
-            lb0, lb1 = lb0 * (lcr / nb), lb1 * (lcr / nb)
-        R[0, 0], R[1, 0] = 0.5 * (la0 + lb0), 0.5 * (la1 + lb1)
-        R[0, 1], R[1, 1] = 0.5 * (la0 - lb0), 0.5 * (la1 - lb1)
-        return True
-    # 3D: the four center-to-corner vectors (the other four are their negatives)
-    a0, a1, a2, ca = _cap(R[0, 0] + R[0, 1] + R[0, 2], R[1, 0] + R[1, 1] + R[1, 2],
-                          R[2, 0] + R[2, 1] + R[2, 2], lcr)
-    b0, b1, b2, cb = _cap(R[0, 0] - R[0, 1] + R[0, 2], R[1, 0] - R[1, 1] + R[1, 2],
-                          R[2, 0] - R[2, 1] + R[2, 2], lcr)
-    c0, c1, c2, cc = _cap(-R[0, 0] + R[0, 1] + R[0, 2], -R[1, 0] + R[1, 1] + R[1, 2],
-                          -R[2, 0] + R[2, 1] + R[2, 2], lcr)
-    e0, e1, e2, ce = _cap(-R[0, 0] - R[0, 1] + R[0, 2], -R[1, 0] - R[1, 1] + R[1, 2],
-                          -R[2, 0] - R[2, 1] + R[2, 2], lcr)
+        r1x, r1y, r2x, r2y, changed = cap_2d(lcr, R[0, 0], R[1, 0], R[0, 1], R[1, 1])
+        R[0, 0], R[1, 0], R[0, 1], R[1, 1] = r1x, r1y, r2x, r2y
+        return changed
+    R00, R01, R02, R10, R11, R12, R20, R21, R22, changed = cap_3d(
+        lcr, R[0, 0], R[0, 1], R[0, 2], R[1, 0], R[1, 1], R[1, 2], R[2, 0], R[2, 1], R[2, 2])
+    R[0, 0], R[0, 1], R[0, 2] = R00, R01, R02
+    R[1, 0], R[1, 1], R[1, 2] = R10, R11, R12
+    R[2, 0], R[2, 1], R[2, 2] = R20, R21, R22
+    return changed
+
+
+@helper_kernel
+def cap_2d(lcr, r1x, r1y, r2x, r2y):
+    """The 2D cap on the entries of ``r1``, ``r2``: ``(r1x, r1y, r2x, r2y, changed)``."""
+    la0, la1 = r1x + r2x, r1y + r2y
+    lb0, lb1 = r1x - r2x, r1y - r2y
+    na, nb = math.sqrt(la0 * la0 + la1 * la1), math.sqrt(lb0 * lb0 + lb1 * lb1)
+    if na <= lcr and nb <= lcr:
+        return r1x, r1y, r2x, r2y, False
+    if na > lcr:
+        la0, la1 = la0 * (lcr / na), la1 * (lcr / na)
+    if nb > lcr:
+        lb0, lb1 = lb0 * (lcr / nb), lb1 * (lcr / nb)
+    return 0.5 * (la0 + lb0), 0.5 * (la1 + lb1), 0.5 * (la0 - lb0), 0.5 * (la1 - lb1), True
+
+
+@helper_kernel
+def cap_3d(lcr, R00, R01, R02, R10, R11, R12, R20, R21, R22):
+    """The 3D cap on the entries of ``R`` (column ``m`` is ``r_{m+1}``): the nine entries and
+    whether anything changed."""
+    # the four center-to-corner vectors (the other four are their negatives)
+    a0, a1, a2, ca = _cap(R00 + R01 + R02, R10 + R11 + R12, R20 + R21 + R22, lcr)
+    b0, b1, b2, cb = _cap(R00 - R01 + R02, R10 - R11 + R12, R20 - R21 + R22, lcr)
+    c0, c1, c2, cc = _cap(-R00 + R01 + R02, -R10 + R11 + R12, -R20 + R21 + R22, lcr)
+    e0, e1, e2, ce = _cap(-R00 - R01 + R02, -R10 - R11 + R12, -R20 - R21 + R22, lcr)
     if not (ca or cb or cc or ce):
-        return False
-    R[0, 0], R[1, 0], R[2, 0] = 0.25 * (a0 + b0 - c0 - e0), 0.25 * (a1 + b1 - c1 - e1), 0.25 * (a2 + b2 - c2 - e2)
-    R[0, 1], R[1, 1], R[2, 1] = 0.25 * (a0 - b0 + c0 - e0), 0.25 * (a1 - b1 + c1 - e1), 0.25 * (a2 - b2 + c2 - e2)
-    R[0, 2], R[1, 2], R[2, 2] = 0.25 * (a0 + b0 + c0 + e0), 0.25 * (a1 + b1 + c1 + e1), 0.25 * (a2 + b2 + c2 + e2)
-    f = lcr / longest_corner(3, R)
+        return R00, R01, R02, R10, R11, R12, R20, R21, R22, False
+    R00, R10, R20 = 0.25 * (a0 + b0 - c0 - e0), 0.25 * (a1 + b1 - c1 - e1), 0.25 * (a2 + b2 - c2 - e2)
+    R01, R11, R21 = 0.25 * (a0 - b0 + c0 - e0), 0.25 * (a1 - b1 + c1 - e1), 0.25 * (a2 - b2 + c2 - e2)
+    R02, R12, R22 = 0.25 * (a0 + b0 + c0 + e0), 0.25 * (a1 + b1 + c1 + e1), 0.25 * (a2 + b2 + c2 + e2)
+    longest = max(_norm(R00 + R01 + R02, R10 + R11 + R12, R20 + R21 + R22),
+                  _norm(-R00 + R01 + R02, -R10 + R11 + R12, -R20 + R21 + R22),
+                  _norm(R00 - R01 + R02, R10 - R11 + R12, R20 - R21 + R22),
+                  _norm(-R00 - R01 + R02, -R10 - R11 + R12, -R20 - R21 + R22))
+    f = lcr / longest
     if f < 1.0:
-        for k in range(3):
-            for m in range(3):
-                R[k, m] *= f
-    return True
+        R00, R01, R02 = R00 * f, R01 * f, R02 * f
+        R10, R11, R12 = R10 * f, R11 * f, R12 * f
+        R20, R21, R22 = R20 * f, R21 * f, R22 * f
+    return R00, R01, R02, R10, R11, R12, R20, R21, R22, True
 
 
 @helper_kernel
