@@ -22,6 +22,7 @@ from decomposition import (PatchSet, accumulate, allreduce_max, exchange, fill,
                            is_parallel, migrate)
 from parmpm.discretisation import Discretisation
 from parmpm.errors import SimulationError
+from parmpm.kernel_records import Boxes, Fields, Locate, Material, Method
 from parmpm.grid import grid_block, grid_update, region_node_ranges
 from parmpm.kernels2d import KERNELS_2D
 from parmpm.kernels3d import KERNELS_3D
@@ -108,9 +109,13 @@ class Stepper:
         P.group_by_patch(P.patch, ps.slot_of, n, force=True)
 
     # --- the step -------------------------------------------------------------------------------
-    def _args(self):
-        D = self.disc
-        return (D.method, D.dim, D.lcr, self.P.start, D.base, D.nloc, D.nglob, D.origin3, D.inv_h3)
+    def _records(self):
+        """The kernels' records (:mod:`parmpm.kernel_records`) of the current patches and
+        particle arrays (rebuilt per call: migration replaces the arrays)."""
+        D, P = self.disc, self.P
+        boxes = Boxes(P.start, D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3, D.inv_h3)
+        fields = Fields(P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress, P.dx)
+        return Method(D.method, D.dim, D.lcr), boxes, fields
 
     def _fail(self, i: int, message: str) -> None:
         """Note the first problem of this step (particle ``i``); :meth:`finish` raises it."""
@@ -137,43 +142,38 @@ class Stepper:
         return t
 
     def _p2g(self, bforce: np.ndarray) -> None:
-        P = self.P
+        how, boxes, fields = self._records()
         if self.kernels is not None:
-            self.kernels[0](*self._args_fast(), P.x, P.v, P.F, P.r0, P.mass, P.vol0, P.stress,
-                              bforce, self.gsum_block, self.err)
+            self.kernels[0](how.lcr, boxes, fields, bforce, self.gsum_block, self.err)
         else:
-            p2g(*self._args(), P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress, bforce,
-                self.gm, self.gmv, self.gf, self.err)
+            p2g(how, boxes, fields, bforce, (self.gm, self.gmv, self.gf), self.err)
         self._check("p2g")
 
     def _p2g_momentum(self) -> None:
-        P = self.P
+        how, boxes, fields = self._records()
         if self.kernels is not None:
-            self.kernels[1](*self._args_fast(), P.x, P.v, P.F, P.r0, P.mass, self.gsum_block, self.err)
+            self.kernels[1](how.lcr, boxes, fields, self.gsum_block, self.err)
         else:
-            p2g_momentum(*self._args(), P.x, P.v, P.F, P.r0, P.lh0, P.mass, self.gmv, self.err)
+            p2g_momentum(how, boxes, fields, self.gmv, self.err)
         self._check("p2g")
 
     def _g2p(self, mode: int, dt: float) -> float:
         """G2P; the specialised kernels also find each particle's next patch once its position
         is final (``_located``: one pass over the particles fewer than :meth:`locate_and_send`)."""
         P = self.P
+        how, boxes, fields = self._records()
+        material = Material(P.mat, self.params, P.damage)
         if self.kernels is not None:
             if self._new_patch.size != P.n:
                 self._new_patch = np.zeros(P.n, np.int64)
-            vmax, moved, first_out = self.kernels[2](
-                mode, *self._args_fast(), dt, self.flip, P.x, P.v, P.F, P.r0, P.stress, P.dx,
-                P.mat, self.params, P.damage, self.gnew_block, self.err, self._loc, self._inv_psize,
-                self.patches.local_ids, self._new_patch)
+            locate = Locate(self._loc, self._inv_psize, self.patches.local_ids, self._new_patch)
+            vmax, moved, first_out = self.kernels[2](mode, how.lcr, boxes, dt, self.flip, fields,
+                                                     material, self.gnew_block, self.err, locate)
             if mode != G2P_MUSL_MOTION:
                 self._located = (first_out, moved)
             return vmax
-        return g2p(mode, *self._args(), dt, self.flip, P.x, P.v, P.F, P.r0, P.lh0, P.stress, P.dx,
-                   P.mat, self.params, P.damage, self.gvel, self.gdv, self.err)
-
-    def _args_fast(self):
-        D = self.disc
-        return (D.lcr, self.P.start, D.base, D.jlo, D.jhi, D.nloc, D.origin3, D.inv_h3)
+        return g2p(mode, how, boxes, dt, self.flip, fields, material, (self.gvel, self.gdv),
+                   self.err)
 
     def step(self, dt: float, gravity: np.ndarray, time_now: float = 0.0) -> float:
         """Advance this rank's particles from ``time_now`` by ``dt`` (collective: every rank

@@ -52,20 +52,26 @@ def _scratch(nloc, d):
 
 
 @kernel
-def p2g(method, d, lcr, start, base, nloc, nglob, origin, inv_h,
-        x, v, F, r0, lh0, mass, vol0, stress, bforce, gm, gmv, gf, err):
-    scratch = _scratch(nloc, d)
+def p2g(how, boxes, fields, bforce, out, err):
+    """``out = (gm, gmv, gf)`` (node-major views of this rank's patch slots) from the particles;
+    ``how``, ``boxes``, ``fields``: :mod:`parmpm.kernel_records`."""
+    d = how.dim
+    scratch = _scratch(boxes.nloc, d)
     for dim in literal_unroll(DIMS):
         if dim == d:
-            _p2g_loop(method, dim, lcr, start, base, nloc, nglob, origin, inv_h,
-                      x, v, F, r0, lh0, mass, vol0, stress, bforce, gm, gmv, gf, err, scratch)
+            _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch)
 
 
 @loop_kernel
-def _p2g_loop(method, dim, lcr, start, base, nloc, nglob, origin, inv_h,
-              x, v, F, r0, lh0, mass, vol0, stress, bforce, gm, gmv, gf, err, scratch):
+def _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
+    method, lcr = how.code, how.lcr
+    start, base, nloc, nglob, origin, inv_h = (boxes.start, boxes.base, boxes.nloc, boxes.nglob,
+                                               boxes.origin, boxes.inv_h)
+    x, v, F, r0, lh0, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.r0, fields.lh0,
+                                            fields.mass, fields.vol0, fields.stress)
+    gm, gmv, gf = out
     R, C, xi, nk, jk, wk, dwk, idx, w, g, _, _ = scratch
     forced = bforce.shape[0] > 0
     gm[:] = 0.0
@@ -99,20 +105,23 @@ def _p2g_loop(method, dim, lcr, start, base, nloc, nglob, origin, inv_h,
 
 
 @kernel
-def p2g_momentum(method, d, lcr, start, base, nloc, nglob, origin, inv_h,
-                 x, v, F, r0, lh0, mass, gmv, err):
-    scratch = _scratch(nloc, d)
+def p2g_momentum(how, boxes, fields, gmv, err):
+    """The MUSL re-map of particle momentum into ``gmv``."""
+    d = how.dim
+    scratch = _scratch(boxes.nloc, d)
     for dim in literal_unroll(DIMS):
         if dim == d:
-            _p2g_momentum_loop(method, dim, lcr, start, base, nloc, nglob, origin, inv_h,
-                               x, v, F, r0, lh0, mass, gmv, err, scratch)
+            _p2g_momentum_loop(how, dim, boxes, fields, gmv, err, scratch)
 
 
 @loop_kernel
-def _p2g_momentum_loop(method, dim, lcr, start, base, nloc, nglob, origin, inv_h,
-                       x, v, F, r0, lh0, mass, gmv, err, scratch):
+def _p2g_momentum_loop(how, dim, boxes, fields, gmv, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
+    method, lcr = how.code, how.lcr
+    start, base, nloc, nglob, origin, inv_h = (boxes.start, boxes.base, boxes.nloc, boxes.nglob,
+                                               boxes.origin, boxes.inv_h)
+    x, v, F, r0, lh0, mass = fields.x, fields.v, fields.F, fields.r0, fields.lh0, fields.mass
     R, C, xi, nk, jk, wk, dwk, idx, w, g, _, _ = scratch
     gmv[:] = 0.0
     for p in range(start.size - 1):
@@ -133,25 +142,30 @@ def _p2g_momentum_loop(method, dim, lcr, start, base, nloc, nglob, origin, inv_h
 
 
 @kernel
-def g2p(mode, method, d, lcr, start, base, nloc, nglob, origin, inv_h, dt, flip,
-        x, v, F, r0, lh0, stress, dx, mat, params, damage, gvel, gdv, err):
-    """One of the three G2P modes (USL; MUSL motion; MUSL deformation). Returns the largest
-    ``c_p + |v_p|`` over the particles (for the next CFL step) in the deformation modes."""
-    scratch = _scratch(nloc, d)
+def g2p(mode, how, boxes, dt, flip, fields, material, grid, err):
+    """One of the three G2P modes (:mod:`parmpm.update_order`) from ``grid = (v, Δv)`` node-major
+    views. Returns the largest ``c_p + |v_p|`` over the particles (for the next CFL step) in the
+    deformation modes."""
+    d = how.dim
+    scratch = _scratch(boxes.nloc, d)
     vmax = 0.0
     for dim in literal_unroll(DIMS):
         if dim == d:
-            vmax = _g2p_loop(mode, method, dim, lcr, start, base, nloc, nglob, origin, inv_h, dt,
-                             flip, x, v, F, r0, lh0, stress, dx, mat, params, damage, gvel, gdv,
-                             err, scratch)
+            vmax = _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scratch)
     return vmax
 
 
 @loop_kernel
-def _g2p_loop(mode, method, dim, lcr, start, base, nloc, nglob, origin, inv_h, dt, flip,
-              x, v, F, r0, lh0, stress, dx, mat, params, damage, gvel, gdv, err, scratch):
+def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
+    method, lcr = how.code, how.lcr
+    start, base, nloc, nglob, origin, inv_h = (boxes.start, boxes.base, boxes.nloc, boxes.nglob,
+                                               boxes.origin, boxes.inv_h)
+    x, v, F, r0, lh0, stress, dx = (fields.x, fields.v, fields.F, fields.r0, fields.lh0,
+                                    fields.stress, fields.dx)
+    mat, params, damage = material
+    gvel, gdv = grid
     R, C, xi, nk, jk, wk, dwk, idx, w, g, Lg, Fn = scratch
     vmax = 0.0
     for p in range(start.size - 1):

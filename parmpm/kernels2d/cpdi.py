@@ -124,9 +124,12 @@ def gather4(g, L0, jx, jy, fx, fy):
 
 
 @loop_kernel
-def p2g_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, vol0, stress,
-             bforce, gsum, err):
+def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
+    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
+                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    x, v, F, r0, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.r0, fields.mass,
+                                       fields.vol0, fields.stress)
     forced = bforce.shape[0] > 0
     gsum[:] = 0.0
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
@@ -162,8 +165,11 @@ def p2g_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass,
 
 
 @loop_kernel
-def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, gsum, err):
+def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2) of ``gsum`` only."""
+    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
+                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    x, v, F, r0, mass = fields.x, fields.v, fields.F, fields.r0, fields.mass
     gsum[:, 1:3, :] = 0.0
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
     L0 = nloc[0]
@@ -190,12 +196,15 @@ def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, 
 
 
 @loop_kernel
-def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
-             x, v, F, r0, stress, dx, mat, params, damage, gnew, err,
-             loc, inv_ps, slot_patch, new_patch):
+def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v_x, v_y, Δv_x, Δv_y)`` rows; returns the largest ``c_p + |v_p|`` in the
     modes that update the stress."""
+    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
+                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    x, v, F, r0, stress, dx = fields.x, fields.v, fields.F, fields.r0, fields.stress, fields.dx
+    mat, params, damage = material
+    loc, inv_ps, slot_patch, new_patch = locate
     vmax = 0.0
     moved = 0
     first_out = -1

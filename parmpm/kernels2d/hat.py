@@ -15,10 +15,13 @@ from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
 
 @loop_kernel
-def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, vol0, stress,
-            bforce, gsum, err):
-    """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` and
-    ``r0`` unused: the signature is the CPDI kernel's)."""
+def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
+    """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` unused:
+    the signature is the CPDI kernel's)."""
+    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
+                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
+                                   fields.stress)
     forced = bforce.shape[0] > 0
     gsum[:] = 0.0
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
@@ -57,8 +60,11 @@ def p2g_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, 
 
 
 @loop_kernel
-def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, gsum, err):
+def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum only, into ``gsum[..., 1:3]``."""
+    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
+                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    x, v, mass = fields.x, fields.v, fields.mass
     gsum[:, 1:3, :] = 0.0
     ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
     L0 = nloc[0]
@@ -83,11 +89,14 @@ def p2g_momentum_hat(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r
 
 
 @loop_kernel
-def g2p_hat(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
-            x, v, F, r0, stress, dx, mat, params, damage, gnew, err,
-             loc, inv_ps, slot_patch, new_patch):
+def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
     updated."""
+    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
+                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
+    mat, params, damage = material
+    loc, inv_ps, slot_patch, new_patch = locate
     vmax = 0.0
     moved = 0
     first_out = -1

@@ -144,9 +144,12 @@ def sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gx, gy, gz):
 
 
 @loop_kernel
-def p2g_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, vol0, stress,
-             bforce, gsum, err):
+def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
+    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
+                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    x, v, F, r0, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.r0, fields.mass,
+                                       fields.vol0, fields.stress)
     forced = bforce.shape[0] > 0
     gsum[:] = 0.0
     ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
@@ -211,8 +214,11 @@ def p2g_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass,
 
 
 @loop_kernel
-def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, r0, mass, gsum, err):
+def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
+    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
+                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    x, v, F, r0, mass = fields.x, fields.v, fields.F, fields.r0, fields.mass
     gsum[:, 1:4, :] = 0.0
     ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
     L0 = nloc[0]
@@ -251,12 +257,15 @@ def p2g_momentum_cpdi(lcr, start, base, jlo, jhi, nloc, origin, inv_h, x, v, F, 
 
 
 @loop_kernel
-def g2p_cpdi(mode, lcr, start, base, jlo, jhi, nloc, origin, inv_h, dt, flip,
-             x, v, F, r0, stress, dx, mat, params, damage, gnew, err,
-             loc, inv_ps, slot_patch, new_patch):
+def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v, Δv)`` rows (the deformation mode reads only ``v``); returns the largest
     ``c_p + |v_p|`` in the modes that update the stress."""
+    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
+                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    x, v, F, r0, stress, dx = fields.x, fields.v, fields.F, fields.r0, fields.stress, fields.dx
+    mat, params, damage = material
+    loc, inv_ps, slot_patch, new_patch = locate
     vmax = 0.0
     moved = 0
     first_out = -1

@@ -1,0 +1,20 @@
+"""The records the transfer kernels take, instead of twenty-odd positional arrays.
+
+numba compiles a namedtuple of arrays like the arrays themselves (each field keeps its type), so
+grouping costs nothing at run time and the kernels unpack the fields they use by name. The
+stepper builds them (:meth:`parmpm.stepper.Stepper._records`); the tests call kernels through the
+stepper.
+"""
+from collections import namedtuple
+
+#: the interpolator code, the dimension and ``l_cr`` (``math.inf``: no domain scaling)
+Method = namedtuple("Method", ("code", "dim", "lcr"))
+#: a rank's patches in slot order: particle ranges ``start``, node-box origins ``base``, usable
+#: cells ``jlo..jhi``, box and grid node counts, grid origin and ``1/Δx`` (3-axis padded)
+Boxes = namedtuple("Boxes", ("start", "base", "jlo", "jhi", "nloc", "nglob", "origin", "inv_h"))
+#: the particle fields a transfer reads or writes
+Fields = namedtuple("Fields", ("x", "v", "F", "r0", "lh0", "mass", "vol0", "stress", "dx"))
+#: the material state G2P updates: material row per particle, parameter table, damage
+Material = namedtuple("Material", ("mat", "params", "damage"))
+#: what the specialised G2P kernels need to find each particle's next patch (and write it)
+Locate = namedtuple("Locate", ("loc", "inv_ps", "slot_patch", "new_patch"))
