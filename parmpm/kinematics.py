@@ -104,3 +104,10 @@ def update_F_3d(l00, l01, l02, l10, l11, l12, l20, l21, l22,
             f11 + (l10 * f01 + l11 * f11 + l12 * f21), f12 + (l10 * f02 + l11 * f12 + l12 * f22),
             f20 + (l20 * f00 + l21 * f10 + l22 * f20), f21 + (l20 * f01 + l21 * f11 + l22 * f21),
             f22 + (l20 * f02 + l21 * f12 + l22 * f22))
+
+
+@helper_kernel
+def flip_pic(flip, vp, dv, vg):
+    """The particle's new velocity component: ``α (v_p + Δv) + (1 − α) v`` with ``Δv`` and ``v``
+    interpolated from the grid (``α = 1``: FLIP, ``α = 0``: PIC)."""
+    return flip * (vp + dv) + (1.0 - flip) * vg

@@ -27,7 +27,7 @@ import numpy as np
 from numba import literal_unroll, literally
 
 from parmpm.jit import DIMS, kernel, loop_kernel
-from parmpm.kinematics import det_d, update_F
+from parmpm.kinematics import det_d, flip_pic, update_F
 from parmpm.materials.damage import damage_update
 from parmpm.materials.laws import cauchy_stress, wave_speed
 from parmpm.shapes.support import domain_matrix, particle_support
@@ -191,7 +191,7 @@ def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scra
                         x[i, a] += dt * vi
                     else:
                         dx[i, a] = dt * vi
-                    v[i, a] = flip * (v[i, a] + dvi) + (1.0 - flip) * vi
+                    v[i, a] = flip_pic(flip, v[i, a], dvi, vi)
             if mode == G2P_MUSL_MOTION:
                 continue
             for a in range(d):

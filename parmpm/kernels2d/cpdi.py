@@ -17,7 +17,7 @@ scattered, so a particle that reaches past the ghost layer contributes nothing a
 from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import cells_of4, note_patch
 from parmpm.kernels2d.material import update_F_stress
-from parmpm.kinematics import det_2d
+from parmpm.kinematics import det_2d, flip_pic
 from parmpm.particles import patch_id2
 from parmpm.shapes.cpdi import cofactor_2d
 from parmpm.shapes.scaling import cap_2d
@@ -236,8 +236,8 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
             if mode != G2P_MUSL_DEFORM:
                 vx = 0.25 * (u0x + u1x + u2x + u3x)
                 vy = 0.25 * (u0y + u1y + u2y + u3y)
-                v[i, 0] = flip * (vpx + 0.25 * (d0x + d1x + d2x + d3x)) + (1.0 - flip) * vx
-                v[i, 1] = flip * (vpy + 0.25 * (d0y + d1y + d2y + d3y)) + (1.0 - flip) * vy
+                v[i, 0] = flip_pic(flip, vpx, 0.25 * (d0x + d1x + d2x + d3x), vx)
+                v[i, 1] = flip_pic(flip, vpy, 0.25 * (d0y + d1y + d2y + d3y), vy)
                 if mode == G2P_MUSL_MOTION:
                     dx[i, 0] = dt * vx
                     dx[i, 1] = dt * vy

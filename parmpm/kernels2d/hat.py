@@ -9,7 +9,7 @@ gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇�
 from parmpm.jit import loop_kernel
 from parmpm.kernels2d.cells import hat_cell_of, note_patch
 from parmpm.kernels2d.material import update_F_stress
-from parmpm.kinematics import det_2d
+from parmpm.kinematics import det_2d, flip_pic
 from parmpm.particles import patch_id2
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
@@ -133,8 +133,8 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
             l11 = ihy * (gx * (uy2 - uy0) + fx * (uy3 - uy1))
             if mode != G2P_MUSL_DEFORM:
                 vpx, vpy = v[i, 0], v[i, 1]
-                v[i, 0] = flip * (vpx + dvx) + (1.0 - flip) * vx
-                v[i, 1] = flip * (vpy + dvy) + (1.0 - flip) * vy
+                v[i, 0] = flip_pic(flip, vpx, dvx, vx)
+                v[i, 1] = flip_pic(flip, vpy, dvy, vy)
                 if mode == G2P_USL:
                     x[i, 0] = xx + dt * vx
                     x[i, 1] = xy + dt * vy

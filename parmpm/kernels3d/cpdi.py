@@ -23,7 +23,7 @@ from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import note_patch
 from parmpm.kernels3d.cells import cells_of8
 from parmpm.kernels3d.material import update_F_stress
-from parmpm.kinematics import det_3d
+from parmpm.kinematics import det_3d, flip_pic
 from parmpm.particles import patch_id3
 from parmpm.shapes.cpdi import cofactor_3d
 from parmpm.shapes.scaling import cap_3d
@@ -323,9 +323,9 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
                 dvx = 0.125 * (d0x + d1x + d2x + d3x + d4x + d5x + d6x + d7x)
                 dvy = 0.125 * (d0y + d1y + d2y + d3y + d4y + d5y + d6y + d7y)
                 dvz = 0.125 * (d0z + d1z + d2z + d3z + d4z + d5z + d6z + d7z)
-                v[i, 0] = flip * (v[i, 0] + dvx) + (1.0 - flip) * vx
-                v[i, 1] = flip * (v[i, 1] + dvy) + (1.0 - flip) * vy
-                v[i, 2] = flip * (v[i, 2] + dvz) + (1.0 - flip) * vz
+                v[i, 0] = flip_pic(flip, v[i, 0], dvx, vx)
+                v[i, 1] = flip_pic(flip, v[i, 1], dvy, vy)
+                v[i, 2] = flip_pic(flip, v[i, 2], dvz, vz)
                 if mode == G2P_MUSL_MOTION:
                     dx[i, 0], dx[i, 1], dx[i, 2] = dt * vx, dt * vy, dt * vz
                     continue

@@ -12,7 +12,7 @@ import numpy as np
 from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import hat_cell_of, note_patch
 from parmpm.kernels3d.material import update_F_stress
-from parmpm.kinematics import det_3d
+from parmpm.kinematics import det_3d, flip_pic
 from parmpm.particles import patch_id3
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
@@ -189,9 +189,9 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
                 l21 += nvz * gy
                 l22 += nvz * gz
             if mode != G2P_MUSL_DEFORM:
-                v[i, 0] = flip * (v[i, 0] + dvx) + (1.0 - flip) * vx
-                v[i, 1] = flip * (v[i, 1] + dvy) + (1.0 - flip) * vy
-                v[i, 2] = flip * (v[i, 2] + dvz) + (1.0 - flip) * vz
+                v[i, 0] = flip_pic(flip, v[i, 0], dvx, vx)
+                v[i, 1] = flip_pic(flip, v[i, 1], dvy, vy)
+                v[i, 2] = flip_pic(flip, v[i, 2], dvz, vz)
                 if mode != G2P_USL:
                     dx[i, 0], dx[i, 1], dx[i, 2] = dt * vx, dt * vy, dt * vz
                     continue
