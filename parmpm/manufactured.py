@@ -16,14 +16,15 @@ import numpy as np
 
 from parmpm.exact import manufactured_motion
 from parmpm.jit import kernel
-from parmpm.materials import PARAM, cauchy_stress
+from parmpm.materials import COL_DENSITY, COL_E
+from parmpm.materials.laws import cauchy_stress
 
 __all__ = ["frequency", "initialise", "body_force"]
 
 
 def frequency(params: np.ndarray) -> float:
     """``c = sqrt(E/ρ0)`` of the material (row 0 of the table; the scene has one material)."""
-    return math.sqrt(params[0, PARAM["E"]] / params[0, PARAM["density"]])
+    return math.sqrt(params[0, COL_E] / params[0, COL_DENSITY])
 
 
 def initialise(P, A: float, params: np.ndarray) -> None:
