@@ -96,14 +96,14 @@ def _near_region(gi0, gi1, gi2, ranges):
 
 
 @kernel
-def grid_update(d, own_lo, own_hi, base, nloc, face_lo, face_hi, bc, regions, normal, ranges,
-                origin, h, dt, gvec, damping, mass_eps, gsum, gnew, from_momentum_only):
+def grid_update(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, from_momentum_only):
     """Owned-node update from the P2G block ``gsum[slot] = (m, mv, f)`` rows into the block
     ``gnew[slot] = (v, Δv)`` rows (:func:`grid_block` layout). With ``from_momentum_only`` (the
     MUSL re-map) only ``v = mv/m`` with boundary conditions is formed. Constraints are applied
     only on nodes of a constrained face (at or beyond the global node indices ``face_lo``,
     ``face_hi`` of the physical faces) or near a region (``ranges``). The node loop is
     compiled once per dimension (as :mod:`parmpm.transfer`'s loops), without reference counting."""
+    bc = constraints.bc
     vold = np.zeros(3)
     vnew = np.zeros(3)
     gidx = np.zeros(3, np.int64)
@@ -113,17 +113,17 @@ def grid_update(d, own_lo, own_hi, base, nloc, face_lo, face_hi, bc, regions, no
             face[k, side] = bc[k, side] != FREE
     for dim in literal_unroll(DIMS):
         if dim == d:
-            _grid_loop(dim, own_lo, own_hi, base, nloc, face_lo, face_hi, bc, regions, normal,
-                       ranges, origin, h, dt, gvec, damping, mass_eps, gsum, gnew,
+            _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
                        from_momentum_only, vold, vnew, gidx, face)
 
 
 @loop_kernel
-def _grid_loop(dim, own_lo, own_hi, base, nloc, face_lo, face_hi, bc, regions, normal, ranges,
-               origin, h, dt, gvec, damping, mass_eps, gsum, gnew, from_momentum_only, vold, vnew,
-               gidx, face):
+def _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
+               from_momentum_only, vold, vnew, gidx, face):
     literally(dim)
     d = dim * 1
+    own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
+    bc, regions, normal, ranges, origin, h = constraints
     L0, L1 = nloc[0], nloc[1]
     nreg = ranges.shape[0]
     for p in range(gsum.shape[0]):

@@ -1,4 +1,4 @@
-"""The records the transfer kernels take, instead of twenty-odd positional arrays.
+"""The records the transfer and grid kernels take, instead of twenty-odd positional arrays.
 
 numba compiles a namedtuple of arrays like the arrays themselves (each field keeps its type), so
 grouping costs nothing at run time and the kernels unpack the fields they use by name. The
@@ -18,3 +18,9 @@ Fields = namedtuple("Fields", ("x", "v", "F", "r0", "lh0", "mass", "vol0", "stre
 Material = namedtuple("Material", ("mat", "params", "damage"))
 #: what the specialised G2P kernels need to find each particle's next patch (and write it)
 Locate = namedtuple("Locate", ("loc", "inv_ps", "slot_patch", "new_patch"))
+#: the nodes a rank's grid update visits: per-slot owned node ranges ``own_lo..own_hi`` in the
+#: node box at ``base`` of ``nloc`` nodes, and the global nodes of the physical faces
+OwnedNodes = namedtuple("OwnedNodes", ("own_lo", "own_hi", "base", "nloc", "face_lo", "face_hi"))
+#: the velocity constraints: face conditions per axis and side, region boxes with their normals
+#: (−1: fixed) and node ranges, and the grid geometry that places nodes in the boxes
+Constraints = namedtuple("Constraints", ("bc", "regions", "normal", "ranges", "origin", "h"))

@@ -22,7 +22,8 @@ from decomposition import (PatchSet, accumulate, allreduce_max, exchange, fill,
                            is_parallel, migrate)
 from parmpm.discretisation import Discretisation
 from parmpm.errors import SimulationError
-from parmpm.kernel_records import Boxes, Fields, Locate, Material, Method
+from parmpm.kernel_records import (Boxes, Constraints, Fields, Locate, Material, Method,
+                                   OwnedNodes)
 from parmpm.grid import grid_block, grid_update, region_node_ranges
 from parmpm.kernels2d import KERNELS_2D
 from parmpm.kernels3d import KERNELS_3D
@@ -131,10 +132,11 @@ class Stepper:
 
     def _grid_update(self, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
         D = self.disc
-        grid_update(D.dim, D.own_lo, D.own_hi, D.base, D.nloc, D.face_lo3, D.face_hi3, self.bc,
-                    self.regions, self.region_normal, self.region_ranges, D.origin3, D.h3, dt,
-                    gravity, self.damping, self.mass_eps, self.gsum_block, self.gnew_block,
-                    momentum_only)
+        nodes = OwnedNodes(D.own_lo, D.own_hi, D.base, D.nloc, D.face_lo3, D.face_hi3)
+        constraints = Constraints(self.bc, self.regions, self.region_normal, self.region_ranges,
+                                  D.origin3, D.h3)
+        grid_update(D.dim, nodes, constraints, dt, gravity, self.damping, self.mass_eps,
+                    self.gsum_block, self.gnew_block, momentum_only)
 
     def _lap(self, phase: str, t0: float) -> float:
         t = time.perf_counter()
