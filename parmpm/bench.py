@@ -43,9 +43,15 @@ from pathlib import Path
 
 import numpy as np
 
+from decomposition import SerialComm
 from parmpm.bench_report import format_result, format_summary, summarise, write_csv
 from parmpm.errors import ParmpmError
+from parmpm.io.summary import to_jsonable
+from parmpm.kernels2d.material import stress_pass as stress_pass_2d
+from parmpm.kernels3d.material import stress_pass as stress_pass_3d
 from parmpm.scene import Scene, scene_from_toml
+from parmpm.simulation import Simulation
+from parmpm.transfer import stress_pass
 
 __all__ = ["build_bench_scene", "run_bench", "run_benches", "add_arguments", "format_result"]
 
@@ -182,9 +188,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_benches(args: argparse.Namespace, comm=None) -> list[dict]:
     """Every (dim, method) case of ``args`` in turn (collective); rank 0 prints each table, a
     summary when there are several, and writes ``--json`` / ``--csv``."""
-    from decomposition import SerialComm
-    from parmpm.io.summary import to_jsonable
-
     comm = comm if comm is not None else SerialComm()
     dims = args.dim if isinstance(args.dim, list) else [args.dim]
     methods = args.method if isinstance(args.method, list) else [args.method]
@@ -209,10 +212,6 @@ def run_benches(args: argparse.Namespace, comm=None) -> list[dict]:
 def run_bench(args: argparse.Namespace, comm=None) -> dict:
     """Run one benchmark case on every rank of ``comm`` (collective); every rank returns the
     result. Rank 0 prints the table and writes ``args.json`` if given."""
-    from decomposition import SerialComm
-    from parmpm.io.summary import to_jsonable
-    from parmpm.simulation import Simulation
-
     comm = comm if comm is not None else SerialComm()
     rank = comm.Get_rank()
     args = argparse.Namespace(**vars(args))
@@ -258,8 +257,6 @@ def run_bench(args: argparse.Namespace, comm=None) -> dict:
 def _warm_up(dim: int, method: str, update: str, comm) -> float:
     """Wall time (slowest rank) of a tiny run of the same case: JIT compilation, or loading the
     compiled kernels from numba's cache, which the measured run then no longer pays."""
-    from parmpm.simulation import Simulation
-
     tmp = tempfile.mkdtemp(prefix="parmpm-warmup-")
     try:
         comm.Barrier()
@@ -278,13 +275,9 @@ def _time_stress(sim, repeats: int = 3) -> float:
     P, st = sim.particles, sim.stepper
     out = np.empty_like(P.stress)
     if st.kernels is not None and P.dim in (2, 3):
-        if P.dim == 2:
-            from parmpm.kernels2d.material import stress_pass
-        else:
-            from parmpm.kernels3d.material import stress_pass
-        run = lambda: stress_pass(P.F, P.mat, st.params, out)  # noqa: E731
+        fast = stress_pass_2d if P.dim == 2 else stress_pass_3d
+        run = lambda: fast(P.F, P.mat, st.params, out)  # noqa: E731
     else:
-        from parmpm.transfer import stress_pass
         run = lambda: stress_pass(P.dim, P.F, P.mat, st.params, P.damage, out)  # noqa: E731
     run()
     best = math.inf

@@ -8,6 +8,7 @@ import numpy as np
 
 from decomposition import PatchLayout
 from parmpm.kernels2d.cells import usable_cells
+from parmpm.scene_bodies import rotated_box_bounds
 
 
 @dataclass
@@ -89,8 +90,6 @@ def exterior_cells(data: dict, ghost: int) -> tuple[np.ndarray, np.ndarray]:
     if ext != "auto":
         n = np.full(d, int(ext), np.int64)
         return n, n.copy()
-    from parmpm.scene_bodies import rotated_box_bounds
-
     h = np.asarray(grid["cell_size"], float)
     glo = np.asarray(grid["origin"], float)
     ghi = glo + h * np.asarray(grid["cells"])

@@ -29,6 +29,7 @@ import math
 import os
 
 from parmpm.errors import ParmpmError
+from parmpm.scene_bodies import rotated_box_bounds
 
 #: measured peak over the bare fields (a 2D cpdi run at 1e6 particles: 360 B per particle over
 #: 256 B of fields; the node blocks' halo buffers likewise)
@@ -61,7 +62,6 @@ def _body_particles(body: dict, h: list[float], dim: int) -> float:
 
 def _body_box(body: dict) -> tuple[list[float], list[float]]:
     if body["shape"] == "box":
-        from parmpm.scene_bodies import rotated_box_bounds
         if body.get("angle"):
             return rotated_box_bounds(body["min"], body["max"], body["angle"])
         return body["min"], body["max"]

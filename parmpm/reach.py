@@ -9,6 +9,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from parmpm.shapes import CPDI, CPGIMP
+from parmpm.shapes.scaling import longest_corner
+from parmpm.shapes.support import domain_matrix
+
 if TYPE_CHECKING:
     from parmpm.discretisation import Discretisation
     from parmpm.stepper import Stepper
@@ -20,10 +24,6 @@ def fmt_vec(v) -> str:
 
 def support_reach(stepper: Stepper, i: int) -> tuple[float, bool]:
     """(Longest reach of particle ``i``'s support from its centre, is the support on the grid?)."""
-    from parmpm.shapes import CPDI, CPGIMP
-    from parmpm.shapes.scaling import longest_corner
-    from parmpm.shapes.support import domain_matrix
-
     D, P = stepper.disc, stepper.P
     if D.method == CPDI:
         R = np.zeros((3, 3))
@@ -42,9 +42,6 @@ def support_reach(stepper: Stepper, i: int) -> tuple[float, bool]:
 def support_half_widths(stepper: Stepper, i: int) -> np.ndarray:
     """Half-extent per axis of particle ``i``'s support about its centre: the GIMP half-widths,
     or the bounding box of the CPDI corners ``x ± Σ_k |R_ak|`` (as interpolated, after scaling)."""
-    from parmpm.shapes import CPDI, CPGIMP
-    from parmpm.shapes.support import domain_matrix
-
     D, P = stepper.disc, stepper.P
     d = D.dim
     if D.method == CPDI:
