@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import literal_unroll, literally
 
-from parmpm.jit import DIMS, kernel, loop_kernel
+from parmpm.jit import DIMS, helper_kernel, kernel, loop_kernel
 from parmpm.kinematics import det_d, flip_pic, update_F
 from parmpm.materials.damage import damage_update
 from parmpm.materials.laws import cauchy_stress, wave_speed
@@ -51,6 +51,24 @@ def _scratch(nloc, d):
             np.zeros((3, 3)), np.zeros((3, 3)))
 
 
+@helper_kernel
+def _entries(method, d, lcr, boxes, fields, i, p, err, scratch):
+    """Particle ``i``'s (node, weight, gradient) entries in the scratch's ``idx, w, g`` for the
+    node box of slot ``p``; their count, or -1 (noted in ``err``) when its support leaves the
+    grid or the ghost layer."""
+    R, C, xi, nk, jk, wk, dwk, idx, w, g, _, _ = scratch
+    x, F = fields.x, fields.F
+    origin, inv_h = boxes.origin, boxes.inv_h
+    for k in range(d):
+        xi[k] = (x[i, k] - origin[k]) * inv_h[k]
+    domain_matrix(d, method, lcr, F[i], fields.r0[i], R)
+    n = particle_support(method, d, xi, F[i], fields.lh0[i], R, C, boxes.base[p], boxes.nloc,
+                         boxes.nglob, inv_h, nk, jk, wk, dwk, idx, w, g)
+    if n < 0 and err[0] < 0:
+        err[0] = i
+    return n
+
+
 @kernel
 def p2g(how, boxes, fields, bforce, out, err):
     """``out = (gm, gmv, gf)`` (node-major views of this rank's patch slots) from the particles;
@@ -67,26 +85,18 @@ def _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
     method, lcr = how.code, how.lcr
-    start, base, nloc, nglob, origin, inv_h = (boxes.start, boxes.base, boxes.nloc, boxes.nglob,
-                                               boxes.origin, boxes.inv_h)
-    x, v, F, r0, lh0, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.r0, fields.lh0,
-                                            fields.mass, fields.vol0, fields.stress)
+    start = boxes.start
+    v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
     gm, gmv, gf = out
-    R, C, xi, nk, jk, wk, dwk, idx, w, g, _, _ = scratch
+    idx, w, g = scratch[7], scratch[8], scratch[9]
     forced = bforce.shape[0] > 0
     gm[:] = 0.0
     gmv[:] = 0.0
     gf[:] = 0.0
     for p in range(start.size - 1):
         for i in range(start[p], start[p + 1]):
-            for k in range(d):
-                xi[k] = (x[i, k] - origin[k]) * inv_h[k]
-            domain_matrix(d, method, lcr, F[i], r0[i], R)
-            n = particle_support(method, d, xi, F[i], lh0[i], R, C, base[p], nloc, nglob, inv_h,
-                                 nk, jk, wk, dwk, idx, w, g)
+            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
-                if err[0] < 0:
-                    err[0] = i
                 continue
             m = mass[i]
             V = det_d(d, F[i]) * vol0[i]
@@ -119,21 +129,13 @@ def _p2g_momentum_loop(how, dim, boxes, fields, gmv, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
     method, lcr = how.code, how.lcr
-    start, base, nloc, nglob, origin, inv_h = (boxes.start, boxes.base, boxes.nloc, boxes.nglob,
-                                               boxes.origin, boxes.inv_h)
-    x, v, F, r0, lh0, mass = fields.x, fields.v, fields.F, fields.r0, fields.lh0, fields.mass
-    R, C, xi, nk, jk, wk, dwk, idx, w, g, _, _ = scratch
+    start, v, mass = boxes.start, fields.v, fields.mass
+    idx, w = scratch[7], scratch[8]
     gmv[:] = 0.0
     for p in range(start.size - 1):
         for i in range(start[p], start[p + 1]):
-            for k in range(d):
-                xi[k] = (x[i, k] - origin[k]) * inv_h[k]
-            domain_matrix(d, method, lcr, F[i], r0[i], R)
-            n = particle_support(method, d, xi, F[i], lh0[i], R, C, base[p], nloc, nglob, inv_h,
-                                 nk, jk, wk, dwk, idx, w, g)
+            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
-                if err[0] < 0:
-                    err[0] = i
                 continue
             for e in range(n):
                 mw = mass[i] * w[e]
@@ -160,26 +162,18 @@ def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scra
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
     method, lcr = how.code, how.lcr
-    start, base, nloc, nglob, origin, inv_h = (boxes.start, boxes.base, boxes.nloc, boxes.nglob,
-                                               boxes.origin, boxes.inv_h)
-    x, v, F, r0, lh0, stress, dx = (fields.x, fields.v, fields.F, fields.r0, fields.lh0,
-                                    fields.stress, fields.dx)
+    start = boxes.start
+    x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     mat, params, damage = material
     gvel, gdv = grid
-    R, C, xi, nk, jk, wk, dwk, idx, w, g, Lg, Fn = scratch
+    idx, w, g, Lg, Fn = scratch[7], scratch[8], scratch[9], scratch[10], scratch[11]
     vmax = 0.0
     for p in range(start.size - 1):
         for i in range(start[p], start[p + 1]):
-            for k in range(d):
-                xi[k] = (x[i, k] - origin[k]) * inv_h[k]
-            Fi = F[i]
-            domain_matrix(d, method, lcr, Fi, r0[i], R)
-            n = particle_support(method, d, xi, Fi, lh0[i], R, C, base[p], nloc, nglob, inv_h,
-                                 nk, jk, wk, dwk, idx, w, g)
+            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
-                if err[0] < 0:
-                    err[0] = i
                 continue
+            Fi = F[i]
             if mode != G2P_MUSL_DEFORM:
                 for a in range(d):
                     vi = 0.0
