@@ -85,3 +85,18 @@ def note_patch(new_patch, i, pid, sp, moved, first_out):
         if pid != sp:
             moved += 1
     return moved, first_out
+
+
+@inline_kernel
+def frame_2d(boxes):
+    """The grid origin, ``1/Δx`` and the node-box row length of a rank's :class:`Boxes`
+    (:mod:`parmpm.kernel_records`): ``(ox, oy, ihx, ihy, L0)``."""
+    origin, inv_h = boxes.origin, boxes.inv_h
+    return origin[0], origin[1], inv_h[0], inv_h[1], boxes.nloc[0]
+
+
+@inline_kernel
+def slot_2d(boxes, p):
+    """Node-box origin and usable cells of slot ``p``: ``(bx, by, jlx, jly, jhx, jhy)``."""
+    base, jlo, jhi = boxes.base, boxes.jlo, boxes.jhi
+    return base[p, 0], base[p, 1], jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]

@@ -15,7 +15,7 @@ Every corner's cell is located (and checked against the patch's box) before anyt
 scattered, so a particle that reaches past the ghost layer contributes nothing and sets ``err``.
 """
 from parmpm.jit import inline_kernel, loop_kernel
-from parmpm.kernels2d.cells import cells_of4, note_patch
+from parmpm.kernels2d.cells import cells_of4, frame_2d, note_patch, slot_2d
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.kinematics import det_2d, flip_pic
 from parmpm.particles import patch_id2
@@ -126,18 +126,15 @@ def gather4(g, L0, jx, jy, fx, fy):
 @loop_kernel
 def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, F, r0, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.r0, fields.mass,
                                        fields.vol0, fields.stress)
     forced = bforce.shape[0] > 0
     gsum[:] = 0.0
-    ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
-    L0 = nloc[0]
+    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
     for p in range(start.size - 1):
         g = gsum[p]
-        bx, by = base[p, 0], base[p, 1]
-        jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
+        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for i in range(start[p], start[p + 1]):
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             r1x, r1y, r2x, r2y = domain(lcr, f00, f01, f10, f11,
@@ -167,16 +164,13 @@ def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
 @loop_kernel
 def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2) of ``gsum`` only."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, F, r0, mass = fields.x, fields.v, fields.F, fields.r0, fields.mass
     gsum[:, 1:3, :] = 0.0
-    ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
-    L0 = nloc[0]
+    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
     for p in range(start.size - 1):
         g = gsum[p]
-        bx, by = base[p, 0], base[p, 1]
-        jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
+        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for i in range(start[p], start[p + 1]):
             r1x, r1y, r2x, r2y = domain(lcr, F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1],
                                         r0[i, 0, 0], r0[i, 0, 1], r0[i, 1, 0], r0[i, 1, 1])
@@ -200,21 +194,18 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v_x, v_y, Δv_x, Δv_y)`` rows; returns the largest ``c_p + |v_p|`` in the
     modes that update the stress."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, F, r0, stress, dx = fields.x, fields.v, fields.F, fields.r0, fields.stress, fields.dx
     mat, params, damage = material
     loc, inv_ps, slot_patch, new_patch = locate
     vmax = 0.0
     moved = 0
     first_out = -1
-    ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
-    L0 = nloc[0]
+    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
     for p in range(start.size - 1):
         g = gnew[p]
         sp = slot_patch[p]
-        bx, by = base[p, 0], base[p, 1]
-        jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
+        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for i in range(start[p], start[p + 1]):
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             r1x, r1y, r2x, r2y = domain(lcr, f00, f01, f10, f11,
@@ -247,7 +238,8 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
             else:
                 x[i, 0] = xx + dx[i, 0]
                 x[i, 1] = xy + dx[i, 1]
-            pid = patch_id2(x[i, 0], x[i, 1], origin, inv_h, loc, inv_ps)  # where it goes next
+            # where it goes next
+            pid = patch_id2(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, loc, inv_ps)
             moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             # L = (1/V) Σ v(x_α) ⊗ g_α with g = −ga, gb, −gb, ga for corners 0..3
             gax, gay, gbx, gby, det = corner_gradients(r1x, r1y, r2x, r2y)

@@ -7,7 +7,7 @@ gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇�
 (:mod:`parmpm.transfer` has the full step).
 """
 from parmpm.jit import loop_kernel
-from parmpm.kernels2d.cells import hat_cell_of, note_patch
+from parmpm.kernels2d.cells import frame_2d, hat_cell_of, note_patch, slot_2d
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.kinematics import det_2d, flip_pic
 from parmpm.particles import patch_id2
@@ -18,18 +18,15 @@ from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
     """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` unused:
     the signature is the CPDI kernel's)."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     forced = bforce.shape[0] > 0
     gsum[:] = 0.0
-    ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
-    L0 = nloc[0]
+    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
     for p in range(start.size - 1):
         g = gsum[p]
-        bx, by = base[p, 0], base[p, 1]
-        jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
+        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for i in range(start[p], start[p + 1]):
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
@@ -62,16 +59,13 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
 @loop_kernel
 def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum only, into ``gsum[..., 1:3]``."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, mass = fields.x, fields.v, fields.mass
     gsum[:, 1:3, :] = 0.0
-    ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
-    L0 = nloc[0]
+    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
     for p in range(start.size - 1):
         g = gsum[p]
-        bx, by = base[p, 0], base[p, 1]
-        jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
+        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for i in range(start[p], start[p + 1]):
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
@@ -92,21 +86,18 @@ def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
 def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
     updated."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     mat, params, damage = material
     loc, inv_ps, slot_patch, new_patch = locate
     vmax = 0.0
     moved = 0
     first_out = -1
-    ox, oy, ihx, ihy = origin[0], origin[1], inv_h[0], inv_h[1]
-    L0 = nloc[0]
+    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
     for p in range(start.size - 1):
         g = gnew[p]
         sp = slot_patch[p]
-        bx, by = base[p, 0], base[p, 1]
-        jlx, jly, jhx, jhy = jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
+        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for i in range(start[p], start[p + 1]):
             xx, xy = x[i, 0], x[i, 1]
             jx, fx = hat_cell_of((xx - ox) * ihx, bx, jlx, jhx)
@@ -145,7 +136,8 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
             else:
                 x[i, 0] = xx + dx[i, 0]
                 x[i, 1] = xy + dx[i, 1]
-            pid = patch_id2(x[i, 0], x[i, 1], origin, inv_h, loc, inv_ps)  # where it goes next
+            # where it goes next
+            pid = patch_id2(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, loc, inv_ps)
             moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             l00, l01, l10, l11 = dt * l00, dt * l01, dt * l10, dt * l11

@@ -42,3 +42,20 @@ def cells_of8(c0, c1, c2, c3, c4, c5, c6, c7, base, jlo, jhi):
                 j7 - base, c0 - j0, c1 - j1, c2 - j2, c3 - j3, c4 - j4, c5 - j5, c6 - j6, c7 - j7,
                 True)
     return cells_of8_slow(c0, c1, c2, c3, c4, c5, c6, c7, base, jlo, jhi)
+
+
+@inline_kernel
+def frame_3d(boxes):
+    """The grid origin, ``1/Δx`` and the node-box strides of a rank's :class:`Boxes`
+    (:mod:`parmpm.kernel_records`): ``(ox, oy, oz, ihx, ihy, ihz, L0, L0·L1)``."""
+    origin, inv_h, nloc = boxes.origin, boxes.inv_h, boxes.nloc
+    return (origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2], nloc[0],
+            nloc[0] * nloc[1])
+
+
+@inline_kernel
+def slot_3d(boxes, p):
+    """Node-box origin and usable cells of slot ``p``: ``(bx, by, bz, jlx, …, jhz)``."""
+    base, jlo, jhi = boxes.base, boxes.jlo, boxes.jhi
+    return (base[p, 0], base[p, 1], base[p, 2], jlo[p, 0], jlo[p, 1], jlo[p, 2],
+            jhi[p, 0], jhi[p, 1], jhi[p, 2])

@@ -21,7 +21,7 @@ import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import note_patch
-from parmpm.kernels3d.cells import cells_of8
+from parmpm.kernels3d.cells import cells_of8, frame_3d, slot_3d
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.kinematics import det_3d, flip_pic
 from parmpm.particles import patch_id3
@@ -146,20 +146,15 @@ def sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gx, gy, gz):
 @loop_kernel
 def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, F, r0, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.r0, fields.mass,
                                        fields.vol0, fields.stress)
     forced = bforce.shape[0] > 0
     gsum[:] = 0.0
-    ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
-    L0 = nloc[0]
-    L01 = nloc[0] * nloc[1]
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
     for p in range(start.size - 1):
         g = gsum[p]
-        bx, by, bz = base[p, 0], base[p, 1], base[p, 2]
-        jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
-        jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
+        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for i in range(start[p], start[p + 1]):
             f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
             f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
@@ -216,18 +211,13 @@ def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
 @loop_kernel
 def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, F, r0, mass = fields.x, fields.v, fields.F, fields.r0, fields.mass
     gsum[:, 1:4, :] = 0.0
-    ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
-    L0 = nloc[0]
-    L01 = nloc[0] * nloc[1]
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
     for p in range(start.size - 1):
         g = gsum[p]
-        bx, by, bz = base[p, 0], base[p, 1], base[p, 2]
-        jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
-        jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
+        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for i in range(start[p], start[p + 1]):
             R00, R01, R02, R10, R11, R12, R20, R21, R22 = domain(
                 lcr, F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1], F[i, 1, 2],
@@ -261,23 +251,18 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v, Δv)`` rows (the deformation mode reads only ``v``); returns the largest
     ``c_p + |v_p|`` in the modes that update the stress."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, F, r0, stress, dx = fields.x, fields.v, fields.F, fields.r0, fields.stress, fields.dx
     mat, params, damage = material
     loc, inv_ps, slot_patch, new_patch = locate
     vmax = 0.0
     moved = 0
     first_out = -1
-    ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
-    L0 = nloc[0]
-    L01 = nloc[0] * nloc[1]
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
     for p in range(start.size - 1):
         g = gnew[p]
         sp = slot_patch[p]
-        bx, by, bz = base[p, 0], base[p, 1], base[p, 2]
-        jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
-        jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
+        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for i in range(start[p], start[p + 1]):
             f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
             f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
@@ -330,7 +315,7 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
                     dx[i, 0], dx[i, 1], dx[i, 2] = dt * vx, dt * vy, dt * vz
                     continue
                 x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
-            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], origin, inv_h, loc, inv_ps)
+            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, loc, inv_ps)
             moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             # Δt L = Δt/V Σ v(x_α) ⊗ g_α, opposite corners paired (g: see p2g_cpdi)
             gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = corner_gradients(

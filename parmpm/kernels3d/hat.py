@@ -11,6 +11,7 @@ import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import hat_cell_of, note_patch
+from parmpm.kernels3d.cells import frame_3d, slot_3d
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.kinematics import det_3d, flip_pic
 from parmpm.particles import patch_id3
@@ -58,20 +59,15 @@ def scatter_node(g, e, a, t):
 def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
     """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` unused:
     the signature is the CPDI kernel's)."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     forced = bforce.shape[0] > 0
     gsum[:] = 0.0
-    ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
-    L0 = nloc[0]
-    L01 = nloc[0] * nloc[1]
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
     for p in range(start.size - 1):
         g = gsum[p]
-        bx, by, bz = base[p, 0], base[p, 1], base[p, 2]
-        jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
-        jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
+        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for i in range(start[p], start[p + 1]):
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
@@ -107,18 +103,13 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
 @loop_kernel
 def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, mass = fields.x, fields.v, fields.mass
     gsum[:, 1:4, :] = 0.0
-    ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
-    L0 = nloc[0]
-    L01 = nloc[0] * nloc[1]
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
     for p in range(start.size - 1):
         g = gsum[p]
-        bx, by, bz = base[p, 0], base[p, 1], base[p, 2]
-        jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
-        jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
+        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for i in range(start[p], start[p + 1]):
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
@@ -140,23 +131,18 @@ def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
 def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
     updated."""
-    start, base, jlo, jhi, nloc, origin, inv_h = (boxes.start, boxes.base, boxes.jlo, boxes.jhi,
-                                                  boxes.nloc, boxes.origin, boxes.inv_h)
+    start = boxes.start
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     mat, params, damage = material
     loc, inv_ps, slot_patch, new_patch = locate
     vmax = 0.0
     moved = 0
     first_out = -1
-    ox, oy, oz, ihx, ihy, ihz = origin[0], origin[1], origin[2], inv_h[0], inv_h[1], inv_h[2]
-    L0 = nloc[0]
-    L01 = nloc[0] * nloc[1]
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
     for p in range(start.size - 1):
         g = gnew[p]
         sp = slot_patch[p]
-        bx, by, bz = base[p, 0], base[p, 1], base[p, 2]
-        jlx, jly, jlz = jlo[p, 0], jlo[p, 1], jlo[p, 2]
-        jhx, jhy, jhz = jhi[p, 0], jhi[p, 1], jhi[p, 2]
+        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for i in range(start[p], start[p + 1]):
             xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
             jx, fx = hat_cell_of((xx - ox) * ihx, bx, jlx, jhx)
@@ -198,7 +184,7 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
                 x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
             else:
                 x[i, 0], x[i, 1], x[i, 2] = xx + dx[i, 0], xy + dx[i, 1], xz + dx[i, 2]
-            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], origin, inv_h, loc, inv_ps)
+            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, loc, inv_ps)
             moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
                                              dt * l12, dt * l20, dt * l21, dt * l22),
