@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from decomposition import PatchLayout
+from parmpm.kernel_records import kernel_lcr
 from parmpm.kernels2d.cells import usable_cells
 from parmpm.scene_bodies import rotated_box_bounds
 
@@ -23,7 +24,7 @@ class Discretisation:
 
     dim: int
     method: int
-    lcr: float            # 0.0 = no domain scaling
+    lcr: float | None     # None: no domain scaling (stored as the kernels' NO_SCALING)
     origin: np.ndarray
     h: np.ndarray
     layout: PatchLayout
@@ -31,6 +32,7 @@ class Discretisation:
     exterior_hi: np.ndarray | None = None   # (dim,) cells above each axis' last face
 
     def __post_init__(self):
+        self.lcr = kernel_lcr(self.lcr)
         pad = 3 - self.dim
         zeros = np.zeros(self.dim, np.int64)
         self.exterior_lo = zeros if self.exterior_lo is None else np.asarray(self.exterior_lo, np.int64)
@@ -46,7 +48,7 @@ class Discretisation:
         self.set_patches(np.arange(self.layout.n_patches))
 
     @classmethod
-    def from_grid(cls, dim: int, method: int, lcr: float, grid: dict, ghost: int,
+    def from_grid(cls, dim: int, method: int, lcr: float | None, grid: dict, ghost: int,
                   exterior: tuple[np.ndarray, np.ndarray] | None = None) -> Discretisation:
         """The discretisation of a resolved ``[grid]`` table with ``ghost`` ghost cells and an
         exterior layer of ``exterior = (lo, hi)`` cells per axis (None: none): the patch layout

@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from parmpm.jit import kernel
+from parmpm.kernel_records import kernel_lcr
 from parmpm.shapes import CPDI, CPGIMP, domain_matrix
 
 __all__ = ["domain_vectors", "domain_corners", "domain_sizes"]
@@ -43,11 +44,11 @@ def _vectors(d, method, lcr, F, r0, lh0, out):
                 out[i, a, a] = half
 
 
-def domain_vectors(dim: int, method: int, lcr: float, F, r0, lh0) -> np.ndarray:
+def domain_vectors(dim: int, method: int, lcr: float | None, F, r0, lh0) -> np.ndarray:
     """(N, d, d) centre-to-face vectors (columns) of every particle's domain."""
     n = np.shape(F)[0]
     out = np.zeros((n, dim, dim))
-    _vectors(dim, method, float(lcr or 0.0), np.ascontiguousarray(F, float),
+    _vectors(dim, method, kernel_lcr(lcr), np.ascontiguousarray(F, float),
              np.ascontiguousarray(r0, float), np.ascontiguousarray(lh0, float), out)
     return out
 

@@ -5,9 +5,27 @@ grouping costs nothing at run time and the kernels unpack the fields they use by
 stepper builds them (:meth:`parmpm.stepper.Stepper._records`); the tests call kernels through the
 stepper.
 """
+from __future__ import annotations
+
+import math
 from collections import namedtuple
 
-#: the interpolator code, the dimension and ``l_cr`` (``math.inf``: no domain scaling)
+#: ``l_cr`` as the kernels see it when there is no domain scaling: a cap no vector reaches
+NO_SCALING = math.inf
+
+
+def kernel_lcr(lcr: float | None) -> float:
+    """The kernels' ``l_cr`` for a run's (``None``: no domain scaling). ``None`` is the one
+    spelling of "no l_cr" above the kernels; inside them it is :data:`NO_SCALING`, which the cap
+    formula needs no special case for."""
+    if lcr is None or lcr == 0.0:  # 0.0: the old spelling, until every caller passes None
+        return NO_SCALING
+    lcr = float(lcr)
+    if not lcr > 0.0:
+        raise ValueError(f"l_cr must be positive or None, got {lcr!r}")
+    return lcr
+
+#: the interpolator code, the dimension and ``l_cr`` (:data:`NO_SCALING`: no domain scaling)
 Method = namedtuple("Method", ("code", "dim", "lcr"))
 #: a rank's patches in slot order: particle ranges ``start``, node-box origins ``base``, usable
 #: cells ``jlo..jhi``, box and grid node counts, grid origin and ``1/Δx`` (3-axis padded)

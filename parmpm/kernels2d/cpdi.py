@@ -15,6 +15,7 @@ Every corner's cell is located (and checked against the patch's box) before anyt
 scattered, so a particle that reaches past the ghost layer contributes nothing and sets ``err``.
 """
 from parmpm.jit import inline_kernel, loop_kernel
+from parmpm.kernel_records import NO_SCALING
 from parmpm.kernels2d.cells import cells_of4, frame_2d, note_patch, slot_2d
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.kinematics import det_2d, flip_pic
@@ -32,7 +33,7 @@ def domain(lcr, f00, f01, f10, f11, q00, q01, q10, q11):
     r1y = f10 * q00 + f11 * q10
     r2x = f00 * q01 + f01 * q11
     r2y = f10 * q01 + f11 * q11
-    if lcr > 0.0:
+    if lcr < NO_SCALING:  # a cap no vector reaches changes nothing: skip it
         r1x, r1y, r2x, r2y, _ = cap_2d(lcr, r1x, r1y, r2x, r2y)
     return r1x, r1y, r2x, r2y
 

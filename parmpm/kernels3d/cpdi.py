@@ -20,6 +20,7 @@ Grid rows: ``gsum[s] = (m, mv_x, mv_y, mv_z, f_x, f_y, f_z)``, ``gnew[s] = (v_x,
 import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
+from parmpm.kernel_records import NO_SCALING
 from parmpm.kernels2d.cells import note_patch
 from parmpm.kernels3d.cells import cells_of8, frame_3d, slot_3d
 from parmpm.kernels3d.material import update_F_stress
@@ -44,7 +45,7 @@ def domain(lcr, f00, f01, f02, f10, f11, f12, f20, f21, f22,
     R20 = f20 * q00 + f21 * q10 + f22 * q20
     R21 = f20 * q01 + f21 * q11 + f22 * q21
     R22 = f20 * q02 + f21 * q12 + f22 * q22
-    if lcr > 0.0:
+    if lcr < NO_SCALING:  # a cap no vector reaches changes nothing: skip it
         R00, R01, R02, R10, R11, R12, R20, R21, R22, _ = cap_3d(lcr, R00, R01, R02, R10, R11, R12,
                                                                 R20, R21, R22)
     return R00, R01, R02, R10, R11, R12, R20, R21, R22

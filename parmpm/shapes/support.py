@@ -10,6 +10,7 @@ Entries: ``idx[e]`` flat local node index in the patch's ghost-inclusive box, ``
 grid or beyond the patch's ghost layer.
 """
 from parmpm.jit import helper_kernel
+from parmpm.kernel_records import NO_SCALING
 from parmpm.shapes.cpdi import cpdi_support
 from parmpm.shapes.gimp import gimp_axis
 from parmpm.shapes.hat import mpm_axis
@@ -45,7 +46,7 @@ def _tensor_entries(d, L0, L1, nk, jk, wk, dwk, idx, w, g):
 @helper_kernel
 def domain_matrix(d, method, lcr, F, r0, R):
     """CPDI domain ``R = F·R0`` (3×3 scratch, leading d×d block), then capped at ``lcr`` when
-    ``lcr > 0`` (domain scaling). Other interpolators leave R untouched."""
+    domain scaling is on (``lcr`` finite). Other interpolators leave R untouched."""
     if method != CPDI:
         return
     for a in range(3):
@@ -57,7 +58,7 @@ def domain_matrix(d, method, lcr, F, r0, R):
             for k in range(d):
                 acc += F[a, k] * r0[k, b]
             R[a, b] = acc
-    if lcr > 0.0:
+    if lcr < NO_SCALING:  # a cap no vector reaches changes nothing: skip it
         scale_domain(d, R, lcr)
 
 
