@@ -2,24 +2,18 @@
 
 Rank 0 writes every shared file; each call is collective, and a problem that rank 0 meets (a full
 disk, an unwritable folder, another run's folder) is raised on every rank with the same one-line
-message (:func:`agree`), so no rank is left waiting in a collective and ``mpirun`` prints it
+message (:func:`parmpm.collective.agree`), so no rank is left waiting in a collective and ``mpirun`` prints it
 once. The folder rules are :mod:`parmpm.io.run_folder`'s.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
+from parmpm.collective import agree
 from parmpm.errors import ParmpmError
 from parmpm.log import get_logger
 
 log = get_logger(__name__)
-
-
-def agree(comm, problem: str | None, root: int = 0) -> None:
-    """Raise ``problem`` (known on ``root``; None: none) as a ParmpmError on every rank."""
-    problem = comm.bcast(problem, root=root)
-    if problem:
-        raise ParmpmError(problem)
 
 
 def _one_line(exc: Exception, what: str) -> str:

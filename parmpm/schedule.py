@@ -1,4 +1,11 @@
-"""Schedules: when a periodic action (a snapshot, a checkpoint) is due.
+"""The run's clock and its schedules: when the run ends, and when a periodic action (a snapshot,
+a checkpoint, a metrics sample, the energy watch) is due.
+
+Every schedule answers ``due(t, step)`` at the end of a step and hears ``advance(t)`` when its
+action ran; :class:`Schedule` (simulated time, step count), :class:`WallTime` (minutes of wall
+time, agreed by all ranks), :class:`AtEnd` (the last step) and :class:`AnyOf` (any of these) are
+the kinds a run needs, and "simulated time has reached t" has one tolerance, ``REL_TOL``, for
+all of them and for the end of the run.
 
 One rule for every schedule of a run, so that none can loop or drift: an action is due at the end
 of a step when the step count is a multiple of ``every_steps``, or when simulated time has reached
@@ -15,6 +22,11 @@ a restart continues the same series.
 from __future__ import annotations
 
 import math
+import time
+
+import numpy as np
+
+from decomposition import allreduce_max
 
 #: relative tolerance of "simulated time has reached a scheduled time"
 REL_TOL = 1e-12
@@ -51,3 +63,90 @@ class Schedule:
         """The action ran at time ``t``: move the next time due past ``t`` (no loop)."""
         if self.every is not None and t >= self.next_time * (1.0 - REL_TOL):
             self.next_time = self._after(t)
+
+
+class WallTime:
+    """Due when ``minutes`` of wall time have passed since the action last ran, on the slowest
+    rank (collective: every rank must ask at every step, so that all agree)."""
+
+    def __init__(self, minutes: float, comm):
+        self.seconds, self.comm = 60.0 * minutes, comm
+        self.since = time.monotonic()
+
+    def due(self, t: float, step: int) -> bool:
+        waited = allreduce_max(self.comm, np.array([time.monotonic() - self.since]))[0]
+        return waited >= self.seconds
+
+    def advance(self, t: float) -> None:
+        self.since = time.monotonic()
+
+
+class AtEnd:
+    """Due at the run's last step (its ``clock`` is done)."""
+
+    def __init__(self, clock: Clock):
+        self.clock = clock
+
+    def due(self, t: float, step: int) -> bool:
+        return self.clock.done()
+
+    def advance(self, t: float) -> None:
+        pass
+
+
+class AnyOf:
+    """Due when any of ``parts`` is (each is asked, as a collective one must be)."""
+
+    def __init__(self, *parts):
+        self.parts = parts
+
+    def due(self, t: float, step: int) -> bool:
+        return any([part.due(t, step) for part in self.parts])
+
+    def advance(self, t: float) -> None:
+        for part in self.parts:
+            part.advance(t)
+
+
+class Clock:
+    """Simulated time and step count, the CFL step and the end of the run (the scene's ``time``
+    table, ``tm``; ``h_min``: the smallest cell size). ``vmax`` is the largest wave speed plus
+    particle speed, which sets the next step."""
+
+    def __init__(self, tm: dict, h_min: float, vmax: float, t: float = 0.0, nstep: int = 0,
+                 last_dt: float = 0.0):
+        self.tm, self.h_min = tm, h_min
+        self.t, self.nstep, self.last_dt, self.vmax = t, nstep, last_dt, vmax
+        self.dt_limit = "time.cfl"  # the key that set the last step: the one a blow-up names
+
+    def next_dt(self) -> float:
+        """The CFL step, capped by ``time.dt_max`` and the end time."""
+        tm = self.tm
+        dt = tm["cfl"] * self.h_min / self.vmax
+        self.dt_limit = "time.cfl"
+        if tm["dt_max"] and tm["dt_max"] < dt:
+            dt, self.dt_limit = tm["dt_max"], "time.dt_max"
+        if tm["end"] is not None:
+            dt = min(dt, tm["end"] - self.t)
+        return dt
+
+    def tick(self, dt: float, vmax: float) -> None:
+        """A step of ``dt`` was taken; ``vmax`` sets the next one."""
+        self.vmax = vmax
+        self.t += dt
+        self.nstep += 1
+        self.last_dt = dt
+
+    def done(self) -> bool:
+        tm = self.tm
+        if tm["steps"] is not None and self.nstep >= tm["steps"]:
+            return True
+        return tm["end"] is not None and self.t >= tm["end"] * (1.0 - REL_TOL)
+
+    def unstable_hint(self) -> str:
+        """What to lower when the run blew up: the key that set the step."""
+        tm = self.tm
+        if self.dt_limit == "time.dt_max":
+            return (f"Δt = {self.last_dt:.3g} s was set by time.dt_max, below the CFL step: try a "
+                    f"smaller time.dt_max (now {tm['dt_max']:.3g} s)")
+        return f"try a smaller time.cfl (now {tm['cfl']:g})"

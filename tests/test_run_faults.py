@@ -259,10 +259,11 @@ def test_the_watch_is_quiet_on_a_sound_run_and_reports(tmp_path):
 
 def test_a_blow_up_under_dt_max_names_dt_max(tmp_path):
     sim = _sim(tmp_path, "time.dt_max=1e-5")
-    sim.next_dt()
-    sim.last_dt = 1e-5
-    assert sim.dt_limit == "time.dt_max"
-    assert "time.dt_max" in sim._unstable_hint() and "time.cfl" not in sim._unstable_hint()
+    clock = sim.clock
+    clock.next_dt()
+    clock.last_dt = 1e-5
+    assert clock.dt_limit == "time.dt_max"
+    assert "time.dt_max" in clock.unstable_hint() and "time.cfl" not in clock.unstable_hint()
 
 
 @needs_mpi

@@ -1,10 +1,12 @@
-"""The run driver's side of checkpoints: gather every rank's particles to the writer, and read a
-rank's own rows back on restart (the file format itself is :mod:`parmpm.io.checkpoint`).
+"""The parallel strategy behind checkpoints: gather every rank's particles to the writer, and
+read a rank's own rows back on restart (the file format itself is :mod:`parmpm.io.checkpoint`).
 
 PyPI's h5py is serial, so rank 0 writes: particles are gathered in bounded blocks of global ids
 (no rank ever holds more than one block of other ranks' particles). Every step is collective and
 a problem found by one rank (a full disk on the writer, a damaged block on a reader) is raised on
-every rank with the same one-line message, so no rank is left waiting.
+every rank with the same one-line message (:func:`parmpm.collective.agree`), so no rank is left
+waiting. Another strategy (per-rank files under one master file with HDF5 virtual datasets) would
+sit beside this one with the same two functions.
 """
 from __future__ import annotations
 
@@ -12,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
+from parmpm.collective import agree
 from parmpm.errors import ParmpmError
 from parmpm.io.checkpoint import FIELDS, CheckpointWriter, prune
 from parmpm.particles import Particles
-from parmpm.run_files import agree
 
 #: global ids per gathered block: bounds the writer's extra memory
 BLOCK = 1 << 18
@@ -90,7 +92,5 @@ def load_particles(comm, reader, dim: int, n_total: int, n_materials: int,
                               "materials cannot be added or removed on restart")
     except ParmpmError as exc:
         problem = str(exc)
-    problems = [p for p in comm.allgather(problem) if p]
-    if problems:
-        raise ParmpmError(problems[0])
+    agree(comm, problem, root=None)
     return P

@@ -1,0 +1,237 @@
+"""Set-up: a resolved scene, a communicator and optionally a checkpoint become this rank's state.
+
+:func:`set_up` builds the discretisation, deals the patches out over the ranks and gives this
+rank its particles, by one of three paths: seeded from the scene (every rank seeds the same
+particles, global ids = seeding order, and keeps its own; :mod:`parmpm.seeding`), seeded and set
+on the manufactured solution's exact field, or read back from a checkpoint
+(:mod:`parmpm.io.checkpoint_gather`). A restart also restores the clock, the metrics' history,
+the energy watch and the output schedule, so that it continues bit for bit. The run loop
+(:mod:`parmpm.simulation`) and the measurements (:mod:`parmpm.measures`) read the result,
+:class:`RankState`; nothing here steps or writes.
+"""
+from __future__ import annotations
+
+import uuid
+from dataclasses import dataclass
+
+import numpy as np
+
+from decomposition import PatchSet, allreduce_max, ranks_on_this_node
+from parmpm.collective import agree
+from parmpm.discretisation import Discretisation, exterior_cells
+from parmpm.energy import EnergyWatch
+from parmpm.errors import ParmpmError, SimulationError
+from parmpm.footprint import check_memory
+from parmpm.grid import BC_CODES
+from parmpm.io.checkpoint_gather import load_particles
+from parmpm.materials import material_table
+from parmpm.particles import Particles, locate_patches
+from parmpm.reach import fmt_vec
+from parmpm.schedule import Clock
+from parmpm.seeding import seed_bodies
+from parmpm.shapes import CPDI, INTERPOLATORS
+from parmpm.stepper import Stepper
+from parmpm.transfer import max_speed
+
+
+@dataclass
+class RankState:
+    """Everything one rank holds of a run: its particles and patches, the stepper that advances
+    them, the clock, and the run-wide objects every rank keeps alike (metrics, energy watch)."""
+
+    scene: object
+    comm: object
+    interp: object            # the interpolator's registry entry (name, code, ghost width)
+    lcr: float | None         # the CPDI cap (None: not CPDI)
+    update: str               # "usl" or "musl"
+    disc: Discretisation
+    params: np.ndarray        # material table
+    patches: PatchSet
+    particles: Particles
+    stepper: Stepper
+    n_total: int              # particles on all ranks
+    metrics: object           # the scene's metrics (None when there are none)
+    energy: EnergyWatch
+    clock: Clock
+    run_id: str               # this run's identity (a restart is a run of its own)
+    restart: bool             # continued from a checkpoint
+    continues: dict | None    # the run a restart continues: its id and the checkpoint
+    next_output: float | None  # the output schedule's next time, as checkpointed
+
+    @property
+    def data(self) -> dict:
+        return self.scene.data
+
+    @property
+    def dim(self) -> int:
+        return self.scene.data["dim"]
+
+    @property
+    def rank(self) -> int:
+        return self.comm.Get_rank()
+
+    @property
+    def size(self) -> int:
+        return self.comm.Get_size()
+
+
+def set_up(scene, comm, checkpoint=None) -> RankState:
+    """This rank's state of ``scene`` (collective); ``checkpoint``: an open
+    :class:`parmpm.io.checkpoint.CheckpointReader` to continue from."""
+    data = scene.data
+    d = data["dim"]
+    interp = INTERPOLATORS[data["method"]["interpolator"]]
+    lcr = scene.lcr if interp.code == CPDI else None
+    ghost = data["grid"]["ghost"]
+    if ghost == "auto":
+        ghost = interp.ghost_width(lcr, scene.min_dx)
+    _check_memory(comm, data, int(ghost))  # before anything of the scene's size is allocated
+    # the patches cover the grid and its exterior layer (grid.exterior), the face conditions
+    # stay on the user's faces (parmpm.discretisation.exterior_cells)
+    D = Discretisation.from_grid(d, interp.code, lcr or 0.0, data["grid"], int(ghost),
+                                 exterior_cells(data, int(ghost)))
+    params, names = material_table(data["materials"])
+    P, patches, n_total, metrics = _particles(data, comm, D, params, names, checkpoint)
+    m = data["method"]
+    update = m["update"] if m["update"] != "auto" else ("usl" if interp.code == CPDI else "musl")
+    bc, region_box, region_normal = _boundary(data, d)
+    stepper = Stepper(D, P, patches, params, bc, region_box, update, m["flip"],
+                      data["damping"]["coefficient"], n_total, region_normal)
+    if data.get("manufactured"):
+        _manufactured(stepper, d, params, data["manufactured"]["amplitude"])
+    limit = data["time"]["max_energy_growth"]
+    limit = None if limit == "off" else limit
+    energy = EnergyWatch(None if stepper.forcing is not None else limit)
+    # the run's identity: its folder's marker and its checkpoints carry it, so that pruning
+    # touches only its own checkpoints (parmpm.io.run_folder); a restart is a run of its own
+    run_id = comm.bcast(uuid.uuid4().hex if comm.Get_rank() == 0 else None, root=0)
+    h_min = float(D.h.min())
+    continues, next_output = None, None
+    if checkpoint is None:
+        vmax = max_speed(d, P.v, P.F, P.mat, params)
+        clock = Clock(data["time"], h_min, float(allreduce_max(comm, np.array([vmax]))[0]))
+    else:
+        a = checkpoint.attrs
+        clock = Clock(data["time"], h_min, float(a["vmax"]), float(a["time"]), int(a["step"]),
+                      float(a["dt"]))
+        state = checkpoint.state
+        next_output = state.get("next_output")
+        if metrics is not None and state.get("metrics"):
+            metrics.restore(state["metrics"])
+        energy.restore(state.get("energy"))
+        continues = {"run_id": (state.get("run") or {}).get("id"),
+                     "checkpoint": str(checkpoint.path)}
+    return RankState(scene, comm, interp, lcr, update, D, params, patches, P, stepper, n_total,
+                     metrics, energy, clock, run_id, checkpoint is not None, continues,
+                     next_output)
+
+
+def open_checkpoint(path, overrides, comm):
+    """(scene, reader) of the run saved in ``path``: its stored scene with ``overrides`` applied
+    (e.g. ``time.end=...``); the caller closes the reader."""
+    from parmpm.io.checkpoint import CheckpointReader
+    from parmpm.scene import scene_from_toml
+
+    reader = CheckpointReader(path, warn=comm is None or comm.Get_rank() == 0)
+    try:
+        scene = scene_from_toml(str(reader.attrs["scene"]), f"{path}", overrides)
+        if scene.data["dim"] != int(reader.attrs["dim"]):
+            raise ParmpmError(f"checkpoint '{path}' holds a {int(reader.attrs['dim'])}D run; "
+                              f"dim cannot change on restart (got dim = {scene.data['dim']})")
+    except BaseException:
+        reader.close()
+        raise
+    return scene, reader
+
+
+def _check_memory(comm, data: dict, ghost: int) -> None:
+    """Refuse, on every rank, a scene this node's ranks cannot hold (:mod:`parmpm.footprint`)."""
+    problem = None
+    try:
+        check_memory(data, ghost, comm.Get_size(), ranks_on_this_node(comm))
+    except ParmpmError as exc:
+        problem = str(exc)
+    agree(comm, problem, root=None)
+
+
+def _particles(data, comm, D, params, names, checkpoint):
+    """(this rank's particles, the patch set, particles in all, metrics): the three seeding
+    paths. Metrics need every particle's initial position; without them an unturned box is
+    counted per patch axis by axis and never held whole."""
+    layout, d = D.layout, data["dim"]
+    P = seeds = counts = where = None
+    if checkpoint is None:
+        # Every rank seeds the same particles (global ids = seeding order) and builds only
+        # its own once the patches are dealt out (parmpm.seeding).
+        seeds = seed_bodies(data, {n: i for i, n in enumerate(names)})
+        if data.get("manufactured"):  # start on the exact field (before patches are chosen)
+            from parmpm.manufactured import initialise
+            P, seeds = seeds.particles(params), None
+            initialise(P, data["manufactured"]["amplitude"], params)
+        elif data["metrics"]["kind"] == "none":  # no metric needs every particle's x0
+            counts = seeds.patch_counts(D)  # unturned boxes: counted axis by axis
+    if counts is not None:
+        n_total, metrics = seeds.n, None
+    else:
+        if P is not None:
+            x_all, x0_all, mass_all = P.x, P.x0, P.mass
+        elif seeds is not None:
+            x_all = x0_all = seeds.x
+            mass_all = seeds.mass(params) if data["metrics"]["kind"] != "none" else None
+        else:
+            x_all, x0_all, mass_all = (checkpoint.read(k) for k in ("x", "x0", "mass"))
+        n_total = x_all.shape[0]
+        from parmpm.metrics import make_metrics
+        metrics = make_metrics(data, x0_all, mass_all)
+        where = np.zeros(n_total, np.int64)
+        bad, _ = locate_patches(d, x_all, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
+                                layout.patches_per_axis, where, where)
+        if bad >= 0:
+            raise SimulationError(f"particle {bad} at {fmt_vec(x_all[bad])} is outside the grid")
+        counts = np.bincount(where, minlength=layout.n_patches)
+        del x_all, x0_all, mass_all  # no second reference to the seeded arrays while they move
+    dec = data["decomposition"]
+    patches = PatchSet(layout, comm, counts, threshold=dec["rebalance_threshold"],
+                       cooldown=dec["rebalance_cooldown"])
+    owned = patches.rank_of == comm.Get_rank()
+    mine = np.flatnonzero(owned[where]) if where is not None else seeds.members(D, owned)
+    if checkpoint is None:
+        if seeds is not None:
+            P = seeds.particles(params, mine)
+            del seeds
+        elif mine.size != P.n:
+            P.permute(mine)
+    else:
+        P = load_particles(comm, checkpoint, d, n_total, params.shape[0], mine)
+    if where is not None:
+        P.patch = where[mine]
+    else:  # the lattice path: locate only this rank's particles
+        locate_patches(d, P.x, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
+                       layout.patches_per_axis, P.patch, P.patch)
+    return P, patches, n_total, metrics
+
+
+def _boundary(data: dict, d: int):
+    """(face codes (3, 2), region boxes (R, 2, 3), region normals (R,): -1 fixed, k slip)."""
+    bc = np.zeros((3, 2), np.int64)
+    for k, axis in enumerate("xyz"[:d]):
+        bc[k] = [BC_CODES[data["boundary"][f"{axis}_min"]], BC_CODES[data["boundary"][f"{axis}_max"]]]
+    regions = data["boundary"]["fixed_regions"] + data["boundary"]["slip_regions"]
+    region_box = np.zeros((len(regions), 2, 3))
+    region_normal = np.full(len(regions), -1, np.int64)  # -1: fixed, k: slip with normal k
+    for r, reg in enumerate(regions):
+        region_box[r, 0, :d], region_box[r, 1, :d] = reg["min"], reg["max"]
+        if "normal" in reg:
+            region_normal[r] = "xyz".index(reg["normal"])
+    return bc, region_box, region_normal
+
+
+def _manufactured(stepper: Stepper, d: int, params: np.ndarray, A: float) -> None:
+    """Drive the run with the manufactured solution's body force (:mod:`parmpm.manufactured`)."""
+    from parmpm.manufactured import body_force, frequency
+    from parmpm.materials import PARAM
+
+    c, row = frequency(params), params[0]
+    lam, mu, rho = row[PARAM["lam"]], row[PARAM["mu"]], row[PARAM["density"]]
+    stepper.forcing = lambda t, P, out: body_force(d, P.x0, t, A, c, lam, mu, rho, out)
+
