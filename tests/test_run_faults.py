@@ -52,6 +52,79 @@ def test_a_schedule_fires_at_multiples_of_its_period_and_of_its_step_count():
     assert Schedule(every=0.25, next_time=0.75).next_time == 0.75  # a restored clock
 
 
+def test_any_of_asks_every_part_and_at_end_follows_the_clock():
+    """A collective part (wall time) must be asked at every step on every rank, even when an
+    earlier part is already due; the end of the run has the schedules' tolerance."""
+    from parmpm.schedule import AnyOf, AtEnd, Clock
+
+    asked = []
+
+    class Counting:
+        def due(self, t, step):
+            asked.append(step)
+            return False
+
+        def advance(self, t):
+            pass
+
+    clock = Clock({"cfl": 0.5, "dt_max": None, "end": 1.0, "steps": None}, 0.1, 1.0)
+    both = AnyOf(Schedule(every_steps=1), Counting(), AtEnd(clock))
+    assert both.due(0.5, 1) and asked == [1]
+    clock.t = 1.0 - 1e-13  # within REL_TOL of the end
+    assert clock.done() and AnyOf(AtEnd(clock)).due(clock.t, 2)
+    assert clock.next_dt() == pytest.approx(1e-13) and clock.dt_limit == "time.cfl"
+
+
+class _Ranks:
+    """The answers of a few ranks' allgather/bcast, as seen from ``rank``."""
+
+    def __init__(self, rank, values):
+        self.rank, self.values = rank, values
+
+    def Get_rank(self):
+        return self.rank
+
+    def allgather(self, obj):
+        return [obj if r == self.rank else v for r, v in enumerate(self.values)]
+
+    def bcast(self, obj, root=0):
+        return self.values[root][1] if root != self.rank else obj
+
+
+def test_agree_raises_the_same_message_on_every_rank():
+    from parmpm.collective import agree
+    from parmpm.errors import SimulationError
+
+    agree(_Ranks(0, [(0, None), (1, None)]), None, root=None)  # no problem anywhere
+    values = [(0, None), (1, "rank 1 failed"), (2, "rank 2 failed")]
+    for rank in range(3):  # the lowest rank's problem, on every rank, as the error asked for
+        with pytest.raises(SimulationError, match="^rank 1 failed$"):
+            agree(_Ranks(rank, values), values[rank][1], root=None, error=SimulationError)
+    keyed = [(0, None), (-1, "rank 1 failed"), (-2, "rank 2 failed")]
+    with pytest.raises(ParmpmError, match="rank 2"):  # the smallest key's
+        agree(_Ranks(0, keyed), None, root=None, key=0)
+    with pytest.raises(ParmpmError, match="rank 1"):  # known on the root only: broadcast
+        agree(_Ranks(0, values), None, root=1)
+
+
+def test_a_new_output_is_one_callback_and_changes_no_result(tmp_path):
+    """What a history writer needs: one Callback on a schedule, also on the initial state."""
+    from parmpm.callbacks import Callback
+
+    rows = []
+    with_history = _sim(tmp_path, "checkpoint.every_steps=3", name="h")
+    with_history.callbacks.append(Callback(
+        "history", lambda sim: rows.append((sim.nstep, sim.totals()["kinetic_energy"])),
+        Schedule(every_steps=2), start=3))
+    plain = _sim(tmp_path, "checkpoint.every_steps=3", name="p")
+    a, b = with_history.run(), plain.run()
+    assert [step for step, _ in rows] == [0, 2, 4, 6]
+    assert rows[-1][1] == a["final"]["kinetic_energy"]
+    assert (a["final"], a["metrics"], a["steps"]) == (b["final"], b["metrics"], b["steps"])
+    assert sorted(p.name for p in (tmp_path / "h").glob("checkpoint_*.h5")) == \
+        ["checkpoint_00000003.h5", "checkpoint_00000006.h5"]
+
+
 @pytest.mark.parametrize("key", ["output.every=1e-20", "output.every=1e-17",
                                  "checkpoint.every=1e-20"])
 def test_tiny_periods_end(tmp_path, key):
