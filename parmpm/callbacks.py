@@ -20,19 +20,22 @@ appended to a run's own ``Simulation.callbacks`` (run after these), e.g.
 """
 from __future__ import annotations
 
+import json
 import math
 import signal
 import threading
+from collections.abc import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
 from decomposition import allreduce_max
 from parmpm.energy import ENERGY_EVERY, energy_totals
 from parmpm.errors import RunInterrupted, SimulationError
+from parmpm.io.checkpoint import checkpoint_name
+from parmpm.io.checkpoint_gather import write_checkpoint
 from parmpm.log import get_logger
 from parmpm.measures import axial_stretch, sample_metrics
 from parmpm.schedule import AnyOf, AtEnd, Schedule, WallTime
@@ -75,6 +78,9 @@ def standard_callbacks(sim) -> list[Callback]:
         ck_schedule.append(AtEnd(clock))
     if ck["wall_minutes"]:
         ck_schedule.append(WallTime(ck["wall_minutes"], sim.comm))
+    # on a fresh run's initial state: metrics, output, then the energy watch's baseline (after
+    # the observers, which may look at the state); after a step the watch comes first, so that
+    # a blow-up stops the run before its state is sampled or written
     callbacks = [
         Callback("finite", check_finite, every_step),
         Callback("energy", check_energy, Schedule(every_steps=ENERGY_EVERY), start=2,
@@ -160,11 +166,6 @@ class Checkpoints:
 
     def write_for(self, sim) -> Path:
         """Write ``checkpoint_<step>.h5`` (collective, atomic; :mod:`parmpm.io.checkpoint_gather`)."""
-        import json
-
-        from parmpm.io.checkpoint import checkpoint_name
-        from parmpm.io.checkpoint_gather import write_checkpoint
-
         s, clock = sim.state, sim.clock
         state = {"metrics": s.metrics.state() if s.metrics is not None else None,
                  "next_output": sim.out_schedule.next_time if sim.out_schedule else None,

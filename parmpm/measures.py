@@ -11,8 +11,16 @@ from __future__ import annotations
 import numpy as np
 
 from decomposition import allreduce_max, ordered_sum
+from parmpm import domains
 from parmpm.collective import agree
+from parmpm.connectivity import (
+    compact_nodes,
+    global_components,
+    local_components,
+    shared_pairs,
+)
 from parmpm.errors import SimulationError
+from parmpm.metrics import patch_sums
 from parmpm.reach import reach_message, support_reach
 from parmpm.stepper import PHASES, WORK_PHASES
 from parmpm.transfer import support_nodes
@@ -20,8 +28,6 @@ from parmpm.transfer import support_nodes
 
 def components(s) -> int:
     """Connected pieces of material over all ranks (particles linked through grid nodes)."""
-    from parmpm.connectivity import compact_nodes, global_components, local_components, shared_pairs
-
     P, D, ps = s.particles, s.disc, s.patches
     # entries per particle: a tensor-product support reaches at most `ghost` cells past the
     # particle's cell on each side (farther is the reach error below), a CPDI one 2^d nodes
@@ -59,8 +65,6 @@ def sample_metrics(s) -> int:
     the metric does not look at separation: counting them costs about a time step)."""
     if s.metrics is None:
         return 1
-    from parmpm.metrics import patch_sums
-
     P = s.particles
     pieces = components(s) if s.metrics.needs_components else 1
     t = s.clock.t
@@ -75,8 +79,6 @@ def sample_metrics(s) -> int:
 
 def totals(s) -> dict:
     """Mass, momentum and kinetic energy over all ranks (per-patch sums in patch order)."""
-    from parmpm.metrics import patch_sums
-
     P = s.particles
     terms = np.concatenate([P.mass[:, None], P.mass[:, None] * P.v,
                             0.5 * P.mass[:, None] * np.sum(P.v * P.v, axis=1, keepdims=True)], axis=1)
@@ -97,6 +99,7 @@ def gather(s, fields: dict[str, np.ndarray]) -> dict[str, np.ndarray] | None:
 
 
 def axial_stretch(s) -> np.ndarray:
+    """|F e_a| per particle of this rank: the stretch along the metrics' axis ``a``."""
     axis = s.data["metrics"]["axis"]
     return np.linalg.norm(s.particles.F[:, :, axis], axis=1)
 
@@ -106,10 +109,8 @@ def domain_corners(s) -> np.ndarray | None:
     (scaled CPDI domains, cpGIMP boxes, ...; :mod:`parmpm.domains`); 2D only."""
     if s.dim != 2:
         return None
-    from parmpm.domains import domain_corners
-
     P = s.particles
-    return domain_corners(2, s.disc.method, s.disc.lcr, P.x, P.F, P.r0, P.lh0)
+    return domains.domain_corners(2, s.disc.method, s.disc.lcr, P.x, P.F, P.r0, P.lh0)
 
 
 def decomposition_report(s) -> dict:

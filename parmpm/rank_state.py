@@ -17,16 +17,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from decomposition import PatchSet, allreduce_max, ranks_on_this_node
+from parmpm import manufactured
 from parmpm.collective import agree
 from parmpm.discretisation import Discretisation, exterior_cells
 from parmpm.energy import EnergyWatch
 from parmpm.errors import ParmpmError, SimulationError
 from parmpm.footprint import check_memory
 from parmpm.grid import BC_CODES
+from parmpm.io.checkpoint import CheckpointReader
 from parmpm.io.checkpoint_gather import load_particles
-from parmpm.materials import material_table
+from parmpm.materials import PARAM, material_table
+from parmpm.metrics import make_metrics
 from parmpm.particles import Particles, locate_patches
 from parmpm.reach import fmt_vec
+from parmpm.scene import scene_from_toml
 from parmpm.schedule import Clock
 from parmpm.seeding import seed_bodies
 from parmpm.shapes import CPDI, INTERPOLATORS
@@ -129,9 +133,6 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
 def open_checkpoint(path, overrides, comm):
     """(scene, reader) of the run saved in ``path``: its stored scene with ``overrides`` applied
     (e.g. ``time.end=...``); the caller closes the reader."""
-    from parmpm.io.checkpoint import CheckpointReader
-    from parmpm.scene import scene_from_toml
-
     reader = CheckpointReader(path, warn=comm is None or comm.Get_rank() == 0)
     try:
         scene = scene_from_toml(str(reader.attrs["scene"]), f"{path}", overrides)
@@ -165,9 +166,8 @@ def _particles(data, comm, D, params, names, checkpoint):
         # its own once the patches are dealt out (parmpm.seeding).
         seeds = seed_bodies(data, {n: i for i, n in enumerate(names)})
         if data.get("manufactured"):  # start on the exact field (before patches are chosen)
-            from parmpm.manufactured import initialise
             P, seeds = seeds.particles(params), None
-            initialise(P, data["manufactured"]["amplitude"], params)
+            manufactured.initialise(P, data["manufactured"]["amplitude"], params)
         elif data["metrics"]["kind"] == "none":  # no metric needs every particle's x0
             counts = seeds.patch_counts(D)  # unturned boxes: counted axis by axis
     if counts is not None:
@@ -181,7 +181,6 @@ def _particles(data, comm, D, params, names, checkpoint):
         else:
             x_all, x0_all, mass_all = (checkpoint.read(k) for k in ("x", "x0", "mass"))
         n_total = x_all.shape[0]
-        from parmpm.metrics import make_metrics
         metrics = make_metrics(data, x0_all, mass_all)
         where = np.zeros(n_total, np.int64)
         bad, _ = locate_patches(d, x_all, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
@@ -228,10 +227,7 @@ def _boundary(data: dict, d: int):
 
 def _manufactured(stepper: Stepper, d: int, params: np.ndarray, A: float) -> None:
     """Drive the run with the manufactured solution's body force (:mod:`parmpm.manufactured`)."""
-    from parmpm.manufactured import body_force, frequency
-    from parmpm.materials import PARAM
-
-    c, row = frequency(params), params[0]
+    c, row = manufactured.frequency(params), params[0]
     lam, mu, rho = row[PARAM["lam"]], row[PARAM["mu"]], row[PARAM["density"]]
-    stepper.forcing = lambda t, P, out: body_force(d, P.x0, t, A, c, lam, mu, rho, out)
+    stepper.forcing = lambda t, P, out: manufactured.body_force(d, P.x0, t, A, c, lam, mu, rho, out)
 

@@ -2,8 +2,8 @@
 
 Rank 0 writes every shared file; each call is collective, and a problem that rank 0 meets (a full
 disk, an unwritable folder, another run's folder) is raised on every rank with the same one-line
-message (:func:`parmpm.collective.agree`), so no rank is left waiting in a collective and ``mpirun`` prints it
-once. The folder rules are :mod:`parmpm.io.run_folder`'s.
+message (:func:`parmpm.collective.agree`), so no rank is left waiting in a collective and
+``mpirun`` prints it once. The folder rules are :mod:`parmpm.io.run_folder`'s.
 """
 from __future__ import annotations
 

@@ -13,14 +13,15 @@ import sys
 from pathlib import Path
 
 import pytest
+from mpi_launch import mpirun, needs_mpi
+from test_cli import assert_one_line_error
+from test_cli import parmpm as cli
 
 import parmpm
 from parmpm.__main__ import main
 from parmpm.errors import ParmpmError, RunInterrupted
 from parmpm.schedule import Schedule
 from parmpm.simulation import Simulation
-from test_cli import assert_one_line_error, parmpm as cli
-from mpi_launch import mpirun, needs_mpi
 
 QUIET = ["--quiet"]
 OFF = ["--set", "output.snapshots=false", "--set", "output.figure=false"]
