@@ -2,7 +2,7 @@
 
 numba compiles a namedtuple of arrays like the arrays themselves (each field keeps its type), so
 grouping costs nothing at run time and the kernels unpack the fields they use by name. The
-stepper builds them (:meth:`parmpm.stepper.Stepper._records`); the tests call kernels through the
+stepper builds them (:meth:`parmpm.stepper.Stepper.records`); the tests call kernels through the
 stepper.
 """
 from __future__ import annotations

@@ -37,8 +37,7 @@ def components(s) -> int:
     nodes = np.zeros((P.n, K), np.int64)
     count = np.zeros(P.n, np.int64)
     err = np.full(1, -1, np.int64)
-    support_nodes(D.method, D.dim, D.lcr, P.start, D.base, D.nloc, D.nglob, D.origin3,
-                  D.inv_h3, P.x, P.F, P.r0, P.lh0, nodes, count, err)
+    support_nodes(*s.stepper.records(), nodes, count, err)
     # A support past the ghost layer (inside the grid) would leave that particle without
     # nodes and fake a separation: stop with the reach error (the next p2g would raise it).
     # A support leaving the grid belongs to material on its way out: it counts as a piece of

@@ -92,7 +92,7 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     _check_memory(comm, data, int(ghost))  # before anything of the scene's size is allocated
     # the patches cover the grid and its exterior layer (grid.exterior), the face conditions
     # stay on the user's faces (parmpm.discretisation.exterior_cells)
-    D = Discretisation.from_grid(d, interp.code, lcr or 0.0, data["grid"], int(ghost),
+    D = Discretisation.from_grid(d, interp.code, lcr, data["grid"], int(ghost),
                                  exterior_cells(data, int(ghost)))
     params, names = material_table(data["materials"])
     P, patches, n_total, metrics = _particles(data, comm, D, params, names, checkpoint)

@@ -110,7 +110,7 @@ class Stepper:
         P.group_by_patch(P.patch, ps.slot_of, n, force=True)
 
     # --- the step -------------------------------------------------------------------------------
-    def _records(self):
+    def records(self):
         """The kernels' records (:mod:`parmpm.kernel_records`) of the current patches and
         particle arrays (rebuilt per call: migration replaces the arrays)."""
         D, P = self.disc, self.P
@@ -144,7 +144,7 @@ class Stepper:
         return t
 
     def _p2g(self, bforce: np.ndarray) -> None:
-        how, boxes, fields = self._records()
+        how, boxes, fields = self.records()
         if self.kernels is not None:
             self.kernels[0](how.lcr, boxes, fields, bforce, self.gsum_block, self.err)
         else:
@@ -152,7 +152,7 @@ class Stepper:
         self._check("p2g")
 
     def _p2g_momentum(self) -> None:
-        how, boxes, fields = self._records()
+        how, boxes, fields = self.records()
         if self.kernels is not None:
             self.kernels[1](how.lcr, boxes, fields, self.gsum_block, self.err)
         else:
@@ -163,7 +163,7 @@ class Stepper:
         """G2P; the specialised kernels also find each particle's next patch once its position
         is final (``_located``: one pass over the particles fewer than :meth:`locate_and_send`)."""
         P = self.P
-        how, boxes, fields = self._records()
+        how, boxes, fields = self.records()
         material = Material(P.mat, self.params, P.damage)
         if self.kernels is not None:
             if self._new_patch.size != P.n:

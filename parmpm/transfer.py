@@ -223,28 +223,21 @@ def max_speed(d, v, F, mat, params):
 
 
 @kernel
-def support_nodes(method, d, lcr, start, base, nloc, nglob, origin, inv_h, x, F, r0, lh0,
-                  nodes, count, err):
+def support_nodes(how, boxes, fields, nodes, count, err):
     """Global flat ids of the nodes each particle touches with nonzero weight (for separation
     detection: particles sharing no node exchange no momentum). ``nodes`` is (N, K)."""
-    _support_nodes_loop(method, d, lcr, start, base, nloc, nglob, origin, inv_h, x, F, r0, lh0,
-                        nodes, count, err, _scratch(nloc, d))
+    _support_nodes_loop(how, boxes, fields, nodes, count, err, _scratch(boxes.nloc, how.dim))
 
 
 @loop_kernel
-def _support_nodes_loop(method, d, lcr, start, base, nloc, nglob, origin, inv_h, x, F, r0, lh0,
-                        nodes, count, err, scratch):
-    R, C, xi, nk, jk, wk, dwk, idx, w, g, _, _ = scratch
+def _support_nodes_loop(how, boxes, fields, nodes, count, err, scratch):
+    method, d, lcr = how
+    start, base, nloc, nglob = boxes.start, boxes.base, boxes.nloc, boxes.nglob
+    idx, w = scratch[7], scratch[8]
     for p in range(start.size - 1):
         for i in range(start[p], start[p + 1]):
-            for k in range(d):
-                xi[k] = (x[i, k] - origin[k]) * inv_h[k]
-            domain_matrix(d, method, lcr, F[i], r0[i], R)
-            n = particle_support(method, d, xi, F[i], lh0[i], R, C, base[p], nloc, nglob, inv_h,
-                                 nk, jk, wk, dwk, idx, w, g)
+            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
-                if err[0] < 0:
-                    err[0] = i
                 continue
             c = 0
             for e in range(n):
