@@ -20,6 +20,7 @@ import numpy as np
 
 from decomposition import (PatchSet, accumulate, allreduce_max, exchange, fill,
                            is_parallel, migrate)
+from parmpm.collective import agree
 from parmpm.discretisation import Discretisation
 from parmpm.errors import SimulationError
 from parmpm.kernel_records import (Boxes, Constraints, Fields, Locate, Material, Method,
@@ -301,9 +302,7 @@ class Stepper:
         g = allreduce_max(self.comm, local)
         self.stop_requested = bool(g[4] > 0)
         if g[1] > 0:  # the error of the first particle in (patch, id) order, as on one rank
-            keys = self.comm.allgather(self.error_key or (math.inf, math.inf))
-            msg = self.comm.bcast(self.error, root=min(range(len(keys)), key=keys.__getitem__))
-            raise SimulationError(msg)
+            agree(self.comm, self.error, root=None, error=SimulationError, key=self.error_key)
         if g[2] > 0:
             if ps.update(ps.gather_counts(np.diff(P.start))):
                 self._patches_changed()
