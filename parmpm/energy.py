@@ -24,7 +24,7 @@ import numpy as np
 
 from decomposition import ordered_sum
 from parmpm.jit import kernel
-from parmpm.materials import stored_energy
+from parmpm.materials.laws import stored_energy
 from parmpm.metrics import patch_sums
 
 #: steps between two samples of the watch: a blow-up grows geometrically, so a sample every few

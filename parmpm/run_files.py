@@ -11,6 +11,10 @@ from pathlib import Path
 
 from parmpm.collective import agree
 from parmpm.errors import ParmpmError
+from parmpm.io.checkpoint import remove_stale_tmp
+from parmpm.io.run_folder import claim
+from parmpm.io.summary import write_summary
+from parmpm.io.xdmf import SnapshotWriter
 from parmpm.log import get_logger
 
 log = get_logger(__name__)
@@ -35,9 +39,6 @@ class RunFiles:
     def claim(self, marker: dict) -> Path:
         """Claim the output folder before anything is written (a folder that cannot be written
         or holds another run fails here) and clear temporary files a killed run left."""
-        from parmpm.io.checkpoint import remove_stale_tmp
-        from parmpm.io.run_folder import claim
-
         folder, problem = None, None
         if self.root:
             try:
@@ -54,8 +55,6 @@ class RunFiles:
         return folder
 
     def open_snapshots(self, series: str, dim: int) -> None:
-        from parmpm.io.xdmf import SnapshotWriter
-
         problem = None
         if self.root:
             try:
@@ -88,8 +87,6 @@ class RunFiles:
         return None
 
     def write_summary(self, summary: dict) -> None:
-        from parmpm.io.summary import write_summary
-
         problem = None
         if self.root:
             try:
