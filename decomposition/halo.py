@@ -25,6 +25,7 @@ from numba import njit
 
 from decomposition.comm import is_parallel
 from decomposition.layout import PatchLayout
+from decomposition.partition import shift_patches
 
 TAG_ACCUMULATE, TAG_FILL = 101, 102
 
@@ -35,21 +36,16 @@ def halo_pairs(layout: PatchLayout, ids: np.ndarray) -> np.ndarray:
     ids = np.unique(np.asarray(ids, dtype=np.int64))
     present = np.zeros(layout.n_patches, bool)
     present[ids] = True
-    nppa, ps, g3, L = (layout.patches_per_axis, layout.psize3, layout.ghost3,
-                       layout.local_nodes3)
-    coords = layout.patch_coords()[ids]
-    own_lo = coords * ps
-    own_hi = np.where(coords == nppa - 1, layout.global_nodes3, own_lo + ps)
-    p_base = own_lo - g3
+    all_coords = layout.patch_coords()
+    coords = all_coords[ids]
+    own_lo, own_hi = layout.owned_box(coords)
+    p_base = layout.local_base(coords)
     parts, keys = [], []
     for oi, off in enumerate(layout.neighbour_offsets()):
-        qc = coords + np.asarray(off, dtype=np.int64)
-        ok = np.all((qc >= 0) & (qc < nppa), axis=1)
-        qc = np.where(ok[:, None], qc, 0)
-        qid = qc[:, 0] + nppa[0] * (qc[:, 1] + nppa[1] * qc[:, 2])
+        qid, ok = shift_patches(layout, ids, off)
         ok &= present[qid]
-        q_lo = qc * ps - g3
-        lo, hi = np.maximum(own_lo, q_lo), np.minimum(own_hi, q_lo + L)
+        q_lo, q_hi = layout.local_box(all_coords[qid])
+        lo, hi = np.maximum(own_lo, q_lo), np.minimum(own_hi, q_hi)
         ok &= np.all(hi > lo, axis=1)
         rows = np.concatenate([ids[:, None], qid[:, None], lo - p_base, lo - q_lo, hi - lo], axis=1)
         parts.append(rows[ok])

@@ -10,7 +10,8 @@ one array shape. Axes beyond ``dim`` are padded to a single node (no ghosts) so 
 written once for three axes.
 
 Flat local node index: ``i0 + L0·(i1 + L1·i2)`` (axis 0 fastest); flat global node index likewise
-with the global node counts.
+with the global node counts. The box formulas themselves are :mod:`decomposition.boxes`'; a layout
+holds their parameters.
 """
 from __future__ import annotations
 
@@ -18,6 +19,8 @@ import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from decomposition import boxes
 
 
 @dataclass(frozen=True)
@@ -84,26 +87,32 @@ class PatchLayout:
         k2, k1, k0 = np.meshgrid(np.arange(n[2]), np.arange(n[1]), np.arange(n[0]), indexing="ij")
         return np.stack([k0.ravel(), k1.ravel(), k2.ravel()], axis=1).astype(np.int64)
 
-    def patch_id(self, coords) -> int:
-        n = self.patches_per_axis
-        return int(coords[0] + n[0] * (coords[1] + n[1] * coords[2]))
+    def patch_id(self, coords):
+        """Flat id of the patch at ``(..., 3)`` coordinates (an int for one patch)."""
+        ids = boxes.flat_patch_id(np.asarray(coords, dtype=np.int64), self.patches_per_axis)
+        return int(ids) if np.ndim(ids) == 0 else ids
 
-    def local_base(self) -> np.ndarray:
-        """(n_patches, 3) global node index of each patch's local node 0: ``k·P − g``."""
-        return self.patch_coords() * self.psize3 - self.ghost3
+    def local_base(self, coords=None) -> np.ndarray:
+        """Global node index of local node 0 (``k·P − g``) of the patches at ``(..., 3)``
+        ``coords`` (default: every patch, in flat order)."""
+        coords = self.patch_coords() if coords is None else np.asarray(coords, dtype=np.int64)
+        return boxes.ghost_base(coords, self.psize3, self.ghost3)
 
     def owned_box(self, coords) -> tuple[np.ndarray, np.ndarray]:
-        """Global node box [lo, hi) owned by the patch at ``coords``."""
-        coords = np.asarray(coords, dtype=np.int64)
-        lo = coords * self.psize3
-        last = coords == self.patches_per_axis - 1
-        hi = np.where(last, self.global_nodes3, lo + self.psize3)
-        return lo, hi
+        """Global node box [lo, hi) owned by the patches at ``(..., 3)`` ``coords``."""
+        return boxes.owned_box(np.asarray(coords, dtype=np.int64), self.psize3,
+                               self.patches_per_axis, self.global_nodes3)
 
     def local_box(self, coords) -> tuple[np.ndarray, np.ndarray]:
-        """Global node box [lo, hi) held locally (owned + ghosts) by the patch at ``coords``."""
-        lo = np.asarray(coords, dtype=np.int64) * self.psize3 - self.ghost3
+        """Global node box [lo, hi) held locally (owned + ghosts) by the patches at ``coords``."""
+        lo = self.local_base(coords)
         return lo, lo + self.local_nodes3
+
+    def locator(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(loc, inv_psize)`` for :func:`decomposition.boxes.patch_of_point_2d` and kin: rows
+        cells, patch size and patches per axis (3-axis padded), and 1 / patch size."""
+        return (np.array([self.cells3, self.psize3, self.patches_per_axis], np.int64),
+                1.0 / self.psize3)
 
     def neighbour_offsets(self) -> list[tuple[int, int, int]]:
         """Offsets of every patch whose local box can overlap a patch's owned box, in the fixed
@@ -112,9 +121,3 @@ class PatchLayout:
                  for a, p in enumerate(self.psize3)]
         ranges = [range(-r, r + 1) for r in reach]
         return [o for o in itertools.product(*ranges) if any(o)]
-
-    def patch_of_cell(self, cell3: np.ndarray) -> np.ndarray:
-        """Flat patch id of each (…, 3) cell index."""
-        k = cell3 // self.psize3
-        n = self.patches_per_axis
-        return k[..., 0] + n[0] * (k[..., 1] + n[1] * k[..., 2])

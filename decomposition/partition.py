@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from decomposition.boxes import flat_patch_id
 from decomposition.layout import PatchLayout
 
 
@@ -28,7 +29,7 @@ def shift_patches(layout: PatchLayout, ids: np.ndarray, off) -> tuple[np.ndarray
     c = layout.patch_coords()[ids] + np.asarray(off, dtype=np.int64)
     ok = np.all((c >= 0) & (c < n), axis=1)
     c = np.where(ok[:, None], c, 0)
-    return c[:, 0] + n[0] * (c[:, 1] + n[1] * c[:, 2]), ok
+    return flat_patch_id(c, n), ok
 
 
 def active_patches(layout: PatchLayout, occupied: np.ndarray) -> np.ndarray:

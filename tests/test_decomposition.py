@@ -280,7 +280,7 @@ def _box_patches(lay, lo_cell, hi_cell):
     cells = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, lay.dim)
     c3 = np.zeros((cells.shape[0], 3), np.int64)
     c3[:, :lay.dim] = cells
-    return np.unique(lay.patch_of_cell(c3))
+    return np.unique(lay.patch_id(c3 // lay.psize3))
 
 
 @pytest.mark.parametrize("psize,expected", [(4, 20), (2, 80)])
