@@ -71,11 +71,9 @@ class Discretisation:
 
     def set_patches(self, local_ids: np.ndarray) -> None:
         """Per-slot node boxes of this rank's patches (global ids ``local_ids``)."""
-        lay = self.layout
-        coords = lay.patch_coords()[local_ids]
-        self.base = (coords * lay.psize3 - lay.ghost3).astype(np.int64)
-        lo = coords * lay.psize3
-        hi = np.where(coords == lay.patches_per_axis - 1, lay.global_nodes3, lo + lay.psize3)
+        coords = self.layout.patch_coords()[local_ids]
+        self.base = self.layout.local_base(coords).astype(np.int64)
+        lo, hi = self.layout.owned_box(coords)
         self.own_lo = (lo - self.base).astype(np.int64)
         self.own_hi = (hi - self.base).astype(np.int64)
         self.jlo, self.jhi = usable_cells(self.base, self.nloc, self.nglob)

@@ -12,10 +12,12 @@ MUSL.
 from __future__ import annotations
 
 import numpy as np
-
 from numba import literal_unroll, literally
 
-from parmpm.jit import DIMS, inline_kernel, kernel, loop_kernel
+from parmpm.jit import DIMS, kernel, loop_kernel
+
+# patch_id2, patch_id3: also re-exported here until the kernels import parmpm.patch_index
+from parmpm.patch_index import patch_id1, patch_id2, patch_id3
 
 FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx", "rf")
 INT_FIELDS = ("gid", "mat", "patch")
@@ -119,38 +121,35 @@ def _merge_rows(out, old, new, keep, order, k):
 
 @kernel
 def locate_patches(d, x, origin, inv_h, cells, psize, ppa, current, out):
-    """Flat global patch id of each particle's cell into ``out``; a particle outside the grid
-    keeps ``current``. Returns (the index of the first particle outside the grid or -1, how many
-    particles changed patch). Per axis the patch index is
-    :func:`patch_index` (the one G2P's specialised kernels use); the loop
-    is compiled per dimension without reference counting."""
+    """Flat global patch id of each particle's position into ``out``; a particle outside the
+    grid keeps ``current``. Returns (the index of the first particle outside the grid or -1, how
+    many particles changed patch). The id is :mod:`parmpm.patch_index`'s, the one G2P's
+    specialised kernels use; the loop is compiled per dimension without reference counting."""
+    loc = np.zeros((3, 3), np.int64)
     inv_ps = np.zeros(3)
     for k in range(d):
+        loc[0, k], loc[1, k], loc[2, k] = cells[k], psize[k], ppa[k]
         inv_ps[k] = 1.0 / psize[k]
     result = (-1, 0)
     for dim in literal_unroll(DIMS):
         if dim == d:
-            result = _locate_loop(dim, x, origin, inv_h, cells, psize, ppa, current, out, inv_ps)
+            result = _locate_loop(dim, x, origin, inv_h, loc, inv_ps, current, out)
     return result
 
 
 @loop_kernel
-def _locate_loop(dim, x, origin, inv_h, cells, psize, ppa, current, out, inv_ps):
+def _locate_loop(dim, x, origin, inv_h, loc, inv_ps, current, out):
     literally(dim)
-    d = dim * 1
     first = -1
     moved = 0
     for i in range(x.shape[0]):
-        pid = 0
-        stride = 1
-        for k in range(d):
-            q = patch_index((x[i, k] - origin[k]) * inv_h[k], cells[k], psize[k], inv_ps[k])
-            if q < 0:  # outside the grid (NaN too)
-                pid = -1
-                break
-            pid += stride * q
-            stride *= ppa[k]
-        if pid < 0:
+        if dim == 1:
+            pid = patch_id1(x[i, 0], origin, inv_h, loc, inv_ps)
+        elif dim == 2:
+            pid = patch_id2(x[i, 0], x[i, 1], origin, inv_h, loc, inv_ps)
+        else:
+            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], origin, inv_h, loc, inv_ps)
+        if pid < 0:  # outside the grid (NaN too)
             out[i] = current[i]
             if first < 0:
                 first = i
@@ -159,40 +158,3 @@ def _locate_loop(dim, x, origin, inv_h, cells, psize, ppa, current, out, inv_ps)
             if pid != current[i]:
                 moved += 1
     return first, moved
-
-
-@inline_kernel
-def patch_index(u, cells, psize, inv_psize):
-    """Patch index ``⌊c/s⌋`` along one axis of the cell ``c = ⌊u⌋`` holding grid coordinate
-    ``u`` (as :func:`parmpm.particles.locate_patches`), or -1 outside the grid (NaN too)."""
-    if not (u >= 0.0 and u < cells):
-        return -1
-    c = int(u)
-    q = int(c * inv_psize)
-    if q * psize > c:
-        q -= 1
-    elif (q + 1) * psize <= c:
-        q += 1
-    return q
-
-
-@inline_kernel
-def patch_id2(x0, x1, origin, inv_h, loc, inv_ps):
-    """Flat global patch id of a 2D position, or -1 outside the grid; ``loc`` rows are the
-    layout's cells, patch size and patches per axis."""
-    q0 = patch_index((x0 - origin[0]) * inv_h[0], loc[0, 0], loc[1, 0], inv_ps[0])
-    q1 = patch_index((x1 - origin[1]) * inv_h[1], loc[0, 1], loc[1, 1], inv_ps[1])
-    if q0 < 0 or q1 < 0:
-        return -1
-    return q0 + loc[2, 0] * q1
-
-
-@inline_kernel
-def patch_id3(x0, x1, x2, origin, inv_h, loc, inv_ps):
-    """:func:`patch_id2` in 3D."""
-    q0 = patch_index((x0 - origin[0]) * inv_h[0], loc[0, 0], loc[1, 0], inv_ps[0])
-    q1 = patch_index((x1 - origin[1]) * inv_h[1], loc[0, 1], loc[1, 1], inv_ps[1])
-    q2 = patch_index((x2 - origin[2]) * inv_h[2], loc[0, 2], loc[1, 2], inv_ps[2])
-    if q0 < 0 or q1 < 0 or q2 < 0:
-        return -1
-    return q0 + loc[2, 0] * (q1 + loc[2, 1] * q2)

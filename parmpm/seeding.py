@@ -15,8 +15,9 @@ import math
 
 import numpy as np
 
+from decomposition.boxes import patch_of_coordinate
 from parmpm.errors import SceneError
-from parmpm.particles import Particles, patch_index
+from parmpm.particles import Particles
 
 
 class _Lattice:
@@ -108,8 +109,9 @@ class Seeds:
 
     def _axis_patches(self, disc):
         """Per body and axis, the patch index of every lattice coordinate — the same
-        :func:`patch_index` as :func:`parmpm.particles.locate_patches`, on the same
-        ``(x − origin)·(1/h)`` — or None if one lies outside the grid."""
+        :func:`~decomposition.boxes.patch_of_coordinate` as
+        :func:`parmpm.particles.locate_patches`, on the same ``(x − origin)·(1/h)`` — or None if
+        one lies outside the grid."""
         lay = disc.layout
         out = []
         for lat, *_ in self.chunks:
@@ -117,8 +119,8 @@ class Seeds:
             for k, axis in enumerate(lat.axes):
                 o, ih = float(disc.origin3[k]), float(disc.inv_h3[k])
                 cells, ps = int(lay.cells3[k]), int(lay.psize3[k])
-                q = np.array([patch_index((float(c) - o) * ih, cells, ps, 1.0 / ps) for c in axis],
-                             np.int64)
+                q = np.array([patch_of_coordinate((float(c) - o) * ih, cells, ps, 1.0 / ps)
+                              for c in axis], np.int64)
                 if q.size and q.min() < 0:
                     return None
                 per_axis.append(q)
