@@ -2,7 +2,9 @@
 record migration and load balance.
 
 Physics-free: this package knows "fields on a node grid cut into patches" and "records that
-belong to a patch" and nothing of MPM. :mod:`~decomposition.layout` is index arithmetic;
+belong to a patch" and nothing of MPM. :mod:`~decomposition.boxes` is the patch-box
+arithmetic (owned box, ghost base, cell or point → patch), written once;
+:mod:`~decomposition.layout` holds a layout's parameters and applies it;
 :mod:`~decomposition.partition` picks the existing patches and their owners;
 :mod:`~decomposition.halo` sums ghost contributions into owners and copies owners back to ghosts
 (locally and over MPI); :mod:`~decomposition.migrate` moves records between ranks;

@@ -29,6 +29,12 @@ def owned_box(coords, psize, patches, nodes):
     return lo, np.where(coords == patches - 1, nodes, lo + psize)
 
 
+def patches_holding_node(i, psize, ghost, patches):
+    """``(lo, hi)``, inclusive: the patches along one axis whose local box (owned nodes and
+    ghosts, ``k·P − g … (k+1)·P + g``) holds global node ``i``."""
+    return max(0, (i - ghost - 1) // psize), min(patches - 1, (i + ghost) // psize)
+
+
 def patch_id(k0, k1, k2, n0, n1):
     """Flat id of the patch at coordinates ``(k0, k1, k2)`` with ``n0``, ``n1`` patches along
     axes 0 and 1: axis 0 fastest."""

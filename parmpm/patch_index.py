@@ -30,3 +30,5 @@ patch_index = inline_kernel(boxes.patch_of_coordinate)
 patch_id1 = inline_kernel(boxes.patch_of_point_1d)
 patch_id2 = inline_kernel(boxes.patch_of_point_2d)
 patch_id3 = inline_kernel(boxes.patch_of_point_3d)
+#: (first, last) patch along one axis whose ghost-inclusive box holds a global node
+patches_holding_node = inline_kernel(boxes.patches_holding_node)

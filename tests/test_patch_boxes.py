@@ -12,7 +12,8 @@ import pytest
 
 from decomposition import PatchLayout, boxes
 from parmpm.particles import locate_patches
-from parmpm.patch_index import patch_id1, patch_id2, patch_id3, patch_index
+from parmpm.patch_index import (patch_id1, patch_id2, patch_id3, patch_index,
+                                patches_holding_node)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -44,6 +45,21 @@ def test_padded_axes_are_one_patch_of_one_node_without_ghosts(cells, psize, ghos
     assert np.all(base[:, :lay.dim] == coords[:, :lay.dim] * lay.psize3[:lay.dim] - ghost)
     # flat ids run axis 0 fastest and invert patch_coords
     assert lay.patch_id(coords).tolist() == list(range(lay.n_patches))
+
+
+@pytest.mark.parametrize("cells,psize,ghost", [(10, 3, 0), (10, 3, 2), (7, 2, 3), (9, 4, 1),
+                                               (5, 5, 1), (1, 1, 0)])
+def test_patches_holding_a_node_are_those_whose_local_box_holds_it(cells, psize, ghost):
+    lay = PatchLayout((cells,), (psize,), ghost)
+    lo, hi = lay.local_box(lay.patch_coords())
+    n = int(lay.patches_per_axis[0])
+    for i in range(cells + 1):
+        holders = np.flatnonzero((lo[:, 0] <= i) & (i < hi[:, 0]))
+        want = (int(holders[0]), int(holders[-1]))
+        assert np.array_equal(holders, np.arange(want[0], want[1] + 1))
+        assert boxes.patches_holding_node(i, psize, ghost, n) == want
+        assert patches_holding_node(i, psize, ghost, n) == want
+    assert boxes.patches_holding_node(0, 1, 0, 1) == (0, 0)  # a padded axis
 
 
 def test_patch_of_cell_is_floor_division():
