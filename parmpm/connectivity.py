@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from parmpm.jit import kernel
+from parmpm.patch_index import patches_holding_node
 
 
 @kernel
@@ -71,9 +72,7 @@ def shared_pairs(nodes, count, label, nglob, psize, ghost, ppa, rank_of, me):
             idx[1] = (g // nglob[0]) % nglob[1]
             idx[2] = g // (nglob[0] * nglob[1])
             for a in range(3):
-                # patches c with c·P − g ≤ i ≤ (c+1)·P + g
-                lo[a] = max(0, (idx[a] - ghost[a] - psize[a] + psize[a] - 1) // psize[a])
-                hi[a] = min(ppa[a] - 1, (idx[a] + ghost[a]) // psize[a])
+                lo[a], hi[a] = patches_holding_node(idx[a], psize[a], ghost[a], ppa[a])
             shared = False
             for c2 in range(lo[2], hi[2] + 1):
                 for c1 in range(lo[1], hi[1] + 1):

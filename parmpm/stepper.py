@@ -74,8 +74,7 @@ class Stepper:
         self.freezing = bool(disc.method == CPDI and np.any(params[:, COL_DAMAGE] != 0))
         self.frozen = 0
         lay = disc.layout
-        self._loc = np.array([lay.cells3, lay.psize3, lay.patches_per_axis], np.int64)
-        self._inv_psize = 1.0 / lay.psize3
+        self._loc, self._inv_psize = lay.locator()
         self.forcing = None                 # f(t, particles, out): per-particle body force
         self._bforce = np.zeros((0, particles.dim))
         #: hand-specialised (p2g, p2g_momentum, g2p) for this dimension and method, if any

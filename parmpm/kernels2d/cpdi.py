@@ -19,7 +19,7 @@ from parmpm.kernel_records import NO_SCALING
 from parmpm.kernels2d.cells import cells_of4, frame_2d, note_patch, slot_2d
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.kinematics import det_2d, flip_pic
-from parmpm.particles import patch_id2
+from parmpm.patch_index import patch_id2
 from parmpm.shapes.cpdi import cofactor_2d
 from parmpm.shapes.scaling import cap_2d
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION

@@ -10,7 +10,7 @@ from parmpm.jit import loop_kernel
 from parmpm.kernels2d.cells import frame_2d, hat_cell_of, note_patch, slot_2d
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.kinematics import det_2d, flip_pic
-from parmpm.particles import patch_id2
+from parmpm.patch_index import patch_id2
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
 

@@ -25,7 +25,7 @@ from parmpm.kernels2d.cells import note_patch
 from parmpm.kernels3d.cells import cells_of8, frame_3d, slot_3d
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.kinematics import det_3d, flip_pic
-from parmpm.particles import patch_id3
+from parmpm.patch_index import patch_id3
 from parmpm.shapes.cpdi import cofactor_3d
 from parmpm.shapes.scaling import cap_3d
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION

@@ -14,7 +14,7 @@ from parmpm.kernels2d.cells import hat_cell_of, note_patch
 from parmpm.kernels3d.cells import frame_3d, slot_3d
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.kinematics import det_3d, flip_pic
-from parmpm.particles import patch_id3
+from parmpm.patch_index import patch_id3
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
 
