@@ -61,9 +61,7 @@ def partition_halo(result: dict, ranks: int) -> dict:
     rank_of = np.full(layout.n_patches, -1, np.int64)
     rank_of[ids] = assign(layout, ids, counts[ids], ranks)
     c_a, c_f = cm.halo_components(dim, result.get("update", "usl"))
-    own_lo = coords[ids] * layout.psize3
-    own_hi = np.where(coords[ids] == layout.patches_per_axis - 1, layout.global_nodes3,
-                      own_lo + layout.psize3)
+    own_lo, own_hi = layout.owned_box(coords[ids])
     extent = (own_hi - own_lo)[:, :dim]
     sent = np.zeros(ranks)
     peers = [set() for _ in range(ranks)]
