@@ -1,4 +1,9 @@
-"""Interpolator registry: name → kernel code, and the ghost width each one needs.
+"""Interpolator registry: each interpolator's name, kernel code, documentation and ghost width.
+
+Nothing here compiles: reading or checking a scene needs the names, not the kernels. The kernels
+dispatch on the integer code (:func:`parmpm.shapes.support.particle_support`, the one switch;
+numba cannot cache kernels that take functions as arguments), and the scene schema, the CLI and
+the README's table read the names and documentation from :data:`INTERPOLATORS`.
 
 Ghost width (cells) is derived from the support. A particle owned by a patch has its centre in a
 patch cell, so a support reaching ``r`` grid units from the centre touches nodes at most
@@ -10,42 +15,97 @@ patch cell, so a support reaching ``r`` grid units from the centre touches nodes
   ``l_cr = 2·min Δx``: the seed's point);
 * ``cpgimp`` and unscaled ``cpdi``: unbounded (domains follow F), so 2 by default, a larger
   ``grid.ghost`` on request, and a reach check every step that stops the run cleanly.
+
+To add an interpolator: its per-axis or per-particle weights in a module beside
+:mod:`parmpm.shapes.gimp`, a code and an :class:`Interpolator` entry below, and its branch in
+:func:`parmpm.shapes.support.particle_support`.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
-from parmpm.shapes.support import CPDI, CPGIMP, MPM, UGIMP, domain_matrix, particle_support
+#: the kernels' interpolator codes (:func:`parmpm.shapes.support.particle_support` switches on them)
+MPM, UGIMP, CPGIMP, CPDI = 0, 1, 2, 3
 
 UNBOUNDED_DEFAULT_GHOST = 2
 
 
+def _no_ghost(lcr: float | None, min_dx: float) -> int:
+    return 0
+
+
+def _one_cell(lcr: float | None, min_dx: float) -> int:
+    return 1
+
+
+def _unbounded(lcr: float | None, min_dx: float) -> int:
+    return UNBOUNDED_DEFAULT_GHOST
+
+
+def _capped_at_lcr(lcr: float | None, min_dx: float) -> int:
+    if lcr is None:
+        return UNBOUNDED_DEFAULT_GHOST
+    return max(1, math.ceil(lcr / min_dx - 1e-9))
+
+
 @dataclass(frozen=True)
 class Interpolator:
+    """One interpolator: ``summary`` (one line, the CLI's), ``weight``, ``nodes`` and ``ghost``
+    (the README's table columns), ``bounded`` (support bounded a priori, by the method or by
+    l_cr) and ``ghost_rule(lcr, min_dx)`` (see the module doc)."""
+
     name: str
     code: int
     summary: str
-    bounded: bool  # support bounded a priori (by the method, or by l_cr)?
+    weight: str
+    nodes: str
+    ghost: str
+    bounded: bool
+    ghost_rule: Callable[[float | None, float], int]
 
     def ghost_width(self, lcr: float | None, min_dx: float) -> int:
         """Ghost cells that provably hold every node a patch's particles touch (see module doc);
         for unbounded supports, the default that the per-step reach check guards."""
-        if self.code == MPM:
-            return 0
-        if self.code == UGIMP:
-            return 1
-        if self.code == CPDI and lcr is not None:
-            return max(1, math.ceil(lcr / min_dx - 1e-9))
-        return UNBOUNDED_DEFAULT_GHOST
+        return self.ghost_rule(lcr, min_dx)
 
 
-INTERPOLATORS = {
-    "mpm": Interpolator("mpm", MPM, "standard MPM: linear hat at the particle centre", True),
-    "ugimp": Interpolator("ugimp", UGIMP, "uGIMP: fixed top-hat domains (Bardenhagen & Kober 2004)", True),
-    "cpgimp": Interpolator("cpgimp", CPGIMP, "cpGIMP: top-hat half-widths follow F_kk", False),
-    "cpdi": Interpolator("cpdi", CPDI, "CPDI1 (Sadeghirad et al. 2011), optional l_cr domain scaling", True),
-}
+INTERPOLATORS = {i.name: i for i in (
+    Interpolator("mpm", MPM, "standard MPM: linear hat at the particle centre",
+                 "linear hat at the particle centre", "2^d", "0", True, _no_ghost),
+    Interpolator("ugimp", UGIMP, "uGIMP: fixed top-hat domains (Bardenhagen & Kober 2004)",
+                 "hat averaged over a fixed top-hat domain, half-width `Δx/(2·ppc)`", "3^d", "1",
+                 True, _one_cell),
+    Interpolator("cpgimp", CPGIMP, "cpGIMP: top-hat half-widths follow F_kk",
+                 "as ugimp, half-widths `l0_k·|F_kk|` (follow the diagonal of F)", "grows with F",
+                 "2 (checked)", False, _unbounded),
+    Interpolator("cpdi", CPDI, "CPDI1 (Sadeghirad et al. 2011), optional l_cr domain scaling",
+                 "CPDI1: `φ = 2^-d Σ_α S_i(x_α)` over the 2^d corners of `R = F·R0`",
+                 "up to 4^d", "`⌈l_cr/min Δx⌉`", True, _capped_at_lcr),
+)}
 
-__all__ = ["INTERPOLATORS", "Interpolator", "particle_support", "domain_matrix",
-           "MPM", "UGIMP", "CPGIMP", "CPDI"]
+
+def interpolator_names() -> str:
+    """``"mpm, ugimp, cpgimp, cpdi"``: the registered names, for help texts."""
+    return ", ".join(INTERPOLATORS)
+
+
+def interpolator_table() -> str:
+    """The README's interpolator table (Markdown), one row per registered interpolator."""
+    rows = ["| name | weight `φ_ip` | nodes per particle | ghost cells |", "|---|---|---|---|"]
+    rows += [f"| `{i.name}` | {i.weight} | {i.nodes} | {i.ghost} |" for i in INTERPOLATORS.values()]
+    return "\n".join(rows)
+
+
+def __getattr__(name: str):
+    """The kernels, for callers that still import them from here (loaded on first use, so
+    importing the registry compiles nothing); import them from :mod:`parmpm.shapes.support`."""
+    if name in ("domain_matrix", "particle_support"):
+        from parmpm.shapes import support
+        return getattr(support, name)
+    raise AttributeError(f"module 'parmpm.shapes' has no attribute {name!r}")
+
+
+__all__ = ["INTERPOLATORS", "Interpolator", "MPM", "UGIMP", "CPGIMP", "CPDI",
+           "UNBOUNDED_DEFAULT_GHOST", "interpolator_names", "interpolator_table"]

@@ -11,12 +11,11 @@ grid or beyond the patch's ghost layer.
 """
 from parmpm.jit import helper_kernel
 from parmpm.kernel_records import NO_SCALING
+from parmpm.shapes import CPDI, CPGIMP, MPM, UGIMP  # noqa: F401 (UGIMP: callers import the codes from here)
 from parmpm.shapes.cpdi import cpdi_support
 from parmpm.shapes.gimp import gimp_axis
 from parmpm.shapes.hat import mpm_axis
 from parmpm.shapes.scaling import scale_domain
-
-MPM, UGIMP, CPGIMP, CPDI = 0, 1, 2, 3
 
 
 @helper_kernel
