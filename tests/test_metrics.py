@@ -6,6 +6,7 @@ import math
 import numpy as np
 import pytest
 
+from parmpm.connectivity import local_components
 from parmpm.errors import SceneError
 from parmpm.exact import (
     hanging_bar_static_displacement,
@@ -18,7 +19,6 @@ from parmpm.metrics import (
     count_components,
     make_metrics,
 )
-from parmpm.connectivity import local_components
 
 # the component count of the union-find kernel, compiled and through its pure-Python body
 KERNELS = [pytest.param(lambda *a: local_components(*a)[0], id="jit"),
@@ -162,13 +162,14 @@ def test_hanging_bar_1d_linear_law():
 
 def test_hanging_bar_2d_separation():
     L, W, n = 1.0, 0.2, 20
-    # an alternative spelling the metrics also accept: list of materials, box table, bare vector
     scene = {
         "dim": 2,
-        "materials": [{"name": "rubber", "model": "neo_hookean", "E": 1e6, "nu": 0.3, "density": 1050.0}],
-        "bodies": [{"material": "rubber", "box": {"lo": [0.0, -L], "hi": [W, 0.0]}}],
-        "gravity": [0.0, -1000.0],
-        "metrics": {"kind": "hanging_bar", "every_steps": 1, "axis": "y"},
+        "materials": {"rubber": {"model": "neo_hookean", "density": 1050.0, "youngs_modulus": 1e6,
+                                 "poisson_ratio": 0.3}},
+        "bodies": [{"shape": "box", "min": [0.0, -L], "max": [W, 0.0], "material": "rubber",
+                    "vibration": None}],
+        "gravity": {"g": [0.0, -1000.0], "ramp_time": 0.0},
+        "metrics": {"kind": "hanging_bar", "every_steps": 1, "axis": 1},
     }
     xs, ys = np.meshgrid((np.arange(4) + 0.5) * W / 4, -L + (np.arange(n) + 0.5) * L / n, indexing="ij")
     x0 = np.stack([xs.ravel(), ys.ravel()], axis=1)
@@ -263,8 +264,6 @@ def test_make_metrics_kinds():
     scene, x0, mass = _scene_1d()
     scene["metrics"]["kind"] = "none"
     assert make_metrics(scene, x0, mass) is None
-    del scene["metrics"]
-    assert make_metrics(scene, x0, mass) is None
     scene["metrics"] = {"kind": "teapot"}
     with pytest.raises(SceneError):
         make_metrics(scene, x0, mass)
@@ -274,8 +273,36 @@ def test_make_metrics_kinds():
 
 
 def test_lattice_fallback_without_box():
-    scene, x0, mass = _scene_1d(n=16)
-    del scene["bodies"][0]["min"], scene["bodies"][0]["max"]
-    m = HangingBarMetrics(scene, x0, mass)
+    """A disk has no box: the bar's span is that of its particle lattice."""
+    scene = {
+        "dim": 2,
+        "materials": {"rubber": {"model": "neo_hookean", "density": 1050.0, "youngs_modulus": 1e6,
+                                 "poisson_ratio": 0.0}},
+        "bodies": [{"shape": "disk", "center": [0.5, 0.5], "radius": 0.5, "material": "rubber",
+                    "vibration": None}],
+        "gravity": {"g": [0.0, -1000.0], "ramp_time": 0.0},
+        "metrics": {"kind": "hanging_bar", "every_steps": 1, "axis": 1},
+    }
+    c = (np.arange(16) + 0.5) / 16
+    x0 = np.stack(np.meshgrid(c, c, indexing="ij"), axis=-1).reshape(-1, 2)
+    x0 = x0[np.sum((x0 - 0.5) ** 2, axis=1) <= 0.25]
+    m = HangingBarMetrics(scene, x0, np.ones(x0.shape[0]))
     assert m.L == pytest.approx(1.0)
     assert m.X_tip == pytest.approx(1.0 - 0.5 / 16)
+
+
+def test_metrics_read_only_the_resolved_scene():
+    """Every built-in scene with metrics builds them from its resolved form."""
+    import parmpm
+
+    for name in parmpm.builtin_scenes():
+        data = parmpm.load_scene(name).data
+        kind = data["metrics"]["kind"]
+        if kind not in ("hanging_bar", "vibrating_bar"):
+            continue
+        lo = np.asarray(data["bodies"][0]["min"])
+        hi = np.asarray(data["bodies"][0]["max"])
+        x0 = lo + (hi - lo) * np.array([[0.25] * data["dim"], [0.75] * data["dim"]])
+        m = make_metrics(data, x0, np.ones(2))
+        assert m.kind == kind and m.axis == (
+            data["bodies"][0]["vibration"]["axis"] if kind == "vibrating_bar" else data["metrics"]["axis"])

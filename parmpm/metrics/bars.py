@@ -16,19 +16,19 @@ from parmpm.exact import (
     nominal_stress_1d,
     vibrating_bar_com_velocity,
 )
-from parmpm.metrics import (_as_points, _axis_index, _bar_body, _bar_material, _bar_mask, _bar_span,
-                            _first, _gravity, _History, _material_constants, _to_plain,
-                            register_metrics)
+from parmpm.metrics import register_metrics
+from parmpm.metrics.common import (History, as_points, bar_mask, bar_material, bar_span, gravity,
+                                   material_constants, to_plain)
 
 logger = logging.getLogger(__name__)
 
 
 @register_metrics("hanging_bar")
-class HangingBarMetrics(_History):
+class HangingBarMetrics(History):
     """Separation, stretch and tip history of the self-weighted bar (body 0).
 
     * axial stretch of particle p: ``|F_p e_a|`` (length of column ``a`` of F), ``a`` =
-      ``metrics.axis`` (default: the axis gravity points along);
+      ``metrics.axis`` (resolved default ``dim − 1``: the axis a hanging bar's gravity acts along);
     * tip: the bar's particles with the extreme initial coordinate in the direction of gravity;
       its displacement is the mean displacement of those particles projected on ``−ĝ`` along the
       axis (so negative = downward);
@@ -52,19 +52,17 @@ class HangingBarMetrics(_History):
     """
 
     def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
-        self.dim = int(scene_data.get("dim", np.shape(x0)[1] if np.ndim(x0) == 2 else 1))
-        self.x0 = _as_points(x0, np.shape(mass)[0], self.dim)
+        self.dim = int(scene_data["dim"])
+        self.x0 = as_points(x0, np.shape(mass)[0], self.dim)
         self.mass = np.asarray(mass, dtype=float)
-        gravity = _gravity(scene_data, self.dim)
-        g_axis_default = int(np.argmax(np.abs(gravity))) if np.any(gravity) else self.dim - 1
-        cfg = scene_data.get("metrics") or {}
-        self.axis = _axis_index(cfg.get("axis"), self.dim, g_axis_default)
-        self.g = math.hypot(*gravity)  # no overflow warning for an absurd g
-        down = gravity[self.axis]
+        g = gravity(scene_data)
+        self.axis = int(scene_data["metrics"]["axis"])
+        self.g = math.hypot(*g)  # no overflow warning for an absurd g
+        down = g[self.axis]
         self.up_sign = -1.0 if down > 0 else 1.0  # displacement · up_sign < 0 means downward
 
-        body = _bar_body(scene_data)
-        self.bar = _bar_mask(scene_data, body, self.x0)
+        body = scene_data["bodies"][0]
+        self.bar = bar_mask(scene_data, body, self.x0)
         xa = self.x0[:, self.axis]
         bar_coords = xa[self.bar]
         extreme = bar_coords.max() if down > 0 else bar_coords.min()
@@ -78,7 +76,7 @@ class HangingBarMetrics(_History):
                 c = self.x0[self.corner, k]
                 self.corner = self.corner[c - c.min() <= 1e-9 * max(float(np.ptp(self.x0[self.bar, k])), 1.0)]
         self.corner = int(self.corner[0])
-        lo, hi = _bar_span(body, self.x0[self.bar], self.axis)
+        lo, hi = bar_span(body, self.x0[self.bar], self.axis)
         self.L = hi - lo
         # reference distance of the tip particles from the support (the top of the bar)
         self.X_tip = float(np.mean(hi - xa[self.tip])) if down <= 0 else float(np.mean(xa[self.tip] - lo))
@@ -86,7 +84,7 @@ class HangingBarMetrics(_History):
         self.exact_static_elongation = None
         self.exact_static_tip_displacement = None
         if self.dim == 1:
-            model, E, nu, rho = _material_constants(_bar_material(scene_data, body))
+            model, E, nu, rho = material_constants(bar_material(scene_data, body))
             try:
                 law = nominal_stress_1d(model, E, nu)
                 exact = hanging_bar_static(self.L, rho, self.g, law)
@@ -110,7 +108,7 @@ class HangingBarMetrics(_History):
         the bottom corner) and the local maximum axial stretch of the bar, for particles ``gid``
         (any subset, any order)."""
         n = np.shape(gid)[0]
-        x = _as_points(x, n, self.dim)
+        x = as_points(x, n, self.dim)
         F = np.asarray(F, dtype=float).reshape(n, self.dim, self.dim)
         tip = self.tip_mask[gid]
         corner = np.asarray(gid) == self.corner
@@ -158,19 +156,19 @@ class HangingBarMetrics(_History):
         return {
             "separated": self.separation_time is not None,
             "separation_time": self.separation_time,
-            "max_stretch": _to_plain(np.nanmax(stretches)) if stretches.size else None,
-            "stretch_at_separation": _to_plain(self.stretch_at_separation),
-            "tip_displacement": _to_plain(tip_final),
-            "max_tip_displacement": _to_plain(np.nanmax(np.abs(tips))) if tips.size else None,
+            "max_stretch": to_plain(np.nanmax(stretches)) if stretches.size else None,
+            "stretch_at_separation": to_plain(self.stretch_at_separation),
+            "tip_displacement": to_plain(tip_final),
+            "max_tip_displacement": to_plain(np.nanmax(np.abs(tips))) if tips.size else None,
             "corner_particle": self.corner,
-            "corner_displacement": _to_plain(corner[-1]) if corner.size else None,
-            "corner_first_peak": None if i_peak is None else _to_plain(corner[i_peak]),
-            "corner_first_peak_time": None if i_peak is None else _to_plain(times[i_peak]),
-            "corner_rebound": None if i_rebound is None else _to_plain(corner[i_rebound]),
-            "corner_rebound_time": None if i_rebound is None else _to_plain(times[i_rebound]),
-            "exact_static_elongation": _to_plain(self.exact_static_elongation),
-            "exact_static_tip_displacement": _to_plain(exact),
-            "relative_error_static": _to_plain(rel),
+            "corner_displacement": to_plain(corner[-1]) if corner.size else None,
+            "corner_first_peak": None if i_peak is None else to_plain(corner[i_peak]),
+            "corner_first_peak_time": None if i_peak is None else to_plain(times[i_peak]),
+            "corner_rebound": None if i_rebound is None else to_plain(corner[i_rebound]),
+            "corner_rebound_time": None if i_rebound is None else to_plain(times[i_rebound]),
+            "exact_static_elongation": to_plain(self.exact_static_elongation),
+            "exact_static_tip_displacement": to_plain(exact),
+            "relative_error_static": to_plain(rel),
             "max_components": int(max(self.components_history)) if self.components_history else None,
             "samples": len(self.times),
         }
@@ -200,7 +198,7 @@ def first_peak_and_rebound(u, tol: float = 0.01) -> tuple[int | None, int | None
 
 
 @register_metrics("vibrating_bar")
-class VibratingBarMetrics(_History):
+class VibratingBarMetrics(History):
     """Centre-of-mass velocity of the axially vibrating bar (body 0) against the exact mode.
 
     ``v̄_num = Σ m v_a / Σ m`` over the bar's particles, ``v̄_exact = v0/(β_n L) cos(ω_n t)``
@@ -214,26 +212,25 @@ class VibratingBarMetrics(_History):
     """
 
     def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
-        self.dim = int(scene_data.get("dim", np.shape(x0)[1] if np.ndim(x0) == 2 else 1))
+        self.dim = int(scene_data["dim"])
         n = np.shape(mass)[0]
-        self.x0 = _as_points(x0, n, self.dim)
+        self.x0 = as_points(x0, n, self.dim)
         self.mass = np.asarray(mass, dtype=float)
-        body = _bar_body(scene_data)
-        vib = body.get("vibration") or {}
+        body = scene_data["bodies"][0]
+        vib = body["vibration"]
         if not vib:
             raise SceneError("vibrating_bar metrics need body 0's 'vibration' table")
-        self.v0 = float(_first(vib, ("amplitude", "v0"), 0.0))
-        self.mode = int(vib.get("mode", 1))
-        cfg = scene_data.get("metrics") or {}
-        self.axis = _axis_index(_first(vib, ("axis",), cfg.get("axis")), self.dim, 0)
-        lo, hi = _bar_span(body, self.x0, self.axis)
+        self.v0 = float(vib["amplitude"])
+        self.mode = int(vib["mode"])
+        self.axis = int(vib["axis"])
+        lo, hi = bar_span(body, self.x0, self.axis)
         self.L = hi - lo
-        _, E, nu, self.rho = _material_constants(_bar_material(scene_data, body))
+        _, E, nu, self.rho = material_constants(bar_material(scene_data, body))
         lam, mu = lame_parameters(E, nu)
         self.modulus = {1: lam + 2.0 * mu, 2: E / (1.0 - nu * nu)}.get(self.dim, E)
         _, omega, _ = mode_constants(self.L, self.modulus, self.rho, self.mode)
         self.period = 2.0 * math.pi / omega
-        self.bar = _bar_mask(scene_data, body, self.x0)
+        self.bar = bar_mask(scene_data, body, self.x0)
         self.bar_mass = float(np.sum(self.mass[self.bar]))
         self.times: list[float] = []
         self.com_velocity: list[float] = []
@@ -242,7 +239,7 @@ class VibratingBarMetrics(_History):
     def terms(self, gid, x, v, F, **context):
         """Per-particle momentum along the axis of the bar's particles ``gid``; no maxima."""
         n = np.shape(gid)[0]
-        v = _as_points(v, n, self.dim)
+        v = as_points(v, n, self.dim)
         sums = np.where(self.bar[gid], self.mass[gid] * v[:, self.axis], 0.0)[:, None]
         return sums, np.zeros(0)
 
@@ -265,16 +262,15 @@ class VibratingBarMetrics(_History):
         den = float(np.sum(ex**2))
         err = math.sqrt(float(np.sum((num - ex) ** 2)) / den) if den > 0 else None
         return {
-            "com_velocity_rel_l2_error": _to_plain(err),
-            "com_velocity_max_abs_error": _to_plain(np.max(np.abs(num - ex))) if num.size else None,
+            "com_velocity_rel_l2_error": to_plain(err),
+            "com_velocity_max_abs_error": to_plain(np.max(np.abs(num - ex))) if num.size else None,
             "samples": len(self.times),
-            "period": _to_plain(self.period),
-            "wave_modulus": _to_plain(self.modulus),
-            "length": _to_plain(self.L),
+            "period": to_plain(self.period),
+            "wave_modulus": to_plain(self.modulus),
+            "length": to_plain(self.L),
         }
 
 
-HangingBarMetrics.needs_components = True
 HangingBarMetrics._STATE = ("times", "tip_history", "corner_history", "max_stretch_history",
                             "components_history", "separation_time", "stretch_at_separation")
 VibratingBarMetrics._STATE = ("times", "com_velocity", "com_velocity_exact")

@@ -13,16 +13,17 @@ import numpy as np
 
 from parmpm.errors import SceneError
 from parmpm.exact import manufactured_motion
-from parmpm.metrics import _as_points, _History, _to_plain, register_metrics
+from parmpm.metrics import register_metrics
+from parmpm.metrics.common import History, as_points, to_plain
 
 
 @register_metrics("manufactured")
-class ManufacturedMetrics(_History):
+class ManufacturedMetrics(History):
     """RMS and maximum position error against the manufactured motion."""
 
     def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
         self.dim = int(scene_data["dim"])
-        self.x0 = _as_points(x0, np.shape(mass)[0], self.dim)
+        self.x0 = as_points(x0, np.shape(mass)[0], self.dim)
         man = scene_data.get("manufactured")
         if not man:
             raise SceneError('metrics.kind = "manufactured" needs a [manufactured] table')
@@ -39,7 +40,7 @@ class ManufacturedMetrics(_History):
         n = np.shape(gid)[0]
         X = self.x0[gid]
         u, _, _ = manufactured_motion(X, t, self.A, self.c)
-        e2 = np.sum((_as_points(x, n, self.dim) - X - u) ** 2, axis=1)
+        e2 = np.sum((as_points(x, n, self.dim) - X - u) ** 2, axis=1)
         sums = np.stack([e2, np.ones(n)], axis=1)
         return sums, np.array([math.sqrt(float(e2.max())) if n else -np.inf])
 
@@ -51,10 +52,10 @@ class ManufacturedMetrics(_History):
     def result(self) -> dict:
         rms, linf = np.asarray(self.rms), np.asarray(self.linf)
         return {
-            "rms_error": _to_plain(rms[-1]) if rms.size else None,
-            "rms_error_max": _to_plain(np.nanmax(rms)) if rms.size else None,
-            "max_error": _to_plain(linf[-1]) if linf.size else None,
-            "max_error_max": _to_plain(np.nanmax(linf)) if linf.size else None,
+            "rms_error": to_plain(rms[-1]) if rms.size else None,
+            "rms_error_max": to_plain(np.nanmax(rms)) if rms.size else None,
+            "max_error": to_plain(linf[-1]) if linf.size else None,
+            "max_error_max": to_plain(np.nanmax(linf)) if linf.size else None,
             "amplitude": self.A,
             "period": self.period,
             "samples": len(self.times),

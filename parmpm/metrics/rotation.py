@@ -23,11 +23,12 @@ import numpy as np
 
 from parmpm.domains import domain_sizes
 from parmpm.errors import SceneError
-from parmpm.metrics import _as_points, _History, _to_plain, register_metrics
+from parmpm.metrics import register_metrics
+from parmpm.metrics.common import History, as_points, to_plain
 
 
 @register_metrics("rotation")
-class RotationMetrics(_History):
+class RotationMetrics(History):
     """Domain size, stress, energy and angular momentum of a spinning body (2D)."""
 
     def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
@@ -40,7 +41,7 @@ class RotationMetrics(_History):
         self.omega = float(body["angular_velocity"])
         self.centre = (np.asarray(body["center"], float) if body["shape"] != "box" else
                        0.5 * (np.asarray(body["min"], float) + np.asarray(body["max"], float)))
-        self.x0 = _as_points(x0, np.shape(mass)[0], self.dim)
+        self.x0 = as_points(x0, np.shape(mass)[0], self.dim)
         self.mass = np.asarray(mass, float)
         rho = scene_data["materials"][body["material"]]["density"]
         radius = float(np.sqrt(np.max(np.sum((self.x0 - self.centre) ** 2, axis=1))))
@@ -56,7 +57,7 @@ class RotationMetrics(_History):
         """Per particle: domain size now and at rest, kinetic energy, angular momentum; local
         maxima of the stress norm and of ``−(size / size at rest)``."""
         n = np.shape(gid)[0]
-        x, v = _as_points(x, n, 2), _as_points(v, n, 2)
+        x, v = as_points(x, n, 2), as_points(v, n, 2)
         m = self.mass[gid]
         size = domain_sizes(2, method, lcr, F, particles.r0, particles.lh0)
         size0 = np.prod(2.0 * particles.lh0, axis=1)
@@ -83,11 +84,11 @@ class RotationMetrics(_History):
             "angular_velocity": self.omega,
             "turns": self.omega * self.times[-1] / (2 * math.pi) if self.times else 0.0,
             "stress_scale": self.stress_scale,
-            "area_ratio_min": _to_plain(min(self.area_ratio)) if self.times else None,
-            "min_area_ratio": _to_plain(min(self.min_area_ratio)) if self.times else None,
-            "stress_ratio_max": _to_plain(max(self.stress_ratio)) if self.times else None,
-            "energy_ratio_final": _to_plain(e[-1]) if e else None,
-            "momentum_ratio_final": _to_plain(L[-1]) if L else None,
+            "area_ratio_min": to_plain(min(self.area_ratio)) if self.times else None,
+            "min_area_ratio": to_plain(min(self.min_area_ratio)) if self.times else None,
+            "stress_ratio_max": to_plain(max(self.stress_ratio)) if self.times else None,
+            "energy_ratio_final": to_plain(e[-1]) if e else None,
+            "momentum_ratio_final": to_plain(L[-1]) if L else None,
             "history": {"t": self.times, "area_ratio": self.area_ratio,
                         "min_area_ratio": self.min_area_ratio, "stress_ratio": self.stress_ratio,
                         "energy_ratio": e, "momentum_ratio": L},

@@ -23,7 +23,8 @@ import numpy as np
 
 from parmpm.errors import SceneError
 from parmpm.exact_tension import opening_allowance, tension_failure
-from parmpm.metrics import _as_points, _History, _to_plain, register_metrics
+from parmpm.metrics import register_metrics
+from parmpm.metrics.common import History, as_points, to_plain
 from parmpm.seeding import _turn
 
 logger = logging.getLogger(__name__)
@@ -59,10 +60,9 @@ def _section(body: dict, dim: int, e: np.ndarray) -> float:
 
 
 @register_metrics("tension_bar")
-class TensionBarMetrics(_History):
+class TensionBarMetrics(History):
     """Stretch, failure and separation of a bar pulled between two grips (module doc)."""
 
-    needs_components = True
     _STATE = ("times", "stretch_history", "max_damage_history", "components_history",
               "stress_history", "peak_stress", "stretch_at_peak",
               "failure_time", "stretch_at_failure", "separation_time", "stretch_at_separation",
@@ -70,7 +70,7 @@ class TensionBarMetrics(_History):
 
     def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
         self.dim = d = int(scene_data["dim"])
-        self.x0 = _as_points(x0, np.shape(mass)[0], d)
+        self.x0 = as_points(x0, np.shape(mass)[0], d)
         self.mass = np.asarray(mass, dtype=float)
         grip = scene_data["metrics"]["grip"]
         bodies = scene_data["bodies"]
@@ -125,7 +125,7 @@ class TensionBarMetrics(_History):
         Σ s. Maxima: the bar's damage, and ``±s`` of its fully damaged particles."""
         n = np.shape(gid)[0]
         d = self.dim
-        x = _as_points(x, n, d)
+        x = as_points(x, n, d)
         m = self.mass[gid]
         sums = np.zeros((n, 2 * d + 5))
         for k, grip in enumerate((self.grip_a[gid], self.grip_b[gid])):
@@ -180,21 +180,21 @@ class TensionBarMetrics(_History):
         return {
             "separated": self.separation_time is not None,
             "separation_time": self.separation_time,
-            "stretch_at_separation": _to_plain(sep),
+            "stretch_at_separation": to_plain(sep),
             "failure_time": self.failure_time,
-            "stretch_at_failure": _to_plain(self.stretch_at_failure),
-            "predicted_failure_stretch": _to_plain(pred.get("stretch")),
-            "predicted_peak_stress": _to_plain(pred.get("peak_stress")),
-            "peak_stress": _to_plain(self.peak_stress),
-            "stretch_at_peak_stress": _to_plain(self.stretch_at_peak),
-            "opening_allowance": _to_plain(self.allowance),
-            "separation_excess": _to_plain(rel),
-            "crack_position": _to_plain(self.crack_position),
+            "stretch_at_failure": to_plain(self.stretch_at_failure),
+            "predicted_failure_stretch": to_plain(pred.get("stretch")),
+            "predicted_peak_stress": to_plain(pred.get("peak_stress")),
+            "peak_stress": to_plain(self.peak_stress),
+            "stretch_at_peak_stress": to_plain(self.stretch_at_peak),
+            "opening_allowance": to_plain(self.allowance),
+            "separation_excess": to_plain(rel),
+            "crack_position": to_plain(self.crack_position),
             "crack_range": self.crack_range,
-            "weak_segment_position": _to_plain(self.weak_position),
-            "weak_segment_halfwidth": _to_plain(self.weak_halfwidth),
-            "max_stretch": _to_plain(max(self.stretch_history)) if self.stretch_history else None,
-            "max_damage": _to_plain(max(self.max_damage_history)) if self.max_damage_history else None,
+            "weak_segment_position": to_plain(self.weak_position),
+            "weak_segment_halfwidth": to_plain(self.weak_halfwidth),
+            "max_stretch": to_plain(max(self.stretch_history)) if self.stretch_history else None,
+            "max_damage": to_plain(max(self.max_damage_history)) if self.max_damage_history else None,
             "bar_length": self.L0,
             "max_components": int(max(self.components_history)) if self.components_history else None,
             "samples": len(self.times),
