@@ -8,8 +8,10 @@ a float. Every problem is a ``SceneError`` with a one-line message of the form
     scene 'foo.toml': grid.cells: expected 2 positive integers, got [10, -1]
 
 naming the scene, the dotted key, the bad value and what was expected. The schema itself (keys,
-defaults, allowed values) is documented in ``parmpm.scene``; the tuples below are its vocabulary.
-Pure Python: no numpy, no MPI.
+defaults, allowed values) is documented in ``parmpm.scene``; the tuples below are its vocabulary,
+and the names of interpolators, material models and metrics come from their registries
+(:mod:`parmpm.shapes`, :mod:`parmpm.materials`, :mod:`parmpm.metrics`). No MPI, no numba: reading
+and checking a scene compiles nothing.
 """
 
 from __future__ import annotations
@@ -18,18 +20,17 @@ import math
 import re
 from typing import Any
 
-from parmpm.materials import lame
+from parmpm.materials import MODELS, SOFTENING, lame
+from parmpm.metrics import metric_names, separation_kinds
 from parmpm.scene_bodies import (BODY_KEYS, SHAPE_DIMS, SHAPE_KEYS, VIBRATION_KEYS,  # noqa: F401
                                  _bodies, rotated_box_bounds)
 from parmpm.scene_check import AXIS_NAMES, _Checker, lcr_length, show
+from parmpm.shapes import INTERPOLATORS
+from parmpm.update_order import UPDATES as _UPDATE_ORDERS
 
 DIMS = (1, 2, 3)
-INTERPOLATORS = ("mpm", "ugimp", "cpgimp", "cpdi")
-UPDATES = ("auto", "usl", "musl")
-MODELS = ("linear_elastic", "neo_hookean")
+UPDATES = ("auto", *_UPDATE_ORDERS)  # "auto": USL for cpdi, MUSL for the others
 BOUNDARY_KINDS = ("fixed", "slip", "free")
-METRICS = ("hanging_bar", "vibrating_bar", "tension_bar", "manufactured", "rotation", "none")
-SEPARATION_METRICS = ("hanging_bar", "tension_bar")  # the kinds that count separated pieces
 
 TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method", "gravity",
             "damping", "boundary", "time", "output", "metrics", "decomposition", "checkpoint",
@@ -155,7 +156,8 @@ def _materials(c: _Checker, raw: Any) -> dict:
     for name, spec in raw.items():
         key = f"materials.{name}"
         t = c.table(key, spec, MATERIAL_KEYS)
-        model = c.choice(f"{key}.model", c.required(key, t, "model", " or ".join(f'"{m}"' for m in MODELS)), MODELS)
+        model = c.choice(f"{key}.model", c.required(key, t, "model", " or ".join(f'"{m}"' for m in MODELS)),
+                         tuple(MODELS))
         out[name] = {
             "model": model,
             "density": c.number(f"{key}.density", c.required(key, t, "density", "a number > 0"),
@@ -191,8 +193,6 @@ def _freeze(c: _Checker, key: str, value: Any) -> float | str:
 
 def _damage(c: _Checker, key: str, raw: Any) -> dict:
     """``[materials.NAME.damage]``: the stretch-driven damage of :mod:`parmpm.materials.damage`."""
-    from parmpm.materials.damage import SOFTENING
-
     t = c.table(key, raw, DAMAGE_KEYS)
     onset = c.number(f"{key}.onset", c.required(key, t, "onset", "a stretch >= 1"),
                      "a stretch >= 1 (largest principal stretch where damage starts)",
@@ -211,7 +211,7 @@ def _damage(c: _Checker, key: str, raw: Any) -> dict:
 def _method(c: _Checker, raw: Any, min_dx: float, max_cells: float = math.inf) -> dict:
     """``max_cells``: the longest l_cr in cells (it sets the ghost width)."""
     t = c.table("method", raw, METHOD_KEYS)
-    interp = c.choice("method.interpolator", t.get("interpolator", "cpdi"), INTERPOLATORS)
+    interp = c.choice("method.interpolator", t.get("interpolator", "cpdi"), tuple(INTERPOLATORS))
     lcr = t.get("lcr")
     if lcr is None:
         lcr = DEFAULT_LCR if interp == "cpdi" else "none"
@@ -347,7 +347,7 @@ def _output(c: _Checker, raw: Any, time: dict) -> dict:
 
 def _metrics(c: _Checker, raw: Any, dim: int, bodies: list) -> dict:
     t = c.table("metrics", raw, METRICS_KEYS)
-    kind = c.choice("metrics.kind", t.get("kind", "none"), METRICS)
+    kind = c.choice("metrics.kind", t.get("kind", "none"), metric_names())
     axis = t.get("axis")
     if axis is None:
         vibrating = [b["vibration"]["axis"] for b in bodies if b["vibration"] is not None]
@@ -363,9 +363,10 @@ def _metrics(c: _Checker, raw: Any, dim: int, bodies: list) -> dict:
     }
     if kind == "none":  # no metrics, nothing to stop on (e.g. --set metrics.kind=none)
         out["stop_on_separation"] = False
-    if out["stop_on_separation"] and kind not in SEPARATION_METRICS:
+    separating = separation_kinds()
+    if out["stop_on_separation"] and kind not in separating:
         c.fail("metrics.stop_on_separation", "only the " + " and ".join(
-            f'"{k}"' for k in SEPARATION_METRICS) + f' metrics track separation, got metrics.kind "{kind}"')
+            f'"{k}"' for k in separating) + f' metrics track separation, got metrics.kind "{kind}"')
     out["grip"] = None
     if kind == "tension_bar":
         grip = c.string("metrics.grip", t.get("grip", "grip"), "a material name")
