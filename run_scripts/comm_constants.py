@@ -1,7 +1,9 @@
-"""MPI micro-benchmark: point-to-point latency and bandwidth, and the cost of a small Allreduce.
+"""Communication constants of the cost model: point-to-point latency and bandwidth (α, β) and
+the cost of a small Allreduce (α_r), measured by an MPI micro-benchmark.
 
-Physics-free, like the rest of :mod:`decomposition`; it measures the two kinds of communication
-the time step makes, for the cost model in ``run_scripts/cost_model.py``:
+Physics-free (it imports only :mod:`decomposition`); it measures the two kinds of communication
+the time step makes, for the cost model in ``run_scripts/cost_model.py`` (``scaling.py`` runs it
+and fits the model to it):
 
 * **ping-pong** between ranks 0 and 1 (the others wait): blocking ``Send``/``Recv`` of numpy
   byte buffers of 8 B … 4 MiB (powers of two); the one-way time of a size is half a round trip,
@@ -16,8 +18,8 @@ overhead included), β of a few GB/s at MiB sizes (memcpy bandwidth), an Allredu
 per stage. Oversubscribed ranks (more ranks than cores) wait for the scheduler instead: times
 of milliseconds, flagged ``oversubscribed`` in the result. Runtime: ~2 s (``--quick``: ~0.3 s).
 
-    mpirun -n 2 python -m decomposition.probe --json probe.json
-    mpirun -n 4 python -m decomposition.probe --json probe_4.json --no-pingpong   # Allreduce only
+    mpirun -n 2 python run_scripts/comm_constants.py --json probe.json
+    mpirun -n 4 python run_scripts/comm_constants.py --json probe_4.json --no-pingpong  # Allreduce only
 """
 from __future__ import annotations
 

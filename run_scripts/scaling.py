@@ -10,7 +10,7 @@ first step, JIT, untimed) run as ``mpirun -n P python -m parmpm bench --json ...
   ``E(P) = T_1 / T_P`` (times ``N_P / (P·N_1)``, which corrects for the block's rounding of the
   particle count; 1 when ``N_P = P·N_1`` exactly);
 * **t_p in 3D** — one 1-rank 3D cpdi bench (default 2e5 particles): the predictions are for 3D;
-* **communication constants** — ``mpirun -n 2 python -m decomposition.probe``: one-way ping-pong
+* **communication constants** — ``mpirun -n 2 python run_scripts/comm_constants.py``: one-way ping-pong
   times over 8 B … 4 MiB (fitted by ``t = α + n/β``) and an Allreduce of 5 doubles (``α_r`` per
   ``⌈log2 P⌉`` stage; also under ``-n P`` for every P > 2 in ``--ranks``, Allreduce only).
 
@@ -177,7 +177,7 @@ class Runner:
     def probe(self, ranks: int, pingpong: bool) -> dict:
         path = self.out / f"probe_{ranks}.json"
         path.unlink(missing_ok=True)
-        argv = ["-m", "decomposition.probe", "--json", str(path)]
+        argv = ["run_scripts/comm_constants.py", "--json", str(path)]  # cwd: ROOT
         argv += ["--quick"] if self.args.quick else []
         argv += [] if pingpong else ["--no-pingpong"]
         self._run(ranks, argv, "probe")
