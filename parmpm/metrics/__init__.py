@@ -86,7 +86,8 @@ def register_metrics(kind: str):
 
     def deco(cls):
         entry = METRIC_KINDS.get(kind)
-        if entry is None or entry.cls != cls.__name__ or cls.__module__ != f"parmpm.metrics.{entry.module}":
+        home = None if entry is None else (f"parmpm.metrics.{entry.module}", entry.cls)
+        if home != (cls.__module__, cls.__name__):
             raise TypeError(f"metrics class {cls.__module__}.{cls.__name__} registers kind "
                             f"{kind!r}, which parmpm.metrics.METRIC_KINDS does not name for it")
         cls.kind = kind
@@ -102,7 +103,8 @@ def make_metrics(scene_data: dict, x0, mass):
     if kind == NO_METRICS:
         return None
     if kind not in METRIC_KINDS:
-        raise SceneError(f"unknown metrics kind {kind!r} (known: none, {', '.join(sorted(METRIC_KINDS))})")
+        raise SceneError(f"unknown metrics kind {kind!r} "
+                         f"(known: none, {', '.join(sorted(METRIC_KINDS))})")
     return METRIC_KINDS[kind].load()(scene_data, x0, mass)
 
 

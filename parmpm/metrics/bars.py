@@ -28,7 +28,7 @@ class HangingBarMetrics(History):
     """Separation, stretch and tip history of the self-weighted bar (body 0).
 
     * axial stretch of particle p: ``|F_p e_a|`` (length of column ``a`` of F), ``a`` =
-      ``metrics.axis`` (resolved default ``dim − 1``: the axis a hanging bar's gravity acts along);
+      ``metrics.axis`` (default ``dim − 1``, the axis a hanging bar's gravity acts along);
     * tip: the bar's particles with the extreme initial coordinate in the direction of gravity;
       its displacement is the mean displacement of those particles projected on ``−ĝ`` along the
       axis (so negative = downward);

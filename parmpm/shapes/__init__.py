@@ -23,8 +23,8 @@ To add an interpolator: its per-axis or per-particle weights in a module beside
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 #: the kernels' interpolator codes (:func:`parmpm.shapes.support.particle_support` switches on them)
 MPM, UGIMP, CPGIMP, CPDI = 0, 1, 2, 3
