@@ -33,6 +33,7 @@ import traceback
 from pathlib import Path
 
 from parmpm.errors import ParmpmError, RunInterrupted
+from parmpm.shapes import interpolator_names
 
 DEFAULT_SCENE = "hanging_bar"
 DEFAULT_OUT = Path("parmpm-out")
@@ -91,7 +92,7 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="parmpm",
-        description="MPI-parallel explicit Material Point Method solver (mpm, ugimp, cpgimp, cpdi "
+        description=f"MPI-parallel explicit Material Point Method solver ({interpolator_names()} "
         "with CPDI domain scaling). Run it under mpirun for several ranks.",
         epilog=_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,

@@ -50,6 +50,8 @@ from parmpm.io.summary import to_jsonable
 from parmpm.kernels2d.material import stress_pass as stress_pass_2d
 from parmpm.kernels3d.material import stress_pass as stress_pass_3d
 from parmpm.scene import Scene, scene_from_toml
+from parmpm.scene_schema import UPDATES
+from parmpm.shapes import INTERPOLATORS
 from parmpm.simulation import Simulation
 from parmpm.transfer import stress_pass
 
@@ -59,8 +61,7 @@ CELL = 0.01            # m
 MARGIN = 4             # empty cells on every side, before the travel allowance
 CFL = 0.4
 VELOCITY = (1.0, 0.5, 0.25)  # m/s, times --speed
-METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
-UPDATES = ("auto", "usl", "musl")
+METHODS = tuple(INTERPOLATORS)
 WARMUP_PARTICLES = {1: 200, 2: 2000, 3: 4000}
 
 

@@ -20,7 +20,8 @@ import numpy as np
 
 from parmpm.jit import kernel
 from parmpm.kernel_records import kernel_lcr
-from parmpm.shapes import CPDI, CPGIMP, domain_matrix
+from parmpm.shapes import CPDI, CPGIMP
+from parmpm.shapes.support import domain_matrix
 
 __all__ = ["domain_vectors", "domain_corners", "domain_sizes"]
 

@@ -25,7 +25,7 @@ import numpy as np
 from decomposition import ordered_sum
 from parmpm.jit import kernel
 from parmpm.materials.laws import stored_energy
-from parmpm.metrics import patch_sums
+from parmpm.metrics.sums import patch_sums
 
 #: steps between two samples of the watch: a blow-up grows geometrically, so a sample every few
 #: steps catches it early, at a cost of one particle pass per ENERGY_EVERY steps

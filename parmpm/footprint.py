@@ -29,6 +29,7 @@ import math
 import os
 
 from parmpm.errors import ParmpmError
+from parmpm.metrics import separation_kinds
 from parmpm.scene_bodies import rotated_box_bounds
 
 #: measured peak over the bare fields (a 2D cpdi run at 1e6 particles: 360 B per particle over
@@ -38,8 +39,6 @@ PEAK_FACTOR = 1.5
 #: 2.5e3 x 4e3 patch grid): counts, owners, slots
 #: and node boxes (decomposition.PatchLayout, PatchSet; parmpm.stepper.Discretisation)
 DENSE_PATCH_BYTES = 256
-#: metrics that count separated pieces (parmpm.measures.components: a node table per particle)
-COMPONENT_METRICS = ("hanging_bar", "tension_bar")
 #: the variable that overrides the memory available (bytes, or with a K, M, G or T suffix)
 LIMIT_VARIABLE = "PARMPM_MEMORY_LIMIT"
 _UNITS = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
@@ -93,7 +92,7 @@ def estimate(data: dict, ghost: int, ranks: int = 1) -> dict:
     kind = data["metrics"]["kind"]
     if kind != "none":  # whole-scene x0, mass and patch of every particle
         per_rank += particles * 8 * (d + 2)
-    if kind in COMPONENT_METRICS:  # the separation check's node table: K node ids per particle
+    if kind in separation_kinds():  # the separation check's node table: K node ids per particle
         K = max(4 ** d, (2 * ghost + 2) ** d)
         per_rank += 3 * 8 * K * particles / ranks
     return {"particles": particles, "patches": patches, "dense_patches": dense, "nodes_per_patch": nodes,

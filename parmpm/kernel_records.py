@@ -18,7 +18,7 @@ def kernel_lcr(lcr: float | None) -> float:
     """The kernels' ``l_cr`` for a run's (``None``: no domain scaling). ``None`` is the one
     spelling of "no l_cr" above the kernels; inside them it is :data:`NO_SCALING`, which the cap
     formula needs no special case for."""
-    if lcr is None or lcr == 0.0:  # 0.0: the old spelling, until every caller passes None
+    if lcr is None:
         return NO_SCALING
     lcr = float(lcr)
     if not lcr > 0.0:

@@ -20,7 +20,7 @@ from parmpm.connectivity import (
     shared_pairs,
 )
 from parmpm.errors import SimulationError
-from parmpm.metrics import patch_sums
+from parmpm.metrics.sums import patch_sums
 from parmpm.reach import reach_message, support_reach
 from parmpm.stepper import PHASES, WORK_PHASES
 from parmpm.transfer import support_nodes

@@ -2,17 +2,19 @@
 import numpy as np
 
 from decomposition import PatchLayout
-from parmpm.shapes import CPDI, domain_matrix, particle_support
+from parmpm.kernel_records import kernel_lcr
+from parmpm.shapes import CPDI
+from parmpm.shapes.support import domain_matrix, particle_support
 
 
-def entries(method, d, x, F=None, lh0=None, r0=None, lcr=0.0, h=None, cells=12, ghost=3, jit=True):
+def entries(method, d, x, F=None, lh0=None, r0=None, lcr=None, h=None, cells=12, ghost=3, jit=True):
     """Global node coordinates (n, d), weights (n,), gradients (n, d) of a particle at ``x`` in a
     single-patch grid of ``cells`` cells of size ``h`` per axis (origin 0)."""
     lay = PatchLayout((cells,) * d, (cells,) * d, ghost)
     return _entries(method, d, x, F, lh0, r0, lcr, h, lay, lay.local_base()[0], jit)
 
 
-def entries_in_patch(method, d, x, layout, coords, F=None, lh0=None, r0=None, lcr=0.0, h=None,
+def entries_in_patch(method, d, x, layout, coords, F=None, lh0=None, r0=None, lcr=None, h=None,
                      jit=True):
     """As :func:`entries`, but the local (ghost-inclusive) box is that of the patch at ``coords``
     of ``layout``: ``None`` means the particle touches a node outside the grid or beyond that
@@ -39,7 +41,7 @@ def _entries(method, d, x, F, lh0, r0, lcr, h, lay, base, jit):
     idx, w, g = np.zeros(K, np.int64), np.zeros(K), np.zeros((K, 3))
     dm = domain_matrix if jit else domain_matrix.py_func
     ps = particle_support if jit else particle_support.py_func
-    dm(d, method, lcr, F, r0, R)
+    dm(d, method, kernel_lcr(lcr), F, r0, R)
     n = ps(method, d, xi, F, lh0, R, C, base, nloc, nglob, inv_h, nk, jk, wk, dwk, idx, w, g)
     if n < 0:
         return None
@@ -51,10 +53,10 @@ def _entries(method, d, x, F, lh0, r0, lcr, h, lay, base, jit):
     return nodes, w[:n].copy(), g[:n, :d].copy(), R[:d, :d].copy()
 
 
-def domain(d, F, r0, lcr=0.0, jit=True):
+def domain(d, F, r0, lcr=None, jit=True):
     """The CPDI domain ``R' `` (d, d) that ``domain_matrix`` builds from ``F`` and ``R0`` (capped at
-    ``lcr`` when ``lcr > 0``), without evaluating any weights."""
+    ``lcr``; None: no domain scaling), without evaluating any weights."""
     R = np.zeros((3, 3))
     dm = domain_matrix if jit else domain_matrix.py_func
-    dm(d, CPDI, lcr, np.asarray(F, float), np.asarray(r0, float), R)
+    dm(d, CPDI, kernel_lcr(lcr), np.asarray(F, float), np.asarray(r0, float), R)
     return R[:d, :d].copy()

@@ -237,8 +237,8 @@ def test_ghost_width_holds_every_node_and_is_tight(name, lcr_dx, ppc, d, jit):
     interp = INTERPOLATORS[name]
     assert interp.bounded
     h = H[:d].copy()
-    lcr = 0.0 if lcr_dx is None else lcr_dx * h.min()
-    width = interp.ghost_width(lcr if lcr_dx is not None else None, h.min())
+    lcr = None if lcr_dx is None else lcr_dx * h.min()
+    width = interp.ghost_width(lcr, h.min())
     if lcr_dx is not None:
         assert width == max(1, math.ceil(lcr_dx - 1e-9))
     rng = np.random.default_rng([8, d, len(name), int(ppc), int(1000 * (lcr_dx or 0)), int(jit)])

@@ -57,22 +57,11 @@ def test_interpolator_codes_are_the_kernels_codes():
 
     codes = [i.code for i in INTERPOLATORS.values()]
     assert len(set(codes)) == len(codes)
-    assert (support.MPM, support.UGIMP, support.CPGIMP, support.CPDI) == (MPM, UGIMP, CPGIMP, CPDI)
+    assert (support.MPM, support.CPGIMP, support.CPDI) == (MPM, CPGIMP, CPDI)  # the registry's
     assert {n: i.code for n, i in INTERPOLATORS.items()} == {"mpm": MPM, "ugimp": UGIMP,
                                                              "cpgimp": CPGIMP, "cpdi": CPDI}
     for name, interp in INTERPOLATORS.items():
         assert interp.name == name and interp.summary and interp.weight
-
-
-def test_kernels_still_reachable_from_the_registry_package():
-    """The lazy re-export of the kernels (import them from :mod:`parmpm.shapes.support`)."""
-    from parmpm import shapes
-    from parmpm.shapes import support
-
-    assert shapes.particle_support is support.particle_support
-    assert shapes.domain_matrix is support.domain_matrix
-    with pytest.raises(AttributeError):
-        _ = shapes.no_such_kernel
 
 
 @pytest.mark.parametrize("lcr, min_dx, cpdi", [(None, 0.5, UNBOUNDED_DEFAULT_GHOST), (1.0, 0.5, 2),

@@ -35,7 +35,8 @@ import pytest
 
 import parmpm
 from parmpm.shapes.gimp import gimp_axis
-from parmpm.shapes.support import CPGIMP, UGIMP, particle_support
+from parmpm.shapes import CPGIMP, UGIMP
+from parmpm.shapes.support import particle_support
 
 EPS = np.finfo(float).eps
 E = 1.0e6

@@ -256,7 +256,7 @@ def test_domain_scaling(d, jit):
         x = 0.5 * CELLS * h  # grid centre: even unscaled domains stay inside the grid
         scaled = entries(CPDI, d, x, F=F, lh0=lh0, lcr=lcr, h=h, cells=CELLS, jit=jit)
         assert scaled is not None
-        Rp, R = scaled[3], domain(d, F, r0, lcr=0.0, jit=jit)
+        Rp, R = scaled[3], domain(d, F, r0, lcr=None, jit=jit)
         # the material F is never touched (only R' is scaled)
         np.testing.assert_array_equal(F, F_before)
         # R = F·R0 (no scaling), bit for bit in the kernel's summation order

@@ -53,7 +53,7 @@ class RotationMetrics(History):
         self.energy: list[float] = []
         self.momentum: list[float] = []
 
-    def terms(self, gid, x, v, F, particles=None, method=0, lcr=0.0, **context):
+    def terms(self, gid, x, v, F, particles=None, method=0, lcr=None, **context):
         """Per particle: domain size now and at rest, kinetic energy, angular momentum; local
         maxima of the stress norm and of ``−(size / size at rest)``."""
         n = np.shape(gid)[0]

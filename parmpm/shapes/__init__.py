@@ -98,14 +98,5 @@ def interpolator_table() -> str:
     return "\n".join(rows)
 
 
-def __getattr__(name: str):
-    """The kernels, for callers that still import them from here (loaded on first use, so
-    importing the registry compiles nothing); import them from :mod:`parmpm.shapes.support`."""
-    if name in ("domain_matrix", "particle_support"):
-        from parmpm.shapes import support
-        return getattr(support, name)
-    raise AttributeError(f"module 'parmpm.shapes' has no attribute {name!r}")
-
-
 __all__ = ["INTERPOLATORS", "Interpolator", "MPM", "UGIMP", "CPGIMP", "CPDI",
            "UNBOUNDED_DEFAULT_GHOST", "interpolator_names", "interpolator_table"]

@@ -11,7 +11,7 @@ grid or beyond the patch's ghost layer.
 """
 from parmpm.jit import helper_kernel
 from parmpm.kernel_records import NO_SCALING
-from parmpm.shapes import CPDI, CPGIMP, MPM, UGIMP  # noqa: F401 (UGIMP: callers import the codes from here)
+from parmpm.shapes import CPDI, CPGIMP, MPM
 from parmpm.shapes.cpdi import cpdi_support
 from parmpm.shapes.gimp import gimp_axis
 from parmpm.shapes.hat import mpm_axis
