@@ -6,7 +6,9 @@
 #
 #   make run                      the default scene (2D hanging bar, cpdi, l_cr = 2dx) on NP=2 ranks
 #   make run NP=4 RUN_ARGS='run vibrating_bar --quiet'
-#   make test                     the test suite; pass pytest options with PYTEST_ARGS='-k cli -x'
+#   make test                     the linter (ruff) and the test suite; pytest options with
+#                                 PYTEST_ARGS='-k cli -x' (-m "not slow": no studies)
+#   make lint                     only the linter
 #   make figures                  run_scripts/make_figures.py, where it exists
 #
 # PYTHON picks the interpreter that creates the venv (Python >= 3.11): make test PYTHON=python3.12
@@ -21,11 +23,12 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 EXTRAS := mpich,test,plot
 
-.PHONY: help venv run test figures clean
+.PHONY: help venv run test lint figures clean
 
 help:
 	@echo "make run      run the default scene on $(NP) MPI ranks (creates $(VENV) on first use)"
-	@echo "make test     run the test suite (PYTEST_ARGS='...' passes options to pytest)"
+	@echo "make test     run the linter and the test suite (PYTEST_ARGS='...' passes options to pytest)"
+	@echo "make lint     run the linter (ruff check)"
 	@echo "make figures  regenerate the README figures (run_scripts/make_figures.py)"
 	@echo "make venv     only create $(VENV) and install parmpm[$(EXTRAS)] into it"
 	@echo "make clean    remove outputs and caches (keeps $(VENV))"
@@ -45,8 +48,11 @@ venv: $(STAMP)
 run: $(STAMP)
 	$(BIN)/mpirun -n $(NP) $(BIN)/python -m parmpm $(RUN_ARGS)
 
-test: $(STAMP)
+test: lint
 	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
+
+lint: $(STAMP)
+	$(BIN)/ruff check .
 
 figures: $(STAMP)
 	@if [ -f run_scripts/make_figures.py ]; then \

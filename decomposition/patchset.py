@@ -21,8 +21,14 @@ import numpy as np
 from decomposition.comm import is_parallel
 from decomposition.halo import HaloPlan
 from decomposition.layout import PatchLayout
-from decomposition.partition import (shift_patches, active_patches, adjacency_offsets, assign, imbalance,
-                                    rank_loads)
+from decomposition.partition import (
+    active_patches,
+    adjacency_offsets,
+    assign,
+    imbalance,
+    rank_loads,
+    shift_patches,
+)
 
 
 class PatchSet:

@@ -22,7 +22,6 @@ from numba import literal_unroll, literally
 
 from parmpm.jit import DIMS, helper_kernel, kernel, loop_kernel
 
-
 #: row stride modulo 4 KiB (in doubles) of a grid block: 208 doubles = 1664 B puts the rows of a
 #: 5-row block 768 B or more apart modulo 4 KiB, so stores to one row never falsely depend on loads
 #: of another at the same 4 KiB offset (a measured 20 % slow-down of P2G with equal offsets)

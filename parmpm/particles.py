@@ -15,7 +15,6 @@ import numpy as np
 from numba import literal_unroll, literally
 
 from parmpm.jit import DIMS, kernel, loop_kernel
-
 from parmpm.patch_index import patch_id1, patch_id2, patch_id3
 
 FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx", "rf")

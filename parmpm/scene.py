@@ -88,9 +88,10 @@ Absent optional values (``time.end``, ``time.dt_max``, ``output.every``, ``bodie
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Iterable
 from importlib import resources
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any
 
 from parmpm.errors import SceneError
 from parmpm.scene_check import lcr_length, one_line, toml_key, toml_value

@@ -22,8 +22,14 @@ from typing import Any
 
 from parmpm.materials import MODELS, SOFTENING, lame
 from parmpm.metrics import metric_names, separation_kinds
-from parmpm.scene_bodies import (BODY_KEYS, SHAPE_DIMS, SHAPE_KEYS, VIBRATION_KEYS,  # noqa: F401
-                                 _bodies, rotated_box_bounds)
+from parmpm.scene_bodies import (  # noqa: F401
+    BODY_KEYS,
+    SHAPE_DIMS,
+    SHAPE_KEYS,
+    VIBRATION_KEYS,
+    _bodies,
+    rotated_box_bounds,
+)
 from parmpm.scene_check import AXIS_NAMES, _Checker, lcr_length, show
 from parmpm.shapes import INTERPOLATORS
 from parmpm.update_order import UPDATES as _UPDATE_ORDERS

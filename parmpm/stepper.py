@@ -18,21 +18,19 @@ import time
 
 import numpy as np
 
-from decomposition import (PatchSet, accumulate, allreduce_max, exchange, fill,
-                           is_parallel, migrate)
+from decomposition import PatchSet, accumulate, allreduce_max, exchange, fill, is_parallel, migrate
 from parmpm.collective import agree
 from parmpm.discretisation import Discretisation
 from parmpm.errors import SimulationError
-from parmpm.kernel_records import (Boxes, Constraints, Fields, Locate, Material, Method,
-                                   OwnedNodes)
 from parmpm.grid import grid_block, grid_update, region_node_ranges
+from parmpm.kernel_records import Boxes, Constraints, Fields, Locate, Material, Method, OwnedNodes
 from parmpm.kernels2d import KERNELS_2D
 from parmpm.kernels3d import KERNELS_3D
 from parmpm.materials import COL_DAMAGE
-from parmpm.shapes import CPDI
-from parmpm.shapes.freeze import freeze_domains
 from parmpm.particles import Particles, locate_patches
 from parmpm.reach import fmt_vec, grid_extent, reach_message
+from parmpm.shapes import CPDI
+from parmpm.shapes.freeze import freeze_domains
 from parmpm.transfer import g2p, p2g, p2g_momentum
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 

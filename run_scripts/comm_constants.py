@@ -71,7 +71,7 @@ def pingpong(comm, sizes=SIZES, budget: float = 0.05, batches: int = 5) -> list[
         for n in sizes:
             buf = np.zeros(n, np.uint8)
 
-            def one():
+            def one(buf=buf):
                 if rank == 0:
                     pair.Send([buf, MPI.BYTE], dest=peer, tag=TAG_PING)
                     pair.Recv([buf, MPI.BYTE], source=peer, tag=TAG_PING)

@@ -72,9 +72,8 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 import cost_model as cm
+import numpy as np
 from scaling_model import model_study, partition_halo
 from study import ROOT, compact_png, figure, folders, parser, save, write_csv, wrote
 
@@ -134,7 +133,7 @@ class Runner:
 
     def _run(self, ranks: int, argv: list[str], what: str) -> None:
         cmd = [self.mpirun, "-n", str(ranks), sys.executable, *argv]
-        print("$ mpirun -n %d python %s" % (ranks, " ".join(argv)), flush=True)
+        print(f"$ mpirun -n {ranks} python {' '.join(argv)}", flush=True)
         try:
             proc = subprocess.run(cmd, cwd=ROOT, env=self.env, capture_output=True, text=True,
                                   timeout=self.args.timeout)

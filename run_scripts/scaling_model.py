@@ -22,9 +22,8 @@ import platform
 import time
 from pathlib import Path
 
-import numpy as np
-
 import cost_model as cm
+import numpy as np
 from study import compact_png, figure, save, write_csv
 
 

@@ -103,9 +103,20 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
-from study import (figure, folders, is_root, main_guard, parser, run_case, save, scratch_folder,
-                   select_cases, world, write_csv, wrote)
+from study import (
+    figure,
+    folders,
+    is_root,
+    main_guard,
+    parser,
+    run_case,
+    save,
+    scratch_folder,
+    select_cases,
+    world,
+    write_csv,
+    wrote,
+)
 
 END = 0.3             # s, the seed's end time
 FRAME_EVERY = 0.0025  # s between observer calls (frames for the figures, the support check)
@@ -196,8 +207,8 @@ class Case:
                 "metrics.stop_on_separation=true", f"output.every={FRAME_EVERY}"]
         if self.support == "clamped":  # the same nodes, both components held
             b = parmpm.load_scene(SCENES[self.dim]).data["boundary"]["slip_regions"][0]
-            over += ["boundary.slip_regions=[]", "boundary.fixed_regions=[{min=[%s], max=[%s]}]" % (
-                ", ".join(map(repr, b["min"])), ", ".join(map(repr, b["max"])))]
+            lo, hi = ", ".join(map(repr, b["min"])), ", ".join(map(repr, b["max"]))
+            over += ["boundary.slip_regions=[]", f"boundary.fixed_regions=[{{min=[{lo}], max=[{hi}]}}]"]
         return over
 
 
@@ -241,8 +252,8 @@ class Watch:
         self.t, self.corners, self.stretch = [], [], []
 
     def __call__(self, sim) -> None:
-        from decomposition import allreduce_max
         import parmpm
+        from decomposition import allreduce_max
 
         P, d = sim.particles, sim.dim
         axis = sim.data["metrics"]["axis"]

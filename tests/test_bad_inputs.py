@@ -12,14 +12,15 @@ import sys
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from mpi_launch import mpirun, needs_mpi
+from test_cli import assert_one_line_error
+from test_cli import parmpm as cli
 
 from parmpm.errors import ParmpmError, SceneError
-from parmpm.materials import lame
 from parmpm.footprint import available_bytes, check_memory, estimate
+from parmpm.materials import lame
 from parmpm.scene import load_scene
 from parmpm.seeding import seed_bodies
-from test_cli import assert_one_line_error, parmpm as cli
-from mpi_launch import mpirun, needs_mpi
 
 QUIET = ["--quiet", "--set", "time.steps=2", "--set", "output.figure=false"]
 

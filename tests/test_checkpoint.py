@@ -9,15 +9,14 @@ import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
-
-from parmpm.__main__ import main
 from mpi_launch import mpirun, needs_mpi
 from test_mpi_ranks import CROSSING
+
+from parmpm.__main__ import main
 
 QUIET = ["--quiet"]
 OFF = ["--set", "output.snapshots=false", "--set", "output.figure=false"]

@@ -16,10 +16,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from mpi_launch import mpirun, needs_mpi
 
 import parmpm.__main__ as cli
 from parmpm.errors import SceneError
-from mpi_launch import mpirun, needs_mpi
 
 REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 120

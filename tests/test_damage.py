@@ -14,11 +14,17 @@ import parmpm
 from parmpm.errors import SceneError
 from parmpm.kernels2d import KERNELS_2D
 from parmpm.materials import cauchy_stress, material_table
-from parmpm.materials.damage import (EXPONENTIAL, LINEAR, damage_scalar, degrade, degrade_2d,
-                                     degrade_3d, damage_update, max_stretch, max_stretch_2d,
-                                     max_stretch_3d)
+from parmpm.materials.damage import (
+    damage_scalar,
+    damage_update,
+    degrade,
+    degrade_2d,
+    degrade_3d,
+    max_stretch,
+    max_stretch_2d,
+    max_stretch_3d,
+)
 from parmpm.simulation import Simulation
-from parmpm.transfer import G2P_USL
 
 QUIET = ["output.snapshots=false", "output.figure=false"]
 

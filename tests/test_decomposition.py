@@ -9,11 +9,11 @@ import math
 
 import numpy as np
 import pytest
+from shape_harness import entries_in_patch
 
 from decomposition import HaloPlan, PatchLayout, accumulate, fill
 from decomposition import halo as _halo
 from parmpm.shapes import CPDI, INTERPOLATORS, MPM, UGIMP
-from shape_harness import entries_in_patch
 
 # (cells, patch_size, ghost): partial last patches, ghost 0/1/2, ghost > patch size, one patch
 LAYOUTS = [
@@ -271,7 +271,13 @@ def test_unbounded_interpolators_default_ghost():
 
 
 # --- sparse patch set and partition --------------------------------------------------------------
-from decomposition.partition import active_patches, assign, imbalance, morton_order, split_contiguous  # noqa: E402
+from decomposition.partition import (  # noqa: E402
+    active_patches,
+    assign,
+    imbalance,
+    morton_order,
+    split_contiguous,
+)
 
 
 def _box_patches(lay, lo_cell, hi_cell):

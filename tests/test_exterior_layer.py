@@ -18,12 +18,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from mpi_launch import mpirun, needs_mpi
 
 import parmpm
+from parmpm.discretisation import Discretisation, exterior_cells
 from parmpm.errors import SceneError, SimulationError
 from parmpm.simulation import Simulation
-from parmpm.discretisation import Discretisation, exterior_cells
-from mpi_launch import mpirun, needs_mpi
 
 HERE = Path(__file__).parent
 QUIET = ["output.snapshots=false", "output.figure=false"]

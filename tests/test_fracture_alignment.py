@@ -13,11 +13,9 @@ what its docstring claims:
 """
 from __future__ import annotations
 
-
 import pytest
-
-from study_harness import num, read_csv, run_quick
 from mpi_launch import mpirun, needs_mpi
+from study_harness import num, read_csv, run_quick
 
 DX, L_BAR = 0.025, 0.8
 QUICK_MAX_STRETCH = 1.6

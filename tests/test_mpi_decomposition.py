@@ -9,7 +9,6 @@ from pathlib import Path
 import pytest
 from mpi_launch import MPI_MARKS, mpirun
 
-
 pytestmark = MPI_MARKS  # every test here launches mpirun
 
 

@@ -5,7 +5,6 @@ import sys
 import time
 
 import pytest
-
 from mpi_launch import MPI_MARKS, mpirun
 from test_mpi_ranks import CROSSING
 

@@ -12,8 +12,7 @@ import pytest
 
 from decomposition import PatchLayout, boxes
 from parmpm.particles import locate_patches
-from parmpm.patch_index import (patch_id1, patch_id2, patch_id3, patch_index,
-                                patches_holding_node)
+from parmpm.patch_index import patch_id1, patch_id2, patch_id3, patch_index, patches_holding_node
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -34,8 +34,8 @@ import numpy as np
 import pytest
 
 import parmpm
-from parmpm.shapes.gimp import gimp_axis
 from parmpm.shapes import CPGIMP, UGIMP
+from parmpm.shapes.gimp import gimp_axis
 from parmpm.shapes.support import particle_support
 
 EPS = np.finfo(float).eps

@@ -20,9 +20,9 @@ import itertools
 
 import numpy as np
 import pytest
+from shape_harness import domain, entries
 
 from parmpm.shapes import CPDI, CPGIMP, MPM, UGIMP
-from shape_harness import domain, entries
 
 TOL = 1e-12
 CELLS = 12

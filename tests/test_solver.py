@@ -1,7 +1,6 @@
 """Solver behaviour: exact-solution convergence, the seed's stability result, conservation,
 the ghost-reach check, and the run summary. Small resolutions: seconds each."""
 import json
-import math
 
 import numpy as np
 import pytest

@@ -19,9 +19,8 @@ import math
 from pathlib import Path
 
 import pytest
-
-from study_harness import num, read_csv, run_quick
 from mpi_launch import mpirun, needs_mpi
+from study_harness import num, read_csv, run_quick
 
 METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
 

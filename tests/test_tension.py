@@ -12,8 +12,8 @@ from parmpm.errors import SceneError
 from parmpm.exact_tension import elastic_tension, opening_allowance, softening, tension_failure
 from parmpm.materials import lame
 from parmpm.materials.neo_hookean import neo_hookean_stress
-from parmpm.seeding import bodies_to_particles
 from parmpm.scene import scene_from_toml
+from parmpm.seeding import bodies_to_particles
 
 E, NU = 1.0e6, 0.3
 OFF = ["output.snapshots=false", "output.figure=false"]

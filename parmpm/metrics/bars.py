@@ -17,8 +17,16 @@ from parmpm.exact import (
     vibrating_bar_com_velocity,
 )
 from parmpm.metrics import register_metrics
-from parmpm.metrics.common import (History, as_points, bar_mask, bar_material, bar_span, gravity,
-                                   material_constants, to_plain)
+from parmpm.metrics.common import (
+    History,
+    as_points,
+    bar_mask,
+    bar_material,
+    bar_span,
+    gravity,
+    material_constants,
+    to_plain,
+)
 
 logger = logging.getLogger(__name__)
 
