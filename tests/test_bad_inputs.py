@@ -12,7 +12,6 @@ import sys
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from mpi_launch import mpirun, needs_mpi
 from test_cli import assert_one_line_error
 from test_cli import parmpm as cli
 
@@ -120,10 +119,9 @@ def test_memory_limit_through_the_cli(tmp_path):
     assert not (tmp_path / "o").exists()  # refused before the folder was claimed
 
 
-@needs_mpi
-def test_memory_refusal_under_two_ranks_prints_once(tmp_path):
+def test_memory_refusal_under_two_ranks_prints_once(tmp_path, mpirun):
     env = dict(os.environ, PARMPM_MEMORY_LIMIT="100K")
-    proc = subprocess.run([mpirun(), "-n", "2", sys.executable, "-m", "parmpm", "run",
+    proc = subprocess.run([mpirun, "-n", "2", sys.executable, "-m", "parmpm", "run",
                            "hanging_bar", *QUIET], capture_output=True, text=True, timeout=300,
                           env=env, cwd=tmp_path)
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]

@@ -118,6 +118,7 @@ def test_cli_bench_error_is_one_line(capsys):
     assert len(err) == 1 and err[0].startswith("parmpm: error: bench: --steps must be >= 2")
 
 
+@pytest.mark.slow
 def test_throughput_study_quick(tmp_path):
     """``run_scripts/throughput.py --quick`` with a stand-in yardstick (prints a fixed rate): one
     row per case, the ratio is parmpm's rate over the yardstick's, and the phases add up to the

@@ -16,7 +16,6 @@ import sys
 from pathlib import Path
 
 import pytest
-from mpi_launch import mpirun, needs_mpi
 
 import parmpm.__main__ as cli
 from parmpm.errors import SceneError
@@ -110,10 +109,9 @@ def test_bad_set(tmp_path, override, fragment):
     assert not (tmp_path / "out").exists()  # rejected before the run starts
 
 
-@needs_mpi
-def test_bad_scene_under_mpirun_prints_once(tmp_path):
+def test_bad_scene_under_mpirun_prints_once(tmp_path, mpirun):
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    proc = subprocess.run([mpirun(), "-n", "2", sys.executable, "-m", "parmpm", "run", "missing.toml"],
+    proc = subprocess.run([mpirun, "-n", "2", sys.executable, "-m", "parmpm", "run", "missing.toml"],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
     assert_one_line_error(proc, "missing.toml")
 

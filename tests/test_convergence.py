@@ -19,7 +19,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from mpi_launch import mpirun, needs_mpi
+
+pytestmark = pytest.mark.slow  # a study's smoke run (run_scripts/, --quick)
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "run_scripts" / "convergence.py"
@@ -87,10 +88,9 @@ def test_quick_writes_figures(quick):
         assert path.is_file() and 10_000 < path.stat().st_size < 300_000, name
 
 
-@needs_mpi
-def test_two_ranks_give_the_same_csv(quick, tmp_path):
+def test_two_ranks_give_the_same_csv(quick, tmp_path, mpirun):
     """2D manufactured solution and the bars (their observers gather and reduce over ranks)."""
-    out = _run([mpirun(), "-n", "2"], tmp_path / "np2",
+    out = _run([mpirun, "-n", "2"], tmp_path / "np2",
                ["--only", "manufactured-2d,vibrating-bar,hanging-static,hanging-dynamic"], timeout=120)
     for name, keep in (("convergence.csv", lambda r: r["dim"] == "2"), ("verification.csv", None)):
         serial = [r for r in _read(quick / name) if keep is None or keep(r)]

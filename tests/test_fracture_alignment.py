@@ -14,8 +14,9 @@ what its docstring claims:
 from __future__ import annotations
 
 import pytest
-from mpi_launch import mpirun, needs_mpi
 from study_harness import num, read_csv, run_quick
+
+pytestmark = pytest.mark.slow  # a study's smoke run (run_scripts/, --quick)
 
 DX, L_BAR = 0.025, 0.8
 QUICK_MAX_STRETCH = 1.6
@@ -108,11 +109,10 @@ def test_summary_matches_the_case_rows(quick):
             assert num(s["mean"]) == pytest.approx(sum(sep) / len(sep))
 
 
-@needs_mpi
-def test_two_ranks_give_the_same_rows(quick, tmp_path):
+def test_two_ranks_give_the_same_rows(quick, tmp_path, mpirun):
     out, rows, _ = quick
     # one rotated case in both modes (the quick mode's 30°, offset (0, 0)), to keep the test short
-    got = run_quick("fracture_alignment.py", tmp_path / "np2", prefix=[mpirun(), "-n", "2"],
+    got = run_quick("fracture_alignment.py", tmp_path / "np2", prefix=[mpirun, "-n", "2"],
                      extra=["--angles", "30", "--offsets", "1"], timeout=240)
     two = read_csv(got / "fracture_alignment.csv")
     assert [r["mode"] for r in two] == ["freeze", "lcr"]

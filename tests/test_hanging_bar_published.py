@@ -131,12 +131,14 @@ def fe_reference():
     return out
 
 
+@pytest.mark.slow
 def test_fe_reference_is_converged(fe_reference):
     a, b = fe_reference[(20, "roller")]["first_peak"], fe_reference[(40, "roller")]["first_peak"]
     assert abs(a - b) / abs(b) < 1e-3
     assert fe_reference[(40, "roller")]["first_peak_time"] == pytest.approx(0.0900, abs=5e-4)
 
 
+@pytest.mark.slow
 def test_cpdi_bar_first_peak_matches_the_fe_reference(bars, fe_reference):
     for support, n in (("roller", 40), ("clamped", 20)):
         m, ref = bars[support]["metrics"], fe_reference[(n, support)]
@@ -146,12 +148,14 @@ def test_cpdi_bar_first_peak_matches_the_fe_reference(bars, fe_reference):
         assert m["corner_rebound"] is None  # END is before the rebound
 
 
+@pytest.mark.slow
 def test_roller_peak_is_about_5_percent_deeper_than_clamped(bars):
     roller = bars["roller"]["metrics"]["corner_first_peak"]
     clamped = bars["clamped"]["metrics"]["corner_first_peak"]
     assert 0.04 < roller / clamped - 1.0 < 0.07
 
 
+@pytest.mark.slow
 def test_roller_bar_does_not_drift_sideways(bars):
     px, py = bars["roller"]["final"]["momentum"]
     assert abs(px) < 1e-12 * abs(py)

@@ -134,6 +134,7 @@ def _rows(path: Path) -> list[dict]:
 
 @pytest.mark.mpi
 @pytest.mark.skipif(not MPIRUN.is_file(), reason="no mpirun next to sys.executable")
+@pytest.mark.slow
 def test_scaling_quick(tmp_path):
     out = tmp_path / "scaling"
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])))

@@ -20,7 +20,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from mpi_launch import mpirun, needs_mpi
+
+pytestmark = pytest.mark.slow  # a study's smoke run (run_scripts/, --quick)
 
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "run_scripts" / "stability_gallery.py"
@@ -126,10 +127,9 @@ def test_quick_writes_csv_and_figures(quick):
         assert path.is_file() and 10_000 < path.stat().st_size < 300_000, name
 
 
-@needs_mpi
-def test_two_ranks_give_the_same_csv(quick, tmp_path):
+def test_two_ranks_give_the_same_csv(quick, tmp_path, mpirun):
     _, serial = quick
-    rows = _run([mpirun(), "-n", "2"], tmp_path / "np2", ["--cases", MPI_CASES], timeout=120)
+    rows = _run([mpirun, "-n", "2"], tmp_path / "np2", ["--cases", MPI_CASES], timeout=120)
     assert len(rows) == 3
     for r in rows:
         ref = dict(serial[r["case"]])

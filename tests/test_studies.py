@@ -19,8 +19,9 @@ import math
 from pathlib import Path
 
 import pytest
-from mpi_launch import mpirun, needs_mpi
 from study_harness import num, read_csv, run_quick
+
+pytestmark = pytest.mark.slow  # a study's smoke run (run_scripts/, --quick)
 
 METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
 
@@ -57,10 +58,9 @@ def test_rotation_cpgimp_domains_collapse_cpdi_keep_their_area(rotation):
     _png_ok(out / "rotation.png")
 
 
-@needs_mpi
-def test_rotation_two_ranks_give_the_same_csv(rotation, tmp_path):
+def test_rotation_two_ranks_give_the_same_csv(rotation, tmp_path, mpirun):
     out, _ = rotation
-    got = run_quick("rotation.py", tmp_path / "np2", prefix=[mpirun(), "-n", "2"])
+    got = run_quick("rotation.py", tmp_path / "np2", prefix=[mpirun, "-n", "2"])
     for name in ("rotation.csv", "rotation_history.csv"):
         a, b = read_csv(out / name), read_csv(got / name)
         assert len(a) == len(b) > 0
