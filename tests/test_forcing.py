@@ -120,11 +120,11 @@ def test_domain_sizes_under_rotation():
     F = np.stack([[[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]] for a in th])
     lh0 = np.full((3, 2), 0.25)
     r0 = np.stack([np.diag(lh0[i]) for i in range(3)])
-    sizes = {m: parmpm.domain_sizes(2, m, 0.0, F, r0, lh0) for m in (MPM, UGIMP, CPGIMP, CPDI)}
+    sizes = {m: parmpm.domain_sizes(2, m, None, F, r0, lh0) for m in (MPM, UGIMP, CPGIMP, CPDI)}
     np.testing.assert_allclose(sizes[CPDI], 0.25, rtol=1e-14)        # rotates rigidly
     np.testing.assert_allclose(sizes[UGIMP], 0.25, rtol=1e-14)       # fixed
     np.testing.assert_allclose(sizes[CPGIMP], 0.25 * np.cos(th) ** 2, atol=1e-16)  # collapses
-    corners = parmpm.domain_corners(2, CPDI, 0.0, np.zeros((3, 2)), F, r0, lh0)
+    corners = parmpm.domain_corners(2, CPDI, None, np.zeros((3, 2)), F, r0, lh0)
     assert corners.shape == (3, 4, 2)
     np.testing.assert_allclose(corners[2, 0], [0.25, -0.25], atol=1e-15)  # (-1,-1) corner turned 90°
     np.testing.assert_allclose(parmpm.domain_sizes(2, CPDI, 0.1, F, 2 * r0, 2 * lh0),

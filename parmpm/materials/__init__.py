@@ -75,16 +75,4 @@ def material_table(materials: dict) -> tuple[np.ndarray, list[str]]:
     return table, names
 
 
-def __getattr__(name: str):
-    """The kernels' names, for callers that still import them from here (loaded on first use,
-    so importing the registry compiles nothing)."""
-    if name in ("cauchy_stress", "stored_energy", "wave_speed"):
-        from parmpm.materials import laws
-        return getattr(laws, name)
-    if name == "det_d":
-        from parmpm.kinematics import det_d
-        return det_d
-    raise AttributeError(f"module 'parmpm.materials' has no attribute {name!r}")
-
-
 __all__ = ["LAWS", "MODELS", "SOFTENING", "PARAM", "N_PARAMS", "Law", "lame", "material_table"]
