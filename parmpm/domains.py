@@ -11,7 +11,7 @@ average over):
 * ``mpm``: a point; its *nominal* box of half-widths ``l0_k`` is returned, for drawing only.
 
 Domain "size" is the length (1D), area (2D) or volume (3D): ``2^d |det R|`` or ``Π 2 l_k``.
-In 1D with USL the CPDI domains tile the bar (VERIFICATION.md §4), so the sizes sum to its length.
+In 1D with USL the CPDI domains tile the bar (docs/verification.md §4), so the sizes sum to its length.
 Not on the time-step path.
 """
 from __future__ import annotations

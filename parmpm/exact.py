@@ -1,6 +1,6 @@
 """Exact solutions used to verify parmpm (pure numpy).
 
-Notation as in ``VERIFICATION.md``: reference coordinate ``X`` measured from the support
+Notation as in ``docs/verification.md``: reference coordinate ``X`` measured from the support
 (``X = 0`` fixed, ``X = L`` free), stretch ``λ = ∂x/∂X``, nominal (first Piola–Kirchhoff)
 stress ``P``, wave speed ``c = sqrt(E/ρ)``, ``β_n = (2n − 1)π/(2L)``, ``ω_n = c β_n``.
 
@@ -47,7 +47,7 @@ __all__ = [
 def mode_constants(L: float, E: float, rho: float, mode: int = 1) -> tuple[float, float, float]:
     """Return ``(β_n, ω_n, c)`` of a fixed-free bar.
 
-    ``β_n = (2n − 1)π/(2L)``, ``c = sqrt(E/ρ)``, ``ω_n = c β_n`` (VERIFICATION.md §1).
+    ``β_n = (2n − 1)π/(2L)``, ``c = sqrt(E/ρ)``, ``ω_n = c β_n`` (docs/verification.md §1).
     """
     if mode < 1:
         raise ValueError(f"mode must be >= 1, got {mode}")
@@ -61,14 +61,14 @@ def vibrating_bar_com_velocity(t, v0: float, L: float, E: float, rho: float, mod
 
     From ``v = v0 cos(ω_n t) sin(β_n X)`` averaged over ``[0, L]``:
     ``(1/L)∫ sin(β_n X) dX = (1 − cos(β_n L))/(β_n L) = 1/(β_n L)`` since ``cos(β_n L) = 0``
-    (Bardenhagen 2002, VERIFICATION.md §1). ``t`` may be a scalar or an array.
+    (Bardenhagen 2002, docs/verification.md §1). ``t`` may be a scalar or an array.
     """
     beta, omega, _ = mode_constants(L, E, rho, mode)
     return v0 / (beta * L) * np.cos(omega * np.asarray(t, dtype=float))
 
 
 def vibrating_bar_fields(X, t, v0: float, L: float, E: float, rho: float, mode: int = 1):
-    """Displacement, velocity and stress of the vibrating bar (VERIFICATION.md §1).
+    """Displacement, velocity and stress of the vibrating bar (docs/verification.md §1).
 
     ``u = (v0/ω_n) sin(ω_n t) sin(β_n X)``, ``v = v0 cos(ω_n t) sin(β_n X)``,
     ``σ = ρ c v0 sin(ω_n t) cos(β_n X)`` (``σ = E ∂u/∂X`` with ``E β_n/ω_n = ρ c``).
@@ -200,7 +200,7 @@ def hanging_bar_static(L: float, rho: float, g: float, stress_of_stretch, n: int
     """Static hanging bar for any 1D law ``P(λ)`` (monotone increasing, vectorised or scalar).
 
     The weight below ``X`` does not depend on the deformation, so ``P(λ(X)) = ρ g (L − X)``
-    exactly (VERIFICATION.md §2); it is solved pointwise by bisection, and the deformed position
+    exactly (docs/verification.md §2); it is solved pointwise by bisection, and the deformed position
     ``x(X) = ∫_0^X λ dX'`` by fourth-order cumulative Simpson on ``n`` uniform points (the
     elongation integrates ``λ − 1`` to avoid cancellation; 2001 points give ~1e-13 relative
     error for smooth laws).
@@ -243,7 +243,7 @@ def hanging_bar_static_displacement(X, L: float, rho: float, g: float, stress_of
 def hanging_bar_dynamic_tip(t, L: float, rho: float, g: float, E: float):
     """Tip displacement (positive along gravity) of a bar with gravity switched on at ``t = 0``.
 
-    Small-strain d'Alembert solution (VERIFICATION.md §2), with ``c = sqrt(E/ρ)``, ``T = 4L/c``
+    Small-strain d'Alembert solution (docs/verification.md §2), with ``c = sqrt(E/ρ)``, ``T = 4L/c``
     and ``τ = t mod T`` folded to ``[0, T/2]`` (the motion is even and ``T``-periodic):
     ``u = g τ²/2`` for ``τ ≤ L/c``; ``u = g L²/c² − (g/2)(2L/c − τ)²`` for ``L/c ≤ τ ≤ 2L/c``.
     The peak ``g L²/c²`` at ``t = 2L/c`` is twice the static tip displacement ``g L²/(2c²)``.
@@ -263,7 +263,7 @@ def hanging_bar_dynamic_series(X, t, L: float, rho: float, g: float, E: float, n
     """Mode series of the sudden-gravity hanging bar (positive along gravity).
 
     ``u(X,t) = (g/c²)(L X − X²/2) − Σ_n 2g/(c² L β_n³) sin(β_n X) cos(ω_n t)``
-    (VERIFICATION.md §2); truncation error at the tip ~ ``g L²/c² / n_modes²``.
+    (docs/verification.md §2); truncation error at the tip ~ ``g L²/c² / n_modes²``.
     """
     c = math.sqrt(E / rho)
     X = np.asarray(X, dtype=float)[..., None]
@@ -280,7 +280,7 @@ def hanging_bar_dynamic_series(X, t, L: float, rho: float, g: float, E: float, n
 # Axis-aligned manufactured solution
 # --------------------------------------------------------------------------------------------
 def manufactured_phases(dim: int) -> np.ndarray:
-    """Phase of each axis: 0, 2π/3, 4π/3 (VERIFICATION.md §3)."""
+    """Phase of each axis: 0, 2π/3, 4π/3 (docs/verification.md §3)."""
     return 2.0 * np.pi * np.arange(dim) / 3.0
 
 
@@ -304,7 +304,7 @@ def manufactured_motion(X, t: float, A: float, c: float):
 
 def manufactured_body_force(X, t: float, A: float, c: float, lam: float, mu: float, rho: float):
     """Body force (per unit mass) that makes :func:`manufactured_motion` solve the neo-Hookean
-    momentum equation ``ρ0 ∂²U/∂t² = ∇·P + ρ0 b`` (VERIFICATION.md §3)::
+    momentum equation ``ρ0 ∂²U/∂t² = ∇·P + ρ0 b`` (docs/verification.md §3)::
 
         b_k = π² U_k [ μ/ρ0 − c² − (λ (ln J − 1) − μ) / (ρ0 F_kk²) ],   J = Π F_kk
 

@@ -1,7 +1,7 @@
 """The axis-aligned manufactured solution as a forcing: initial state and per-step body force.
 
 A scene with a ``[manufactured]`` table (amplitude ``A``) is driven so that the exact motion of
-:func:`parmpm.exact.manufactured_motion` solves it (VERIFICATION.md §3): every particle starts on
+:func:`parmpm.exact.manufactured_motion` solves it (docs/verification.md §3): every particle starts on
 the exact field (``x = X + U``, ``v``, ``F = diag(F_kk)``, and the stress of that ``F``; CPDI's
 ``R = F·R0`` and cpGIMP's ``l0·|F_kk|`` follow from ``F``), and each step adds the body force
 ``m_p b(X_p, t)`` at the particle's *reference* position ``X_p`` and the step's start time ``t``

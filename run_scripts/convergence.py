@@ -1,6 +1,6 @@
 """Verification against exact solutions: manufactured-solution convergence and the 1D bars.
 
-Physics. Three problems with exact solutions (``VERIFICATION.md``):
+Physics. Three problems with exact solutions (``docs/verification.md``):
 
 * **Axis-aligned manufactured solution** (Wallstedt & Guilkey 2008; Kamojjala et al. 2015; §3):
   a unit line/square/cube of neo-Hookean material (E = 10⁴, ν = 0.3, ρ0 = 1, so one period

@@ -1,6 +1,6 @@
 """Speed against accuracy: mpm, uGIMP, cpGIMP and CPDI on two problems with exact solutions.
 
-Physics. Two verification problems (../shared/VERIFICATION.md):
+Physics. Two verification problems (docs/verification.md):
 
 * ``manufactured`` — the 2D axis-aligned manufactured solution (Wallstedt & Guilkey 2008;
   Kamojjala et al. 2015; :func:`study.manufactured_scene`): a neo-Hookean unit square (E = 1e4,
@@ -16,7 +16,7 @@ Physics. Two verification problems (../shared/VERIFICATION.md):
   (not the seed's 1000: kL = 0.105, top stretch 1.11, so that every method has a chance)
   ramped up over 0.3 s, mass-proportional damping 60 1/s, end at 0.6 s (settled: 1.0 s runs
   agree to < 1 %). **Error**: ``max_p |u_p − u*(X_p)| / u*(L)`` at the end, over *all*
-  particles, against the exact static displacement ``u*`` of the 1D NH law (VERIFICATION.md
+  particles, against the exact static displacement ``u*`` of the 1D NH law (docs/verification.md
   §2; :class:`StaticBarError`). The summary's tip-only ``relative_error_static`` is in the CSV
   as ``tip_error``; it changes sign under refinement and can cancel by accident (CPDI, 10
   cells, ppc 3: 6e-7), so it is not plotted. A run whose bar numerically separates

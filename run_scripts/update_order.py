@@ -23,7 +23,7 @@ method with both updates (CPDI unscaled, ``method.lcr = none``):
    and *accurate* when it is bounded and its error is at most twice that of the same method and
    update at CFL 0.3. The limits reported are the largest scanned CFL below the first unbounded
    (resp. first unbounded-or-inaccurate) one.
-3. **CPDI tiling in 1D** (VERIFICATION.md §4): with USL the domain corners move with the grid
+3. **CPDI tiling in 1D** (docs/verification.md §4): with USL the domain corners move with the grid
    velocity interpolated at the corners, neighbours share corners, so the domain lengths
    ``2·a_p`` (:func:`parmpm.domain_sizes`) sum to the bar's length. The bar's length is measured
    from the discrete bar itself, ``(x + a)`` of the last particle minus ``(x − a)`` of the first

@@ -1,4 +1,4 @@
-"""Checkpoints and restart (DESIGN.md §7): a run continued from a checkpoint is bit-for-bit the run
+"""Checkpoints and restart: a run continued from a checkpoint is bit-for-bit the run
 that never stopped, on the same or another number of ranks; bad files and unwritable folders are
 one-line errors (exit 2) that leave earlier files intact; a kill while writing leaves every earlier
 checkpoint valid; SIGTERM writes a final checkpoint."""

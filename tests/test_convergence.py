@@ -1,7 +1,7 @@
 """``run_scripts/convergence.py --quick``: verification against exact solutions, and the same CSVs
 on 2 MPI ranks.
 
-What is asserted is what the script's docstring and VERIFICATION.md expect:
+What is asserted is what the script's docstring and docs/verification.md expect:
 
 * the axis-aligned manufactured solution converges at second order with cpdi (USL) and cpGIMP
   (MUSL) in 1D (16, 32, 64 cells) and 2D (8, 16, 32): every observed order ≥ 1.8, the finest

@@ -1,4 +1,4 @@
-"""The patch decomposition without MPM physics (DESIGN.md §5–6; STYLE.md items 2, 4 and 13a).
+"""The patch decomposition without MPM physics.
 
 * ownership: the owned boxes partition the global node box ``[0, cells]`` (inclusive);
 * halo round trip: ``accumulate`` then ``fill`` leaves the global sum on every copy of a node;
@@ -151,7 +151,7 @@ def _reference_accumulate(lay, f):
 @pytest.mark.parametrize("case", LAYOUTS, ids=LAYOUT_IDS)
 def test_summation_order_is_fixed(case, kernels):
     """Floating-point addition is not associative: ``(a + b) + c`` and ``a + (b + c)`` can differ
-    in the last bit. Rank-count independence (DESIGN.md §5: the same particle state bit for bit on
+    in the last bit. Rank-count independence (the same particle state bit for bit on
     1..4 ranks) therefore needs every node's ghost contributions added in one fixed order — own
     value first, then neighbours by offset — whichever rank hosts which patch and however the
     patches are numbered in the field arrays."""

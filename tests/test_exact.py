@@ -1,4 +1,4 @@
-"""Exact solutions against closed forms and against each other (VERIFICATION.md §1, §2)."""
+"""Exact solutions against closed forms and against each other (docs/verification.md §1, §2)."""
 
 import math
 

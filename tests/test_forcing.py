@@ -1,6 +1,6 @@
 """Manufactured-solution forcing, slip regions, spinning bodies and particle domains.
 
-* the body force of VERIFICATION.md §3 makes the prescribed motion solve the neo-Hookean momentum
+* the body force of docs/verification.md §3 makes the prescribed motion solve the neo-Hookean momentum
   equation (checked by finite differences, independently of its derivation);
 * the step's numba kernel equals the numpy formula (compiled and through ``py_func``);
 * a manufactured run starts exactly on the exact field;

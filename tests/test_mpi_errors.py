@@ -1,5 +1,5 @@
 """Run-stopping errors under ``mpirun -n 2``: every rank stops together, promptly, with one clear
-line (DESIGN.md §5: a support past the ghost layer is an error, never silent garbage; no hang)."""
+line (a support past the ghost layer is an error, never silent garbage; no hang)."""
 import subprocess
 import sys
 import time

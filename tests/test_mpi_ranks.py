@@ -1,4 +1,4 @@
-"""Rank-count independence, bit for bit (DESIGN.md §5): the same scene on 1, 2, 3 and 4 ranks
+"""Rank-count independence, bit for bit: the same scene on 1, 2, 3 and 4 ranks
 gives the identical final particle state (x, v, F, stress matched by global id) and identical
 summary metrics — for 1D, 2D and 3D, every interpolator, USL and MUSL, unscaled CPDI, a scene
 whose particles cross patch and rank boundaries many times and that re-balances, the

@@ -1,4 +1,4 @@
-"""Property tests of every interpolator (DESIGN.md §4; STYLE.md items 4 and 13a).
+"""Property tests of every interpolator.
 
 Each property is checked on random particles (seeded numpy RNG, so failures reproduce) for all four
 interpolators in 1D, 2D and 3D on non-cubic cells, through the compiled kernels and through their
@@ -186,7 +186,7 @@ def _corners(R):
 
 
 def _seed_rebuild(R, lcr):
-    """Numpy re-implementation of the seed's algorithm (DESIGN.md §4): cap the centre-to-corner
+    """Numpy re-implementation of the seed's algorithm: cap the centre-to-corner
     vectors at ``lcr`` and rebuild ``R'`` from them — without the final uniform rescale.
     Returns (R', whether any vector was capped)."""
     d = R.shape[0]
@@ -315,7 +315,7 @@ def test_domain_scaling(d, jit):
 
 @pytest.mark.parametrize("fkk", [0.0, np.cos(np.pi / 2), 1e-9, 1e-3])
 def test_cpgimp_partition_of_unity_for_collapsed_domain(fkk):
-    """cpGIMP is meant to misbehave under large rotation (DESIGN.md §4), but as a shape function:
+    """cpGIMP is meant to misbehave under large rotation, but as a shape function:
     a domain of vanishing width is the hat at the centre, whose weights still sum to one."""
     F = np.array([[fkk, -1.0], [1.0, fkk]])
     x = np.array([5.3, 4.2]) * _h(2)
