@@ -10,14 +10,8 @@ arithmetic (owned box, ghost base, cell or point → patch), written once;
 (locally and over MPI); :mod:`~decomposition.migrate` moves records between ranks;
 :mod:`~decomposition.patchset` keeps the live picture consistent on every rank.
 """
-from decomposition.comm import (
-                                SerialComm,
-                                allreduce_max,
-                                is_parallel,
-                                ordered_sum,
-                                ranks_on_this_node,
-                                world,
-)
+from decomposition.comm import (SerialComm, allreduce_max, is_parallel, ordered_sum,
+                                ranks_on_this_node, world)
 from decomposition.halo import HaloPlan, accumulate, fill, halo_pairs
 from decomposition.layout import PatchLayout
 from decomposition.migrate import exchange, migrate

@@ -21,14 +21,8 @@ import numpy as np
 from decomposition.comm import is_parallel
 from decomposition.halo import HaloPlan
 from decomposition.layout import PatchLayout
-from decomposition.partition import (
-    active_patches,
-    adjacency_offsets,
-    assign,
-    imbalance,
-    rank_loads,
-    shift_patches,
-)
+from decomposition.partition import (active_patches, adjacency_offsets, assign, imbalance,
+                                     rank_loads, shift_patches)
 
 
 class PatchSet:

@@ -13,12 +13,7 @@ import numpy as np
 from decomposition import allreduce_max, ordered_sum
 from parmpm import domains
 from parmpm.collective import agree
-from parmpm.connectivity import (
-    compact_nodes,
-    global_components,
-    local_components,
-    shared_pairs,
-)
+from parmpm.connectivity import compact_nodes, global_components, local_components, shared_pairs
 from parmpm.errors import SimulationError
 from parmpm.metrics.sums import patch_sums
 from parmpm.reach import reach_message, support_reach

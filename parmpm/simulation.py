@@ -17,13 +17,7 @@ import numpy as np
 
 from decomposition import SerialComm, allreduce_max
 from parmpm import measures
-from parmpm.callbacks import (
-    Checkpoints,
-    interrupted,
-    standard_callbacks,
-    stop_agreed,
-    stop_signals,
-)
+from parmpm.callbacks import Checkpoints, interrupted, standard_callbacks, stop_agreed, stop_signals
 from parmpm.collective import agree
 from parmpm.progress import Progress
 from parmpm.rank_state import RankState, open_checkpoint, set_up

@@ -83,22 +83,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from study import (
-    figure,
-    folders,
-    is_root,
-    main_guard,
-    manufactured_scene,
-    observed_orders,
-    parser,
-    run_case,
-    save,
-    scene_with,
-    scratch_folder,
-    world,
-    write_csv,
-    wrote,
-)
+from study import (figure, folders, is_root, main_guard, manufactured_scene, observed_orders,
+                   parser, run_case, save, scene_with, scratch_folder, world, write_csv, wrote)
 
 GROUPS = ("manufactured-1d", "manufactured-2d", "manufactured-3d", "vibrating-bar",
           "hanging-static", "hanging-dynamic")
@@ -324,12 +310,8 @@ def manufactured_figure(rows: list[dict], path: Path) -> Path:
 
 def bars_figure(vib: dict, dyn: dict, profile, vrows, srows, drows, path: Path) -> Path:
     """2×2: vibrating bar com velocity; small-strain tip history; static profile; errors vs h."""
-    from parmpm.exact import (
-        hanging_bar_dynamic_tip,
-        hanging_bar_static,
-        hanging_bar_static_displacement,
-        nominal_stress_1d,
-    )
+    from parmpm.exact import (hanging_bar_dynamic_tip, hanging_bar_static,
+                              hanging_bar_static_displacement, nominal_stress_1d)
 
     fig, axes = figure(2, 2, size=(10.0, 7.4))
     ax = axes[0, 0]

@@ -51,18 +51,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from study import (
-    figure,
-    folders,
-    is_root,
-    main_guard,
-    parser,
-    run_case,
-    save,
-    world,
-    write_csv,
-    wrote,
-)
+from study import (figure, folders, is_root, main_guard, parser, run_case, save, world, write_csv,
+                   wrote)
 
 E, NU, RHO, G = 1.0e6, 0.3, 1050.0, 1000.0
 LAM = E * NU / ((1 + NU) * (1 - 2 * NU))

@@ -77,20 +77,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from study import (
-    compact_png,
-    figure,
-    folders,
-    is_root,
-    main_guard,
-    parser,
-    run_case,
-    save,
-    scratch_folder,
-    world,
-    write_csv,
-    wrote,
-)
+from study import (compact_png, figure, folders, is_root, main_guard, parser, run_case, save,
+                   scratch_folder, world, write_csv, wrote)
 
 MODES = ("freeze", "lcr")
 MODE_OVERRIDES = {"freeze": [],

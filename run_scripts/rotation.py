@@ -70,20 +70,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from study import (
-    compact_png,
-    figure,
-    folders,
-    is_root,
-    main_guard,
-    parser,
-    run_case,
-    save,
-    scratch_folder,
-    world,
-    write_csv,
-    wrote,
-)
+from study import (compact_png, figure, folders, is_root, main_guard, parser, run_case, save,
+                   scratch_folder, world, write_csv, wrote)
 
 METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
 TITLES = {"mpm": "MPM (nominal box)", "ugimp": "uGIMP", "cpgimp": "cpGIMP", "cpdi": "CPDI"}

@@ -77,27 +77,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from study import (
-    ManufacturedError,
-    compact_png,
-    figure,
-    folders,
-    is_root,
-    main_guard,
-    manufactured_sampling,
-    manufactured_scene,
-    observed_orders,
-    pareto_front,
-    parser,
-    run_case,
-    save,
-    scene_with,
-    scratch_folder,
-    select_cases,
-    world,
-    write_csv,
-    wrote,
-)
+from study import (ManufacturedError, compact_png, figure, folders, is_root, main_guard,
+                   manufactured_sampling, manufactured_scene, observed_orders, pareto_front, parser,
+                   run_case, save, scene_with, scratch_folder, select_cases, world, write_csv,
+                   wrote)
 
 METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
 TITLES = {"mpm": "MPM", "ugimp": "uGIMP", "cpgimp": "cpGIMP", "cpdi": "CPDI"}

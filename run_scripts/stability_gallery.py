@@ -103,20 +103,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from study import (
-    figure,
-    folders,
-    is_root,
-    main_guard,
-    parser,
-    run_case,
-    save,
-    scratch_folder,
-    select_cases,
-    world,
-    write_csv,
-    wrote,
-)
+from study import (figure, folders, is_root, main_guard, parser, run_case, save, scratch_folder,
+                   select_cases, world, write_csv, wrote)
 
 END = 0.3             # s, the seed's end time
 FRAME_EVERY = 0.0025  # s between observer calls (frames for the figures, the support check)

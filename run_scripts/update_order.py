@@ -94,24 +94,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from study import (
-    ManufacturedError,
-    compact_png,
-    figure,
-    folders,
-    is_root,
-    main_guard,
-    manufactured_sampling,
-    manufactured_scene,
-    parser,
-    run_case,
-    save,
-    scene_with,
-    scratch_folder,
-    world,
-    write_csv,
-    wrote,
-)
+from study import (ManufacturedError, compact_png, figure, folders, is_root, main_guard,
+                   manufactured_sampling, manufactured_scene, parser, run_case, save, scene_with,
+                   scratch_folder, world, write_csv, wrote)
 
 METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
 UPDATES = ("usl", "musl")

@@ -22,15 +22,8 @@ import pytest
 from parmpm.errors import ParmpmError
 from parmpm.io import SnapshotWriter
 from parmpm.io import checkpoint as ck
-from parmpm.io.checkpoint import (
-    FIELDS,
-    CheckpointReader,
-    CheckpointWriter,
-    attrs_digest,
-    estimate_bytes,
-    prune,
-    remove_stale_tmp,
-)
+from parmpm.io.checkpoint import (FIELDS, CheckpointReader, CheckpointWriter, attrs_digest,
+                                  estimate_bytes, prune, remove_stale_tmp)
 
 DIM = 2
 TAIL = {"x": (DIM,), "v": (DIM,), "x0": (DIM,), "lh0": (DIM,),

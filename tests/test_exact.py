@@ -6,15 +6,9 @@ import numpy as np
 import pytest
 
 from parmpm.errors import SceneError
-from parmpm.exact import (
-    hanging_bar_dynamic_series,
-    hanging_bar_dynamic_tip,
-    hanging_bar_static,
-    hanging_bar_static_displacement,
-    nominal_stress_1d,
-    vibrating_bar_com_velocity,
-    vibrating_bar_fields,
-)
+from parmpm.exact import (hanging_bar_dynamic_series, hanging_bar_dynamic_tip, hanging_bar_static,
+                          hanging_bar_static_displacement, nominal_stress_1d,
+                          vibrating_bar_com_velocity, vibrating_bar_fields)
 
 E, RHO, L, V0 = 100.0, 1.0, 25.0, 0.1
 

@@ -8,17 +8,9 @@ import pytest
 
 from parmpm.connectivity import local_components
 from parmpm.errors import SceneError
-from parmpm.exact import (
-    hanging_bar_static_displacement,
-    nominal_stress_1d,
-    vibrating_bar_com_velocity,
-)
-from parmpm.metrics import (
-    HangingBarMetrics,
-    VibratingBarMetrics,
-    count_components,
-    make_metrics,
-)
+from parmpm.exact import (hanging_bar_static_displacement, nominal_stress_1d,
+                          vibrating_bar_com_velocity)
+from parmpm.metrics import HangingBarMetrics, VibratingBarMetrics, count_components, make_metrics
 
 # the component count of the union-find kernel, compiled and through its pure-Python body
 KERNELS = [pytest.param(lambda *a: local_components(*a)[0], id="jit"),

@@ -11,24 +11,10 @@ import parmpm
 from parmpm import scene as scene_module
 from parmpm.errors import SceneError
 from parmpm.materials import MODELS
-from parmpm.metrics import (
-    METRIC_KINDS,
-    NO_METRICS,
-    make_metrics,
-    metric_names,
-    register_metrics,
-    separation_kinds,
-)
-from parmpm.shapes import (
-    CPDI,
-    CPGIMP,
-    INTERPOLATORS,
-    MPM,
-    UGIMP,
-    UNBOUNDED_DEFAULT_GHOST,
-    interpolator_names,
-    interpolator_table,
-)
+from parmpm.metrics import (METRIC_KINDS, NO_METRICS, make_metrics, metric_names, register_metrics,
+                            separation_kinds)
+from parmpm.shapes import (CPDI, CPGIMP, INTERPOLATORS, MPM, UGIMP, UNBOUNDED_DEFAULT_GHOST,
+                           interpolator_names, interpolator_table)
 
 ROOT = Path(__file__).resolve().parent.parent
 

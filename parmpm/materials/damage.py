@@ -32,15 +32,8 @@ import math
 
 from parmpm.jit import helper_kernel
 from parmpm.kinematics import left_cauchy_green_2d, left_cauchy_green_3d
-from parmpm.materials import (
-    COL_DAMAGE,
-    COL_FRACTURE,
-    COL_ONSET,
-    EXPONENTIAL,
-    LINEAR,
-    NO_DAMAGE,
-    SOFTENING,
-)
+from parmpm.materials import (COL_DAMAGE, COL_FRACTURE, COL_ONSET, EXPONENTIAL, LINEAR, NO_DAMAGE,
+                              SOFTENING)
 
 
 @helper_kernel

@@ -19,43 +19,17 @@ importing this module fails while a registered law is missing from :data:`DISPAT
 import math
 
 from parmpm.jit import helper_kernel
-from parmpm.kinematics import (
-    det_2d,
-    det_3d,
-    det_d,
-    gershgorin_2d,
-    gershgorin_3d,
-    gershgorin_bound,
-    left_cauchy_green_2d,
-    left_cauchy_green_3d,
-)
-from parmpm.materials import (
-    COL_C2,
-    COL_DENSITY,
-    COL_INV_DENSITY,
-    COL_LAM,
-    COL_LAW,
-    COL_MU,
-    LAWS,
-    LINEAR_ELASTIC,
-    NEO_HOOKEAN,
-)
+from parmpm.kinematics import (det_2d, det_3d, det_d, gershgorin_2d, gershgorin_3d,
+                               gershgorin_bound, left_cauchy_green_2d, left_cauchy_green_3d)
+from parmpm.materials import (COL_C2, COL_DENSITY, COL_INV_DENSITY, COL_LAM, COL_LAW, COL_MU, LAWS,
+                              LINEAR_ELASTIC, NEO_HOOKEAN)
 from parmpm.materials.damage import degrade
-from parmpm.materials.linear_elastic import (
-    linear_elastic_2d,
-    linear_elastic_3d,
-    linear_elastic_energy,
-    linear_elastic_speed,
-    linear_elastic_stress,
-)
-from parmpm.materials.neo_hookean import (
-    neo_hookean_2d,
-    neo_hookean_3d,
-    neo_hookean_energy,
-    neo_hookean_pressure,
-    neo_hookean_rho_c2,
-    neo_hookean_stress,
-)
+from parmpm.materials.linear_elastic import (linear_elastic_2d, linear_elastic_3d,
+                                             linear_elastic_energy, linear_elastic_speed,
+                                             linear_elastic_stress)
+from parmpm.materials.neo_hookean import (neo_hookean_2d, neo_hookean_3d, neo_hookean_energy,
+                                          neo_hookean_pressure, neo_hookean_rho_c2,
+                                          neo_hookean_stress)
 
 #: the law codes every function below has a branch for
 DISPATCHED = (LINEAR_ELASTIC, NEO_HOOKEAN)

@@ -8,25 +8,11 @@ import math
 import numpy as np
 
 from parmpm.errors import SceneError
-from parmpm.exact import (
-    hanging_bar_static,
-    hanging_bar_static_displacement,
-    lame_parameters,
-    mode_constants,
-    nominal_stress_1d,
-    vibrating_bar_com_velocity,
-)
+from parmpm.exact import (hanging_bar_static, hanging_bar_static_displacement, lame_parameters,
+                          mode_constants, nominal_stress_1d, vibrating_bar_com_velocity)
 from parmpm.metrics import register_metrics
-from parmpm.metrics.common import (
-    History,
-    as_points,
-    bar_mask,
-    bar_material,
-    bar_span,
-    gravity,
-    material_constants,
-    to_plain,
-)
+from parmpm.metrics.common import (History, as_points, bar_mask, bar_material, bar_span, gravity,
+                                   material_constants, to_plain)
 
 logger = logging.getLogger(__name__)
 
