@@ -15,7 +15,8 @@ freezing, 3D unscaled CPDI and the vibrating bar (43 cases).
 
 ``save`` runs ``tests/mpi_driver.py`` under ``mpirun -n P`` for ``--ranks`` (default 1 2 3 4;
 ~4 minutes each on two cores). ``compare`` prints every field that differs and exits 1 if any
-does (it compares the rank counts present in the second folder).
+does, or if it found nothing to compare (it compares the rank counts present in the second
+folder).
 """
 from __future__ import annotations
 
@@ -28,13 +29,13 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests"))  # the cases and the launcher live beside the tests
 FIELDS = ("gid", "x", "v", "F", "stress", "damage")
 SUMMARY_KEYS = ("metrics", "final", "steps", "time")
 
 
 def cases() -> dict:
     """The rank-independence cases plus the extra kernel paths listed in the module docstring."""
-    sys.path.insert(0, str(ROOT / "tests"))
     from test_mpi_ranks import CASES, OFF
 
     out = dict(CASES)
@@ -55,7 +56,7 @@ def cases() -> dict:
 
 
 def save(folder: Path, ranks: list[int]) -> None:
-    from mpi_launch import mpirun  # tests/, on the path after cases()
+    from mpi_launch import mpirun
 
     spec = folder / "cases.json"
     folder.mkdir(parents=True, exist_ok=True)
@@ -99,6 +100,9 @@ def compare(before: Path, after: Path) -> int:
                     print(f"differs: {folder.name}/{fb.stem} summary {k}")
                     bad += 1
     print(f"{total} comparisons, {bad} differ")
+    if total == 0:
+        print(f"nothing to compare: no np*/ folder with cases in {after}")
+        return 1
     return bad
 
 
