@@ -8,15 +8,13 @@ speed) agree to round-off, with and without domain scaling (an ``l_cr`` that cap
 all domains), body forces and every registered material law; the stress pass agrees; a support
 past the ghost layer is caught the same way; G2P finds each particle's next patch as
 :func:`parmpm.particles.locate_patches` does. The kernels switch through
-:meth:`parmpm.stepper.Stepper.use_kernels`; the CPDI kernels also run through ``.py_func``
-(readable failures, coverage).
+:meth:`parmpm.stepper.Stepper.use_kernels` (never by their positional signatures); every kernel
+also runs through ``.py_func`` (readable failures, coverage).
 """
 import numpy as np
 import pytest
 
 import parmpm
-from parmpm.grid import grid_block
-from parmpm.kernel_records import Locate, Material
 from parmpm.kernels2d.cells import cell_of, usable_cells
 from parmpm.kernels2d.material import stress_pass as stress_pass_2d
 from parmpm.kernels3d.cells import cells_of8
@@ -159,6 +157,7 @@ def test_g2p_matches_generic(dim, method, lcr, mode, model, tmp_path):
         restore(P, before)
         st.use_kernels(kind)
         vmax = st._g2p(mode, dt)
+        assert st.error is None
         results.append((snapshot(P), vmax))
     (fast, vf), (gen, vg) = results
     for k in fast:
@@ -229,39 +228,38 @@ def test_cells_of8_is_cell_of_per_corner(jit):
         assert got[16] == all(w[0] >= 0 for w in want)
 
 
-@pytest.mark.parametrize("dim", DIMS)
-def test_cpdi_kernels_through_py_func(dim, tmp_path):
-    """The CPDI kernels' Python bodies give the compiled results (one occupied patch)."""
-    sim, st, P = deformed_stepper(dim, "cpdi", LCR[dim], tmp=tmp_path)
-    D = st.disc
-    s = int(np.flatnonzero(np.diff(P.start) > 0)[0])
-    one = slice(s, s + 1)
-    how, boxes, fields = st.records()
-    boxes = boxes._replace(start=P.start[s:s + 2], base=D.base[one], jlo=D.jlo[one],
-                           jhi=D.jhi[one])
-    p2g, _, g2p = SPECIALISED[dim][D.method]
-    nodes = D.layout.n_local_nodes
-    blocks = [grid_block(1, 1 + 2 * dim, nodes)[0] for _ in range(2)]
-    err = np.full(1, -1, np.int64)
-    p2g(how.lcr, boxes, fields, np.zeros((0, dim)), blocks[0], err)
-    p2g.py_func(how.lcr, boxes, fields, np.zeros((0, dim)), blocks[1], err)
-    assert err[0] == -1 and blocks[0][0, 0].sum() > 0
-    close(blocks[1], blocks[0], 1e-15)
-    gnew = np.random.default_rng(4).normal(0.0, 1.0, grid_block(1, 2 * dim, nodes)[0].shape)
-    material = Material(P.mat, st.params, P.damage)
-    loc, inv_ps = D.layout.locator()
+@pytest.mark.parametrize("dim,method,lcr", CASES)
+def test_kernels_through_py_func(dim, method, lcr, tmp_path, monkeypatch):
+    """The kernels' Python bodies (``.py_func``, put in the registry) give the compiled results:
+    P2G sums, the momentum re-map, and G2P's particles, speed and next patches."""
+    sim, st, P = deformed_stepper(dim, method, lcr, tmp=tmp_path)
+    code = st.disc.method
+    compiled = SPECIALISED[dim][code]
+    rng = np.random.default_rng(4)
+    gnew = rng.normal(0.0, 1.0, st.gnew.shape)
     before, out = snapshot(P), []
-    for f in (g2p, g2p.py_func):
+    for kernels in (compiled, tuple(k.py_func for k in compiled)):
+        monkeypatch.setitem(SPECIALISED[dim], code, kernels)
+        st.use_kernels("specialised")
+        assert st.kernels is kernels
         restore(P, before)
-        new = np.full(P.n, -7, np.int64)
-        located = f(G2P_USL, how.lcr, boxes, 1e-4, 0.9, fields, material, gnew, err,
-                    Locate(loc, inv_ps, st.patches.local_ids[one], new))
-        out.append((snapshot(P), located, new))
-    assert err[0] == -1
+        st.err[0] = -1
+        st._p2g(np.zeros((0, dim)))
+        sums = st.gsum.copy()
+        st._p2g_momentum()
+        momentum = st.gmv.copy()
+        st.gnew[:] = gnew
+        vmax = st._g2p(G2P_USL, 1e-4)
+        assert st.err[0] == -1 and st.error is None
+        out.append((sums, momentum, snapshot(P), vmax, st._located, st._new_patch.copy()))
+    (s0, m0, p0, v0, l0, n0), (s1, m1, p1, v1, l1, n1) = out
+    assert s0[:, :, 0].sum() > 0
+    close(s1, s0, 1e-15)
+    close(m1, m0, 1e-15)
     for k in before:
-        close(out[1][0][k], out[0][0][k], 1e-15)
-    assert out[1][1] == out[0][1] and out[0][1][0] > 0
-    np.testing.assert_array_equal(out[1][2], out[0][2])
+        close(p1[k], p0[k], 1e-15)
+    assert v1 == v0 > 0 and l1 == l0
+    np.testing.assert_array_equal(n1, n0)
 
 
 @pytest.mark.parametrize("dim,method,lcr", CASES)
