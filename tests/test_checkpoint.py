@@ -13,7 +13,7 @@ import time
 import h5py
 import numpy as np
 import pytest
-from mpi_launch import mpirun, needs_mpi
+from mpi_launch import MPI_MARKS, mpirun, needs_mpi
 from test_mpi_ranks import CROSSING
 
 from parmpm.__main__ import main
@@ -196,10 +196,8 @@ def test_kill_while_writing_leaves_earlier_checkpoints_valid(tmp_path):
     assert proc.returncode == 0, proc.stderr
 
 
-@pytest.mark.parametrize("n", [1, 2])
+@pytest.mark.parametrize("n", [1, pytest.param(2, marks=MPI_MARKS)])
 def test_sigterm_writes_a_final_checkpoint(tmp_path, n):
-    if n > 1 and mpirun() is None:
-        pytest.skip("no mpirun")
     cmd = [sys.executable, "-m", "parmpm", "run", "vibrating_bar", "-o", str(tmp_path), "--quiet",
            *OFF, "--set", "time.end=1e6"]
     if n > 1:

@@ -206,7 +206,7 @@ def test_auto_pads_only_the_faces_a_body_comes_near():
 
 def test_discretisation_keeps_the_physical_grid():
     grid = {"origin": [-0.5, -3.0], "cell_size": [0.1, 0.2], "cells": [20, 32], "patch_size": [8, 8]}
-    D = Discretisation.from_grid(2, 0, 0.0, grid, 2, (np.array([2, 1]), np.array([3, 0])))
+    D = Discretisation.from_grid(2, 0, None, grid, 2, (np.array([2, 1]), np.array([3, 0])))
     assert D.layout.cells == (25, 33) and list(D.cells) == [20, 32]
     np.testing.assert_allclose(D.physical_origin, [-0.5, -3.0], rtol=0, atol=1e-15)
     np.testing.assert_allclose(D.origin, [-0.7, -3.2], rtol=0, atol=1e-15)
