@@ -11,6 +11,13 @@ from parmpm.errors import SimulationError
 QUIET = ["output.snapshots=false", "output.figure=false"]
 
 
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    """Runs without ``out_dir`` write to ``parmpm-out/`` in the working directory: keep it in the
+    test's own folder, not the repository."""
+    monkeypatch.chdir(tmp_path)
+
+
 def vibrating_bar_error(method, update, n):
     """Relative L2 error of the centre-of-mass velocity over one period, n cells on the bar."""
     h = 25.0 / n
