@@ -37,8 +37,9 @@ from parmpm.errors import RunInterrupted, SimulationError
 from parmpm.io.checkpoint import checkpoint_name
 from parmpm.io.checkpoint_gather import write_checkpoint
 from parmpm.log import get_logger
-from parmpm.measures import axial_stretch, sample_metrics
+from parmpm.measures import sample_metrics
 from parmpm.schedule import AnyOf, AtEnd, Schedule, WallTime
+from parmpm.snapshot_fields import snapshot_fields
 
 log = get_logger(__name__)
 
@@ -137,11 +138,7 @@ def stop_on_separation(sim) -> str | None:
 def output(sim) -> None:
     """An output time: the snapshot (if enabled), then every observer."""
     if sim.data["output"]["snapshots"]:
-        s, P = sim.state, sim.particles
-        g = sim.gather({"x": P.x, "velocity": P.v, "stress": P.stress.reshape(P.n, s.dim * s.dim),
-                        "stretch": axial_stretch(s), "damage": P.damage,
-                        "rank": np.full(P.n, float(s.rank)), "gid": P.gid.astype(float)})
-        sim.files.write_snapshot(sim.t, g)
+        sim.files.write_snapshot(sim.t, snapshot_fields(sim))
     for observe in sim.observers:
         observe(sim)
 
