@@ -111,6 +111,7 @@ cfl = {CFL}
 [output]
 snapshots = false
 figure = false
+history = false
 [metrics]
 kind = "none"
 """

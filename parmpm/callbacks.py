@@ -8,6 +8,8 @@ callbacks at the same steps. :func:`standard_callbacks` gives the scene's set, i
 
     finite       every step      a non-finite speed or stress ends the run (NaN check)
     energy       every 10 steps  the blow-up watch (parmpm.energy)
+    history      output.history  a row of history.csv (parmpm.history); at the end its table
+                                 in the run's HDF5 and history.png
     metrics      metrics.every_steps   a sample of the scene's metrics
     separation   metrics.every_steps   stop when the material has separated (if asked)
     output       output.every / every_steps, last step   snapshot, then the observers
@@ -34,6 +36,7 @@ import numpy as np
 from decomposition import allreduce_max
 from parmpm.energy import ENERGY_EVERY, energy_totals
 from parmpm.errors import RunInterrupted, SimulationError
+from parmpm.history import HistoryOutput
 from parmpm.io.checkpoint import checkpoint_name
 from parmpm.io.checkpoint_gather import write_checkpoint
 from parmpm.log import get_logger
@@ -55,6 +58,19 @@ class Callback:
     schedule: object
     start: int | None = None
     at_end: Callable | None = None
+
+
+class _Never:
+    """A schedule that names no step (for actions that run only at the end)."""
+
+    def due(self, t: float, nstep: int) -> bool:
+        return False
+
+    def advance(self, t: float) -> None:
+        pass
+
+
+NEVER = _Never()
 
 
 def unless_due(callback: Callback, sim) -> bool:
@@ -85,7 +101,18 @@ def standard_callbacks(sim) -> list[Callback]:
     callbacks = [
         Callback("finite", check_finite, every_step),
         Callback("energy", check_energy, Schedule(every_steps=ENERGY_EVERY), start=2,
-                 at_end=unless_due),
+                 at_end=unless_due)]
+    hist = out["history"]
+    if hist["enabled"]:  # after the watch: a blown-up state is not sampled
+        sim.history = HistoryOutput(sim)
+        sim.stepper.ledger = sim.energy.ledger
+        callbacks += [
+            Callback("history", lambda sim: sim.history.sample(sim),
+                     Schedule(hist["every"], hist["every_steps"], clock.t), start=3,
+                     at_end=lambda cb, sim: True),
+            Callback("history files", lambda sim: sim.history.finish(sim), NEVER,
+                     at_end=lambda cb, sim: True)]
+    callbacks += [
         Callback("metrics", sample_metrics_of, Schedule(every_steps=me["every_steps"]), start=0)]
     if me["stop_on_separation"]:
         callbacks.append(Callback("separation", stop_on_separation,

@@ -31,6 +31,7 @@ from parmpm.scene_bodies import (  # noqa: F401
     rotated_box_bounds,
 )
 from parmpm.scene_check import AXIS_NAMES, _Checker, lcr_length, show
+from parmpm.scene_history import history
 from parmpm.shapes import INTERPOLATORS
 from parmpm.update_order import UPDATES as _UPDATE_ORDERS
 
@@ -51,7 +52,7 @@ GRAVITY_KEYS = ("g", "ramp_time")
 DAMPING_KEYS = ("coefficient",)
 MANUFACTURED_KEYS = ("amplitude",)
 TIME_KEYS = ("end", "steps", "cfl", "dt_max", "max_energy_growth")
-OUTPUT_KEYS = ("every", "every_steps", "snapshots", "figure")
+OUTPUT_KEYS = ("every", "every_steps", "snapshots", "figure", "domains", "history")
 METRICS_KEYS = ("kind", "every_steps", "axis", "stop_on_separation", "grip")
 DECOMPOSITION_KEYS = ("rebalance_threshold", "rebalance_cooldown")
 CHECKPOINT_KEYS = ("every_steps", "every", "wall_minutes", "keep", "at_end")
@@ -100,7 +101,7 @@ def resolve(raw: dict, where: str, default_name: str,
     out["boundary"] = _boundary(c, raw.get("boundary", {}), dim)
     out["manufactured"] = _manufactured(c, raw.get("manufactured"), out["materials"])
     out["time"] = _time(c, raw.get("time", {}))
-    out["output"] = _output(c, raw.get("output", {}), out["time"])
+    out["output"] = _output(c, raw.get("output", {}), out)
     out["metrics"] = _metrics(c, raw.get("metrics", {}), dim, out["bodies"])
     dec = c.table("decomposition", raw.get("decomposition", {}), DECOMPOSITION_KEYS)
     out["decomposition"] = {
@@ -330,8 +331,9 @@ def _energy_limit(c: _Checker, value: Any) -> float | str:
                     'the body was given) or "off"', lambda x: 0 < x < 1e300)
 
 
-def _output(c: _Checker, raw: Any, time: dict) -> dict:
+def _output(c: _Checker, raw: Any, scene: dict) -> dict:
     t = c.table("output", raw, OUTPUT_KEYS)
+    time = scene["time"]
     every, every_steps = t.get("every"), t.get("every_steps")
     if every is not None:
         every = c.number("output.every", every, "a number > 0 (s)", lambda x: x > 0)
@@ -348,6 +350,9 @@ def _output(c: _Checker, raw: Any, time: dict) -> dict:
         "every_steps": every_steps,
         "snapshots": c.boolean("output.snapshots", t.get("snapshots", True)),
         "figure": c.boolean("output.figure", t.get("figure", True)),
+        "domains": c.boolean("output.domains", t.get("domains", True)),
+        "history": history(c, t.get("history", {}), time, scene["dim"], scene["bodies"],
+                           scene["materials"]),
     }
 
 

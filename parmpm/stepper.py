@@ -74,6 +74,7 @@ class Stepper:
         lay = disc.layout
         self._loc, self._inv_psize = lay.locator()
         self.forcing = None                 # f(t, particles, out): per-particle body force
+        self.ledger = None                  # an EnergyLedger fed after each force update
         self._bforce = np.zeros((0, particles.dim))
         #: hand-specialised (p2g, p2g_momentum, g2p) for this dimension and method, if any
         self.kernels = None
@@ -128,11 +129,17 @@ class Stepper:
             self.err[0] = -1
             self._fail(i, reach_message(self, i, phase))
 
-    def _grid_update(self, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
+    def grid_records(self) -> tuple[OwnedNodes, Constraints]:
+        """The grid update's records: the owned nodes of every patch slot, the constraints."""
         D = self.disc
         nodes = OwnedNodes(D.own_lo, D.own_hi, D.base, D.nloc, D.face_lo3, D.face_hi3)
         constraints = Constraints(self.bc, self.regions, self.region_normal, self.region_ranges,
                                   D.origin3, D.h3)
+        return nodes, constraints
+
+    def _grid_update(self, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
+        D = self.disc
+        nodes, constraints = self.grid_records()
         grid_update(D.dim, nodes, constraints, dt, gravity, self.damping, self.mass_eps,
                     self.gsum_block, self.gnew_block, momentum_only)
 
@@ -191,6 +198,8 @@ class Stepper:
         accumulate(plan, self.gsum)
         t = self._lap("accumulate", t)
         self._grid_update(dt, gravity, momentum_only=False)
+        if self.ledger is not None:
+            self.ledger.add(self, dt, gravity)
         t = self._lap("grid", t)
         fill(plan, self.gnew)
         t = self._lap("fill", t)
