@@ -123,7 +123,10 @@ def test_defaults(tmp_path):
     assert d["bodies"][0]["shape"] == "box" and d["bodies"][0]["velocity"] == [0.0, 0.0]
     assert d["method"]["lcr"] == "2dx" and scene.lcr == pytest.approx(1.0)
     assert d["damping"] == {"coefficient": 0.0}
-    assert d["output"] == {"every": 0.05, "every_steps": None, "snapshots": True, "figure": True}
+    assert d["output"] == {"every": 0.05, "every_steps": None, "snapshots": True, "figure": True,
+                           "domains": True,
+                           "history": {"enabled": True, "every": 0.005, "every_steps": None,
+                                       "probes": []}}
     assert d["metrics"] == {"kind": "none", "every_steps": 1, "axis": 1, "stop_on_separation": False,
                             "grip": None}
     assert d["boundary"]["fixed_regions"] == []
@@ -138,7 +141,9 @@ def test_output_default_from_steps(tmp_path):
     scene = load_scene(_write(tmp_path, BASE.replace("end = 1.0", "steps = 30")))
     assert scene.data["time"]["end"] is None
     assert scene.data["output"] == {"every": None, "every_steps": 1, "snapshots": True,
-                                    "figure": True}
+                                    "figure": True, "domains": True,
+                                    "history": {"enabled": True, "every": None, "every_steps": 1,
+                                                "probes": []}}  # max(1, 30 // 200)
     assert _round_trip(scene, tmp_path).data == scene.data
 
 
