@@ -32,8 +32,9 @@ import numpy as np
 
 from decomposition import allreduce_max, ordered_sum
 from parmpm.collective import agree
-from parmpm.energy import energy_terms
+from parmpm.jit import kernel
 from parmpm.log import get_logger
+from parmpm.materials.laws import stored_energy
 from parmpm.metrics.sums import patch_sums
 from parmpm.scene_history import AXES
 
@@ -139,6 +140,46 @@ def _vector_columns(dim: int) -> list[str]:
     return [f"momentum_{AXES[a]}" for a in range(dim)] + spin
 
 
+@kernel
+def history_sums(d, start, mass, vol0, v, x, x0, F, mat, damage, rf, params, g, freezing):
+    """Per patch, in one pass over its particles (in storage order): K, Ψ, Σ m g·(x − X),
+    momentum (d), angular momentum (1 in 2D, 3 in 3D), mass, damaged and frozen particles."""
+    spin = 1 if d == 2 else (3 if d == 3 else 0)
+    k = 3 + d + spin + 3
+    out = np.zeros((start.size - 1, k))
+    for p in range(start.size - 1):
+        o = out[p]
+        for i in range(start[p], start[p + 1]):
+            m = mass[i]
+            ke = 0.0
+            w = 0.0
+            for a in range(d):
+                ke += v[i, a] * v[i, a]
+                w += g[a] * (x[i, a] - x0[i, a])
+            o[0] += 0.5 * m * ke
+            o[1] += vol0[i] * stored_energy(d, params[mat[i]], F[i], damage[i])
+            o[2] += m * w
+            for a in range(d):
+                o[3 + a] += m * v[i, a]
+            if d == 2:
+                o[3 + d] += m * (x[i, 0] * v[i, 1] - x[i, 1] * v[i, 0])
+            elif d == 3:
+                o[6] += m * (x[i, 1] * v[i, 2] - x[i, 2] * v[i, 1])
+                o[7] += m * (x[i, 2] * v[i, 0] - x[i, 0] * v[i, 2])
+                o[8] += m * (x[i, 0] * v[i, 1] - x[i, 1] * v[i, 0])
+            o[k - 3] += m
+            if damage[i] > 0.0:
+                o[k - 2] += 1.0
+            if freezing:  # rf = 0 marks a domain that is not frozen (parmpm.shapes.freeze)
+                frozen = False
+                for a in range(d):
+                    for b in range(d):
+                        frozen = frozen or rf[i, a, b] != 0.0
+                if frozen:
+                    o[k - 1] += 1.0
+    return out
+
+
 class History:
     """The history's columns and rows; :meth:`sample` is collective and returns the new row."""
 
@@ -151,20 +192,11 @@ class History:
     def sample(self, s, gravity: np.ndarray) -> list[float]:
         """One row of the run's state ``s`` (a :class:`parmpm.rank_state.RankState`)."""
         P, d = s.particles, self.dim
-        terms = energy_terms(d, P.mass, P.vol0, P.v, P.x, P.x0, P.F, P.mat, P.damage, s.params,
-                             np.ascontiguousarray(gravity[:d], dtype=np.float64))
-        mv = P.mass[:, None] * P.v
-        if d == 2:
-            spin = (P.x[:, 0] * mv[:, 1] - P.x[:, 1] * mv[:, 0])[:, None]
-        elif d == 3:
-            spin = np.cross(P.x, mv)
-        else:
-            spin = np.zeros((P.n, 0))
-        frozen = (np.any(P.rf.reshape(P.n, -1) != 0.0, axis=1) if P.n
-                  else np.zeros(0, bool))
-        per = np.concatenate([terms, mv, spin, P.mass[:, None], (P.damage > 0)[:, None],
-                              frozen[:, None]], axis=1)
-        total = ordered_sum(s.comm, s.patches.local_ids, patch_sums(P.start, per))
+        per_patch = history_sums(d, P.start, P.mass, P.vol0, P.v, P.x, P.x0, P.F, P.mat,
+                                 P.damage, P.rf, s.params,
+                                 np.ascontiguousarray(gravity[:d], dtype=np.float64),
+                                 s.stepper.freezing)
+        total = ordered_sum(s.comm, s.patches.local_ids, per_patch)
         k, psi, minus_ug = total[0], total[1], total[2]
         ledger = s.energy.ledger
         if ledger.baseline is None:
