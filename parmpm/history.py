@@ -270,8 +270,10 @@ class HistoryOutput:
         r = self.last
         k0, psi0 = sim.energy.ledger.baseline[:2]
         self.scale = max(self.scale, k0 + psi0 + r["work_gravity"], k0 + psi0)
+        # rigid walls and supports do no work (their nodes do not move): W_bc is not energy
+        # given to the body (with FLIP the particles keep much of what it removes from the grid)
         gained = (r["kinetic"] + r["elastic"] - k0 - psi0 - r["work_gravity"]
-                  - r["work_boundary"] + r["damping_dissipation"])
+                  + r["damping_dissipation"])
         sim.energy.balance = {
             "gained": gained, "scale": self.scale,
             **{c: r[c] for c in ENERGY_COLUMNS[3:] + ("residual_estimate",)}}

@@ -19,11 +19,12 @@ from parmpm.io.history_file import read_history
 from parmpm.scene import load_scene, scene_from_toml
 from parmpm.simulation import Simulation
 
-BLOCKS = Path(__file__).parent / "scenes" / "colliding_blocks.toml"
+BLOCKS = Path(__file__).parent.parent / "docs" / "examples" / "colliding_blocks.toml"
+QUIET = ("output.snapshots=false", "output.figure=false")
 
 
 def run(tmp_path, source, *overrides, name="o"):
-    scene = load_scene(source, overrides=list(overrides))
+    scene = load_scene(source, overrides=[*QUIET, *overrides])
     sim = Simulation(scene, tmp_path / name, quiet=True)
     summary = sim.run()
     return read_history(tmp_path / name / "history.csv"), summary
@@ -136,7 +137,8 @@ def test_same_history_on_1_2_3_ranks(tmp_path, mpirun):
     for n in (1, 2, 3):
         out = tmp_path / f"r{n}"
         proc = subprocess.run([mpirun, "-n", str(n), sys.executable, "-m", "parmpm", "run",
-                               str(BLOCKS), "--out", str(out), "--quiet"],
+                               str(BLOCKS), "--out", str(out), "--quiet",
+                               *(a for kv in QUIET for a in ("--set", kv))],
                               capture_output=True, text=True, timeout=600)
         assert proc.returncode == 0, proc.stderr[-2000:]
         files.append((out / "history.csv").read_bytes())
@@ -155,3 +157,12 @@ def test_restart_continues_the_history(tmp_path):
     assert first > 60 and cont["step"][-1] == straight["step"][-1]
     for column, values in cont.items():
         np.testing.assert_array_equal(values, straight[column][first:], err_msg=column)
+
+
+@pytest.mark.slow
+def test_energy_history_script_quick(tmp_path):
+    """run_scripts/energy_history.py --quick: the run, its summary line and the figure."""
+    from study_harness import run_quick
+
+    out = run_quick("energy_history.py", tmp_path / "out")
+    assert (out / "run" / "history.csv").exists() and (out / "history.png").exists()
