@@ -66,6 +66,11 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
 * ``[output]``: ``every`` (simulated seconds) and/or ``every_steps``; a snapshot is due whenever
   either schedule fires. If neither is given: ``every_steps = max(1, steps // 20)`` when
   ``time.steps`` is set, else ``every = end / 20``. ``snapshots``, ``figure`` (bools, default true).
+  ``domains`` (bool, default true): the particle domains as cells in the snapshots.
+  ``[output.history]`` (or ``output.history = false``): ``every`` / ``every_steps`` (default
+  about 200 rows per run), ``probes`` (an array of tables: ``name``, one of ``point`` /
+  ``region = {min, max}`` / ``body`` / ``material``, ``field`` or ``fields``, ``stats``); see
+  :mod:`parmpm.scene_history` and :mod:`parmpm.history` for the columns.
 * ``[metrics]``: ``kind`` ("hanging_bar" | "vibrating_bar" | "tension_bar" | "manufactured" |
   "rotation" | "none", default "none"; see ``parmpm.metrics``), ``stop_on_separation`` (bool,
   default false; hanging_bar and tension_bar only: stop the run once the material is in more
