@@ -140,7 +140,8 @@ class Simulation:
             self.files = RunFiles(self.comm, self.out_dir, self.out_explicit, self.overwrite)
             self.out_dir = self.files.claim({
                 "run_id": s.run_id, "continues": s.continues, "scene": name, "ranks": self.size,
-                "files": ["summary.json", f"{series}.xdmf", f"{series}.h5", f"{name}.png"]})
+                "files": ["summary.json", f"{series}.xdmf", f"{series}.h5", f"{name}.png",
+                          "history.csv", "history.h5", "history.png"]})
             if self.data["output"]["snapshots"]:
                 self.files.open_snapshots(series, self.dim)
             return self._run()

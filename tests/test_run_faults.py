@@ -210,7 +210,8 @@ def test_a_failing_run_cannot_overwrite_another_runs_results(tmp_path):
     (same / "notes.txt").write_text("mine")
     assert main(["run", "vibrating_bar", "-o", str(same), *QUIET, *OFF, "--overwrite",
                  "--set", "time.steps=3"]) == 0
-    assert sorted(p.name for p in same.iterdir()) == ["notes.txt", "parmpm-run.json", "summary.json"]
+    assert sorted(p.name for p in same.iterdir()) == ["history.csv", "history.h5", "notes.txt",
+                                                      "parmpm-run.json", "summary.json"]
 
 
 def test_the_default_folder_is_never_taken_from_another_run(tmp_path):
