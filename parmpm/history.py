@@ -279,10 +279,11 @@ class HistoryOutput:
             **{c: r[c] for c in ENERGY_COLUMNS[3:] + ("residual_estimate",)}}
         if not self.warned and self.scale > 0 and gained > GROWTH_WARNING * self.scale:
             self.warned = True
-            log.warning("at t = %.6g s the body holds %.4g J more than it was given (%.1f %% of "
-                        "%.4g J): a sign of instability (see history.csv; lower time.cfl, or "
-                        "method.update = \"musl\")", sim.t, gained,
-                        100 * gained / self.scale, self.scale)
+            if sim.rank == 0:  # every rank knows it: one line
+                log.warning("at t = %.6g s the body holds %.4g J more than it was given (%.1f %% of "
+                            "%.4g J): a sign of instability (see history.csv; lower time.cfl, or "
+                            "method.update = \"musl\")", sim.t, gained,
+                            100 * gained / self.scale, self.scale)
 
     def finish(self, sim) -> None:
         """The table into the run's HDF5 (or ``history.h5``) and ``history.png`` (rank 0)."""
