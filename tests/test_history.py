@@ -166,3 +166,17 @@ def test_energy_history_script_quick(tmp_path):
 
     out = run_quick("energy_history.py", tmp_path / "out")
     assert (out / "run" / "history.csv").exists() and (out / "history.png").exists()
+
+
+@pytest.mark.parametrize("scene, spin", [("hanging_bar_1d", []),
+                                         ("hanging_bar_3d", ["angular_momentum_x",
+                                                             "angular_momentum_y",
+                                                             "angular_momentum_z"])])
+def test_history_in_1d_and_3d(tmp_path, scene, spin):
+    d = 1 if scene.endswith("1d") else 3
+    point = ", ".join(["0.1"] * d)
+    h, _ = run(tmp_path, scene, "time.steps=4", "output.history.every_steps=2",
+               f"output.history.probes=[{{name='p', point=[{point}], fields=['u.x', 'J']}}]")
+    assert [c for c in h if c.startswith("angular")] == spin
+    assert list(h["step"]) == [0, 2, 4] and np.all(np.isfinite(np.stack(list(h.values()))))
+    assert h["p.J"][0] == 1.0 and h["kinetic"][-1] > 0
