@@ -2,7 +2,7 @@
 patches (3-axis padded), and the exterior layer of cells outside the grid's faces."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -58,6 +58,12 @@ class Discretisation:
         cells = np.asarray(grid["cells"], np.int64) + lo + hi
         layout = PatchLayout(tuple(int(c) for c in cells), tuple(grid["patch_size"]), int(ghost))
         return cls(dim, method, lcr, np.asarray(grid["origin"], float) - lo * h, h, layout, lo, hi)
+
+    def with_patch_size(self, size: int) -> Discretisation:
+        """The same grid cut into patches of ``size`` cells per axis, clipped to the user's cell
+        count as ``grid.patch_size`` is: what another patch size would give."""
+        psize = tuple(min(int(size), int(n)) for n in self.cells)
+        return replace(self, layout=PatchLayout(self.layout.cells, psize, self.layout.ghost))
 
     @property
     def cells(self) -> np.ndarray:

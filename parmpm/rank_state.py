@@ -1,7 +1,9 @@
 """Set-up: a resolved scene, a communicator and optionally a checkpoint become this rank's state.
 
-:func:`set_up` builds the discretisation, deals the patches out over the ranks and gives this
-rank its particles, by one of three paths: seeded from the scene (every rank seeds the same
+:func:`set_up` builds the discretisation (with the patch size ``grid.patch_size = "auto"``
+chooses from the scene, :mod:`parmpm.patch_size`), deals the patches out over the ranks (rank 0
+warns when some start without particles) and gives this rank its particles, by one of three
+paths: seeded from the scene (every rank seeds the same
 particles, global ids = seeding order, and keeps its own; :mod:`parmpm.seeding`), seeded and set
 on the manufactured solution's exact field, or read back from a checkpoint
 (:mod:`parmpm.io.checkpoint_gather`). A restart also restores the clock, the metrics' history,
@@ -26,16 +28,22 @@ from parmpm.footprint import check_memory
 from parmpm.grid import BC_CODES
 from parmpm.io.checkpoint import CheckpointReader
 from parmpm.io.checkpoint_gather import load_particles
+from parmpm.log import get_logger
 from parmpm.materials import PARAM, material_table
 from parmpm.metrics import make_metrics
 from parmpm.particles import Particles, locate_patches
+from parmpm.patch_size import (TARGET_PATCHES, auto_patch_size, covered_patches, floor_size,
+                               idle_ranks_warning)
 from parmpm.reach import fmt_vec
 from parmpm.scene import scene_from_toml
+from parmpm.scene_schema import DEFAULT_PATCH_SIZE
 from parmpm.schedule import Clock
 from parmpm.seeding import seed_bodies
 from parmpm.shapes import CPDI, INTERPOLATORS
 from parmpm.stepper import Stepper
 from parmpm.transfer import max_speed
+
+logger = get_logger(__name__)
 
 
 @dataclass
@@ -89,11 +97,13 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     ghost = data["grid"]["ghost"]
     if ghost == "auto":
         ghost = interp.ghost_width(lcr, scene.min_dx)
-    _check_memory(comm, data, int(ghost))  # before anything of the scene's size is allocated
+    exterior = exterior_cells(data, int(ghost))
+    grid = _patch_size(comm, data, int(ghost), exterior)
+    # before anything of the scene's size is allocated
+    _check_memory(comm, {**data, "grid": grid}, int(ghost))
     # the patches cover the grid and its exterior layer (grid.exterior), the face conditions
     # stay on the user's faces (parmpm.discretisation.exterior_cells)
-    D = Discretisation.from_grid(d, interp.code, lcr, data["grid"], int(ghost),
-                                 exterior_cells(data, int(ghost)))
+    D = Discretisation.from_grid(d, interp.code, lcr, grid, int(ghost), exterior)
     params, names = material_table(data["materials"])
     P, patches, n_total, metrics = _particles(data, comm, D, params, names, checkpoint)
     m = data["method"]
@@ -145,6 +155,23 @@ def open_checkpoint(path, overrides, comm):
     return scene, reader
 
 
+def _patch_size(comm, data: dict, ghost: int, exterior) -> dict:
+    """The ``[grid]`` table the run lays out: ``patch_size = "auto"`` replaced by the size
+    :func:`parmpm.patch_size.auto_patch_size` chooses from the scene (the resolved scene keeps
+    "auto": a restart chooses the same)."""
+    grid = data["grid"]
+    if grid["patch_size"] != "auto":
+        return grid
+    size = auto_patch_size(data, ghost, exterior)
+    if comm.Get_rank() == 0:
+        logger.info("grid.patch_size = %s chosen from the scene (its bodies cover %d such "
+                    "patches; the default %d is halved, down to %d, while they cover fewer than "
+                    "%d); set grid.patch_size to fix it", "x".join(map(str, size)),
+                    covered_patches(data, max(size), exterior), DEFAULT_PATCH_SIZE[data["dim"]],
+                    floor_size(data["dim"], ghost), TARGET_PATCHES)
+    return {**grid, "patch_size": size}
+
+
 def _check_memory(comm, data: dict, ghost: int) -> None:
     """Refuse, on every rank, a scene this node's ranks cannot hold (:mod:`parmpm.footprint`)."""
     problem = None
@@ -160,7 +187,7 @@ def _particles(data, comm, D, params, names, checkpoint):
     paths. Metrics need every particle's initial position; without them an unturned box is
     counted per patch axis by axis and never held whole."""
     layout, d = D.layout, data["dim"]
-    P = seeds = counts = where = None
+    P = seeds = counts = where = x_all = None
     if checkpoint is None:
         # Every rank seeds the same particles (global ids = seeding order) and builds only
         # its own once the patches are dealt out (parmpm.seeding).
@@ -188,10 +215,12 @@ def _particles(data, comm, D, params, names, checkpoint):
         if bad >= 0:
             raise SimulationError(f"particle {bad} at {fmt_vec(x_all[bad])} is outside the grid")
         counts = np.bincount(where, minlength=layout.n_patches)
-        del x_all, x0_all, mass_all  # no second reference to the seeded arrays while they move
+        del x0_all, mass_all
     dec = data["decomposition"]
     patches = PatchSet(layout, comm, counts, threshold=dec["rebalance_threshold"],
                        cooldown=dec["rebalance_cooldown"])
+    _warn_idle_ranks(comm, D, counts, seeds if where is None else x_all)
+    x_all = None  # no second reference to the seeded arrays while they move
     owned = patches.rank_of == comm.Get_rank()
     mine = np.flatnonzero(owned[where]) if where is not None else seeds.members(D, owned)
     if checkpoint is None:
@@ -208,6 +237,29 @@ def _particles(data, comm, D, params, names, checkpoint):
         locate_patches(d, P.x, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
                        layout.patches_per_axis, P.patch, P.patch)
     return P, patches, n_total, metrics
+
+
+def _warn_idle_ranks(comm, D: Discretisation, counts: np.ndarray, where) -> None:
+    """Rank 0 warns, in one line with the computed fix, when some ranks start without particles
+    (more ranks than patches holding them): the run stays correct, those ranks just wait.
+    ``where``: the particles' positions, or the :class:`parmpm.seeding.Seeds` that counted them
+    per axis."""
+    if comm.Get_rank() != 0 or comm.Get_size() == 1:
+        return
+
+    def count_at(size: int):
+        other = D.with_patch_size(size)
+        lay = other.layout
+        if not isinstance(where, np.ndarray):
+            return lay, where.patch_counts(other)
+        at = np.zeros(where.shape[0], np.int64)
+        locate_patches(D.dim, where, other.origin3, other.inv_h3, lay.cells3, lay.psize3,
+                       lay.patches_per_axis, at, at)
+        return lay, np.bincount(at, minlength=lay.n_patches)
+
+    line = idle_ranks_warning(D.layout, counts, comm.Get_size(), D.dim, count_at)
+    if line is not None:
+        logger.warning(line)
 
 
 def _boundary(data: dict, d: int):

@@ -134,7 +134,15 @@ def _grid(c: _Checker, raw: Any, dim: int) -> dict:
     cells = c.vector("grid.cells", c.required("grid", t, "cells", f"{dim} positive integers"),
                      dim, "int>0")
     origin = c.vector("grid.origin", t.get("origin", 0.0), dim, "float")
-    patch = c.vector("grid.patch_size", t.get("patch_size", DEFAULT_PATCH_SIZE[dim]), dim, "int>0")
+    # "auto" (default): chosen at set-up from the scene alone, never the rank count
+    # (parmpm.patch_size); an explicit size is clipped to the cell count
+    patch = t.get("patch_size", "auto")
+    if patch != "auto":
+        if isinstance(patch, str):
+            c.expected("grid.patch_size", f'"auto" or {dim} positive integers (cells per patch '
+                       "per axis)", patch)
+        patch = [min(p, n) for p, n in zip(c.vector("grid.patch_size", patch, dim, "int>0"),
+                                           cells)]
     for k in range(dim):  # node coordinates must stay finite and tell cells apart
         extent = cells[k] * cell_size[k]
         far = max(abs(origin[k]), abs(origin[k] + extent))
@@ -152,7 +160,7 @@ def _grid(c: _Checker, raw: Any, dim: int) -> dict:
         c.integer("grid.exterior", exterior, f'"auto" or an integer from 0 to {MAX_EXTERIOR} '
                   "(cells kept outside every face)", lambda n: 0 <= n <= MAX_EXTERIOR)
     return {"origin": origin, "cell_size": cell_size, "cells": cells,
-            "patch_size": [min(p, n) for p, n in zip(patch, cells)], "ghost": ghost,
+            "patch_size": patch, "ghost": ghost,
             "exterior": exterior}
 
 

@@ -119,7 +119,7 @@ def test_defaults(tmp_path):
     assert scene.source.endswith("my_scene.toml")
     assert d["grid"]["origin"] == [0.0, 0.0]
     assert d["grid"]["cell_size"] == [0.5, 0.5]
-    assert d["grid"]["patch_size"] == [8, 8]  # default 64, clipped to cells
+    assert d["grid"]["patch_size"] == "auto"  # chosen at set-up (parmpm.patch_size)
     assert d["bodies"][0]["shape"] == "box" and d["bodies"][0]["velocity"] == [0.0, 0.0]
     assert d["method"]["lcr"] == "2dx" and scene.lcr == pytest.approx(1.0)
     assert d["damping"] == {"coefficient": 0.0}
