@@ -16,7 +16,8 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   ``_ - . +``, starting with a letter or digit: it names the output files), ``description``
   (default ""), ``dim`` (1, 2 or 3; required). A scene file is a regular file of at most 1 MiB.
 * ``[grid]``: ``origin`` (default 0), ``cell_size`` (> 0, required), ``cells`` (ints > 0,
-  required), ``patch_size`` (ints > 0, default 64 in 1D/2D, 16 in 3D; clipped to ``cells``),
+  required), ``patch_size`` ("auto" or ints > 0, default "auto": chosen from the scene
+  alone, :mod:`parmpm.patch_size`; clipped to ``cells``),
   ``ghost`` ("auto" or int from 1 to the largest cell count, default "auto"); every node
   coordinate must resolve a cell (``|origin|`` and the extent below 1e12 cells), ``exterior`` ("auto" or int 0..64, default
   "auto": cells kept outside the faces, the face conditions staying on the faces; "auto" gives the
