@@ -5,6 +5,8 @@
     python -m parmpm run my_scene.toml --out results/ --quiet
     python -m parmpm scenes                                       # the built-in scenes
     mpirun -n 3 python -m parmpm restart parmpm-out/hanging_bar/checkpoint_00000200.h5
+    python -m parmpm show hanging_bar --set time.end=0.1 > my.toml    # a scene file to edit
+    python -m parmpm compile --dim 2 3                            # fill numba's cache (a job's first step)
 
 Exit codes: 0 success; 2 a user error (bad scene, bad ``--set``, a run that cannot go on:
 every ``ParmpmError``), printed as one line ``parmpm: error: <message>`` without a traceback;
@@ -21,6 +23,10 @@ by rank 0, and every rank exits with 2. An error raised by some ranks only is pr
 them, and the job is aborted, since the other ranks may be waiting on them in a collective.
 The two cases are told apart by a non-blocking barrier on a private communicator, given a few
 seconds to complete.
+
+MPI is optional: without mpi4py, or with an mpi4py that finds no MPI library to load (a ``pip
+install parmpm`` without the ``mpich`` extra on a machine without MPI), parmpm runs on one rank;
+started by a launcher as several ranks it stops instead, with one line on how to get MPI.
 """
 
 from __future__ import annotations
@@ -50,6 +56,10 @@ examples:
 Without a command, parmpm runs the built-in scene 'hanging_bar'.
 """
 
+#: how to get an MPI library mpi4py can load
+MPI_HELP = ("pip install 'parmpm[mpich]' (MPICH's wheel, with its own mpirun), or build mpi4py "
+            "against the system MPI: pip install --force-reinstall --no-binary mpi4py mpi4py")
+
 _RUN_EPILOG = """\
 --set takes a dotted scene key and a TOML value (a bare word is read as a string), e.g.
   --set method.interpolator=ugimp    --set method.lcr=1.5dx     --set grid.cells=[40,60]
@@ -78,6 +88,17 @@ def _launcher_rank() -> int:
         if value.isdigit():
             return int(value)
     return 0
+
+
+def _launcher_size() -> int:
+    """How many ranks the MPI launcher started (1 when not launched by one), from the
+    environment: whether a run without a loadable MPI library may go on alone."""
+    for var in ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MV2_COMM_WORLD_SIZE",
+                "SLURM_STEP_NUM_TASKS"):
+        value = os.environ.get(var, "")
+        if value.isdigit():
+            return int(value)
+    return 1
 
 
 class _Parser(argparse.ArgumentParser):
@@ -120,6 +141,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--overwrite", action="store_true",
                      help="if the --out folder holds another run, delete that run's results and "
                      "write there (without it such a folder is refused)")
+    _logging_arguments(run)
 
     restart = commands.add_parser(
         "restart", help="continue a run from a checkpoint (any number of ranks)",
@@ -136,6 +158,17 @@ def build_parser() -> argparse.ArgumentParser:
                          help="no progress bar, no info messages (warnings and errors still show)")
     restart.add_argument("--overwrite", action="store_true",
                          help="if the --out folder holds another run, delete that run's results")
+    _logging_arguments(restart)
+
+    show = commands.add_parser(
+        "show", help="print a scene, resolved, as TOML (a scene file to start from)",
+        description="Print the scene with every default filled in and the --set overrides "
+        "applied, as TOML: 'parmpm show hanging_bar > my.toml; parmpm run my.toml' runs the "
+        "same scene.", epilog=_RUN_EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    show.add_argument("scene", metavar="SCENE", nargs="?", default=DEFAULT_SCENE,
+                      help=f"a built-in scene name or a TOML scene file (default: {DEFAULT_SCENE})")
+    show.add_argument("-s", "--set", dest="overrides", action="append", default=[],
+                      metavar="KEY=VALUE", help="override a scene value (repeatable)")
 
     commands.add_parser("scenes", help="list the built-in scenes",
                         description="List the built-in scenes: name and one-line description.")
@@ -147,14 +180,38 @@ def build_parser() -> argparse.ArgumentParser:
         "for several ranks; run_scripts/scaling.py compares rank counts.")
     from parmpm.bench import add_arguments  # light: the solver is imported only when it runs
     add_arguments(bench)
+
+    compile_ = commands.add_parser(
+        "compile", help="compile the kernels into numba's cache (before a batch job's runs)",
+        description="Run a tiny scene of each dimension, interpolator and update (USL, MUSL) "
+        "for two steps, so that numba's cache holds every kernel a run uses and later runs "
+        "start at once. The cache is the __pycache__ beside the installed sources, or "
+        "NUMBA_CACHE_DIR (set it on a shared filesystem when the install is read-only).")
+    from parmpm.compile import add_arguments as add_compile_arguments
+    add_compile_arguments(compile_)
     return parser
 
 
+def _logging_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("-v", "--verbose", action="store_true",
+                        help="debug messages (rank 0): set-up details, every kernel compiled")
+    parser.add_argument("--log-file", type=str, default=None, metavar="PATH",
+                        help="also write rank 0's messages (info, or debug with -v, even with "
+                        "--quiet), the progress lines and the closing error to PATH (appended)")
+
+
 def _world():
-    """(rank, size, comm) of MPI_COMM_WORLD; (0, 1, None) when mpi4py cannot be imported."""
+    """(rank, size, comm) of MPI_COMM_WORLD; (0, 1, None) when there is no MPI to use: mpi4py
+    missing, or unable to load an MPI library (its RuntimeError). Launched as several ranks
+    without MPI, each process would run the whole scene alone: a ParmpmError instead."""
     try:
         from mpi4py import MPI
-    except ImportError:
+    except (ImportError, RuntimeError) as exc:
+        ranks = _launcher_size()
+        if ranks > 1:
+            why = ("mpi4py is not installed" if isinstance(exc, ImportError)
+                   else f"mpi4py cannot load an MPI library ({_one_line(exc)})")
+            raise ParmpmError(f"started as {ranks} MPI ranks, but {why}; {MPI_HELP}") from None
         return 0, 1, None
     comm = MPI.COMM_WORLD
     return comm.Get_rank(), comm.Get_size(), comm
@@ -194,29 +251,46 @@ def _cmd_scenes() -> int:
     return 0
 
 
+def _cmd_show(args: argparse.Namespace) -> int:
+    """The resolved scene as TOML on stdout: ``parmpm run`` of it runs the same scene."""
+    from parmpm.scene import load_scene
+
+    text = load_scene(args.scene, overrides=args.overrides).to_toml()
+    try:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+    except BrokenPipeError:  # `parmpm show | head`: the reader left; say nothing more
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return 0
+
+
 def _cmd_run(args: argparse.Namespace, rank: int, comm) -> int:
     from parmpm.scene import load_scene
 
     scene = load_scene(args.scene, overrides=args.overrides)  # before the heavy imports below
 
+    from parmpm.compile import compile_notice
     from parmpm.io.summary import format_summary
     from parmpm.simulation import Simulation
 
-    summary = Simulation(scene, args.out, quiet=args.quiet or rank != 0, comm=comm,
-                         overwrite=args.overwrite).run()
+    with compile_notice():
+        summary = Simulation(scene, args.out, quiet=args.quiet or rank != 0, comm=comm,
+                             overwrite=args.overwrite).run()
     if rank == 0:
         print(format_summary(summary), flush=True)
     return 0
 
 
 def _cmd_restart(args: argparse.Namespace, rank: int, comm) -> int:
+    from parmpm.compile import compile_notice
     from parmpm.io.summary import format_summary
     from parmpm.simulation import Simulation
 
-    sim = Simulation.from_checkpoint(args.checkpoint, args.overrides, args.out,
-                                     quiet=args.quiet or rank != 0, comm=comm,
-                                     overwrite=args.overwrite)
-    summary = sim.run()
+    with compile_notice():
+        sim = Simulation.from_checkpoint(args.checkpoint, args.overrides, args.out,
+                                         quiet=args.quiet or rank != 0, comm=comm,
+                                         overwrite=args.overwrite)
+        summary = sim.run()
     if rank == 0:
         print(format_summary(summary), flush=True)
     return 0
@@ -224,9 +298,17 @@ def _cmd_restart(args: argparse.Namespace, rank: int, comm) -> int:
 
 def _cmd_bench(args: argparse.Namespace, rank: int, comm) -> int:
     from parmpm.bench import run_benches
+    from parmpm.compile import compile_notice
 
-    run_benches(args, comm)  # rank 0 prints the tables
+    with compile_notice():
+        run_benches(args, comm)  # rank 0 prints the tables
     return 0
+
+
+def _cmd_compile(args: argparse.Namespace, rank: int, comm) -> int:
+    from parmpm.compile import run_compile
+
+    return run_compile(args, comm)
 
 
 def _interrupt_on_sigterm() -> None:
@@ -244,18 +326,53 @@ def _interrupt_on_sigterm() -> None:
         signal.signal(signal.SIGTERM, interrupt)
 
 
-def _run_guarded(args: argparse.Namespace) -> int:
-    """``run`` with MPI set up and the error policy of the module docstring applied."""
+def _setup_logging(args: argparse.Namespace, rank: int, size: int, comm) -> None:
+    """The logging of the module docstring; a log file rank 0 cannot open fails on every rank."""
+    import logging
+
     from parmpm.log import setup_logging
 
+    problem = None
+    try:
+        setup_logging(rank, size, quiet=args.quiet, verbose=getattr(args, "verbose", False),
+                      log_file=getattr(args, "log_file", None))
+    except ParmpmError as exc:
+        setup_logging(rank, size, quiet=args.quiet)
+        problem = str(exc)
+    if comm is not None and size > 1:
+        from parmpm.collective import agree
+
+        agree(comm, problem)
+    elif problem:
+        raise ParmpmError(problem)
+    if rank == 0:
+        from parmpm.io.summary import parmpm_version
+
+        logging.getLogger("parmpm").debug("parmpm %s on %d rank(s): %s", parmpm_version(), size,
+                                          " ".join(sys.argv))
+
+
+def _run_guarded(args: argparse.Namespace) -> int:
+    """``run`` with MPI set up and the error policy of the module docstring applied."""
+    import logging
+
+    from parmpm.log import close_log_file, get_logger, setup_logging, to_file_only
+
     _interrupt_on_sigterm()
-    rank, size, comm = _world()
+    try:
+        rank, size, comm = _world()
+    except ParmpmError as exc:  # several ranks, no MPI: each process is alone, rank 0 says it
+        if _launcher_rank() == 0:
+            print(f"parmpm: error: {_one_line(exc)}", file=sys.stderr, flush=True)
+        return 2
     setup_logging(rank, size, quiet=args.quiet)
     # A private communicator for the error handshake, so that it can never match a collective
     # that other ranks are blocked in on COMM_WORLD. (Dup is collective: every rank is here.)
     err_comm = comm.Dup() if comm is not None and size > 1 else None
+    log = get_logger(__name__)
 
     def fail(message: str, code: int) -> int:
+        to_file_only(log, message, logging.ERROR)
         if _all_ranks_here(err_comm, AGREE_TIMEOUT_S):
             if rank == 0:
                 print(message, file=sys.stderr, flush=True)
@@ -265,7 +382,9 @@ def _run_guarded(args: argparse.Namespace) -> int:
         return code  # pragma: no cover (Abort does not return)
 
     try:
-        command = {"bench": _cmd_bench, "restart": _cmd_restart}.get(args.command, _cmd_run)
+        _setup_logging(args, rank, size, comm)
+        command = {"bench": _cmd_bench, "restart": _cmd_restart,
+                   "compile": _cmd_compile}.get(args.command, _cmd_run)
         return command(args, rank, comm)
     except RunInterrupted as exc:
         return fail(f"parmpm: {_one_line(exc)}", 130)
@@ -274,11 +393,14 @@ def _run_guarded(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         return fail("parmpm: interrupted", 130)
     except Exception:
+        to_file_only(log, traceback.format_exc().rstrip(), logging.ERROR)
         traceback.print_exc()
         sys.stderr.flush()
         if size > 1:
             comm.Abort(1)
         return 1
+    finally:
+        close_log_file()
 
 
 def _default_command(argv: list[str]) -> list[str]:
@@ -293,9 +415,9 @@ def main(argv: list[str] | None = None) -> int:
     """Parse ``argv`` (default ``sys.argv[1:]``), run the command and return the exit code."""
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser().parse_args(_default_command(argv))
-    if args.command == "scenes":
+    if args.command in ("scenes", "show"):  # no MPI, no solver
         try:
-            return _cmd_scenes()
+            return _cmd_scenes() if args.command == "scenes" else _cmd_show(args)
         except ParmpmError as exc:
             print(f"parmpm: error: {_one_line(exc)}", file=sys.stderr)
             return 2

@@ -43,17 +43,15 @@ from pathlib import Path
 
 import numpy as np
 
-from decomposition import SerialComm
 from parmpm.bench_report import format_result, format_summary, summarise, write_csv
 from parmpm.errors import ParmpmError
 from parmpm.io.summary import to_jsonable
-from parmpm.kernels2d.material import stress_pass as stress_pass_2d
-from parmpm.kernels3d.material import stress_pass as stress_pass_3d
 from parmpm.scene import Scene, scene_from_toml
 from parmpm.scene_schema import UPDATES
 from parmpm.shapes import INTERPOLATORS
-from parmpm.simulation import Simulation
-from parmpm.transfer import stress_pass
+
+# The solver (numba, the kernels, mpi-aware decomposition) is imported by the functions that
+# run it: ``parmpm --help`` builds this module's options and must not pay a second for numba.
 
 __all__ = ["build_bench_scene", "run_bench", "run_benches", "add_arguments", "format_result"]
 
@@ -190,6 +188,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_benches(args: argparse.Namespace, comm=None) -> list[dict]:
     """Every (dim, method) case of ``args`` in turn (collective); rank 0 prints each table, a
     summary when there are several, and writes ``--json`` / ``--csv``."""
+    from decomposition import SerialComm
+
     comm = comm if comm is not None else SerialComm()
     dims = args.dim if isinstance(args.dim, list) else [args.dim]
     methods = args.method if isinstance(args.method, list) else [args.method]
@@ -214,6 +214,9 @@ def run_benches(args: argparse.Namespace, comm=None) -> list[dict]:
 def run_bench(args: argparse.Namespace, comm=None) -> dict:
     """Run one benchmark case on every rank of ``comm`` (collective); every rank returns the
     result. Rank 0 prints the table and writes ``args.json`` if given."""
+    from decomposition import SerialComm
+    from parmpm.simulation import Simulation
+
     comm = comm if comm is not None else SerialComm()
     rank = comm.Get_rank()
     args = argparse.Namespace(**vars(args))
@@ -259,6 +262,8 @@ def run_bench(args: argparse.Namespace, comm=None) -> dict:
 def _warm_up(dim: int, method: str, update: str, comm) -> float:
     """Wall time (slowest rank) of a tiny run of the same case: JIT compilation, or loading the
     compiled kernels from numba's cache, which the measured run then no longer pays."""
+    from parmpm.simulation import Simulation
+
     tmp = tempfile.mkdtemp(prefix="parmpm-warmup-")
     try:
         comm.Barrier()
@@ -274,6 +279,10 @@ def _warm_up(dim: int, method: str, update: str, comm) -> float:
 def _time_stress(sim, repeats: int = 3) -> float:
     """Seconds one stress update of this rank's particles takes on its own (fastest of
     ``repeats``), on a copy of the stress so the run's state is untouched."""
+    from parmpm.kernels2d.material import stress_pass as stress_pass_2d
+    from parmpm.kernels3d.material import stress_pass as stress_pass_3d
+    from parmpm.transfer import stress_pass
+
     P, st = sim.particles, sim.stepper
     out = np.empty_like(P.stress)
     if st.kernels is not None and P.dim in (2, 3):

@@ -1,4 +1,4 @@
-"""The files of one run: its claimed folder, snapshot series, summary and figure.
+"""The files of one run: its claimed folder, resolved scene, snapshot series, summary and figure.
 
 Rank 0 writes every shared file; each call is collective, and a problem that rank 0 meets (a full
 disk, an unwritable folder, another run's folder) is raised on every rank with the same one-line
@@ -18,6 +18,8 @@ from parmpm.io.xdmf import SnapshotWriter
 from parmpm.log import get_logger
 
 log = get_logger(__name__)
+
+SCENE_NAME = "scene.toml"
 
 
 def _one_line(exc: Exception, what: str) -> str:
@@ -85,6 +87,19 @@ class RunFiles:
         except (ParmpmError, OSError) as exc:
             return _one_line(exc, f"snapshots to '{self.folder}'")
         return None
+
+    def write_scene(self, text: str) -> None:
+        """``scene.toml``: the resolved scene, as a file ``parmpm run`` takes (rank 0)."""
+        problem = None
+        if self.root:
+            path = self.folder / SCENE_NAME
+            try:
+                tmp = path.with_name(f".{SCENE_NAME}.tmp")
+                tmp.write_text(text, encoding="utf-8")
+                tmp.replace(path)
+            except OSError as exc:
+                problem = _one_line(exc, f"'{path}'")
+        agree(self.comm, problem)
 
     def write_summary(self, summary: dict) -> None:
         problem = None

@@ -4,7 +4,11 @@
 stepper, clock: :mod:`parmpm.rank_state`), claims the output folder, steps until ``time.end`` or
 ``time.steps`` and after every step asks its callbacks (:mod:`parmpm.callbacks`: the NaN check,
 the energy watch, metrics, the separation stop, snapshots, stop signals, checkpoints) whether
-they are due; then it writes ``summary.json`` and a figure and returns the summary. Every rank
+they are due; then it writes ``summary.json`` and a figure and returns the summary. The folder
+also gets the resolved scene (``scene.toml``, a scene file that runs the same again) before the
+first step, and ``summary.json`` is written too when a signal stops the run (``"stopped":
+"interrupted"``, with the checkpoint to continue from). Under MPI, rank 0 compiles the kernels
+first and the other ranks load them (:func:`parmpm.compile.compile_first`). Every rank
 runs the same loop with the same global Δt; every figure in the summary is reduced over all
 ranks (:mod:`parmpm.measures`) and only rank 0 writes files.
 """
@@ -19,9 +23,15 @@ from decomposition import SerialComm, allreduce_max
 from parmpm import measures
 from parmpm.callbacks import Checkpoints, interrupted, standard_callbacks, stop_agreed, stop_signals
 from parmpm.collective import agree
+from parmpm.compile import compile_first
+from parmpm.errors import RunInterrupted
+from parmpm.io.summary import run_info
+from parmpm.log import get_logger
 from parmpm.progress import Progress
 from parmpm.rank_state import RankState, open_checkpoint, set_up
 from parmpm.run_files import RunFiles
+
+log = get_logger(__name__)
 
 
 def _of(part: str, name: str, doc: str = "") -> property:
@@ -36,12 +46,14 @@ class Simulation:
     ``callbacks``: more :class:`parmpm.callbacks.Callback`, run after the scene's own."""
 
     def __init__(self, scene, out_dir=None, quiet: bool = False, comm=None, checkpoint=None,
-                 overwrite: bool = False):
+                 overwrite: bool = False, stage_compile: bool = True):
         # an explicit folder is used or refused; the default one is never taken from another run
         # (parmpm.io.run_folder)
         self.out_explicit = out_dir is not None
         self.out_dir = Path(out_dir) if out_dir else Path("parmpm-out") / scene.name
         self.overwrite, self.quiet = overwrite, quiet
+        if stage_compile and comm is not None:  # rank 0 compiles, then the others load
+            compile_first(scene.data, comm)
         self.state: RankState = set_up(scene, comm if comm is not None else SerialComm(),
                                        checkpoint)
         self.observers: list = []
@@ -51,6 +63,7 @@ class Simulation:
         self.stopped = None       # why the run stopped before its end ("separated")
         self.pieces = 1           # pieces of material at the last metrics sample
         self.files = None
+        self.summary = None       # the summary, once written
 
     @classmethod
     def from_checkpoint(cls, path, overrides=(), out_dir=None, quiet=False, comm=None,
@@ -140,8 +153,9 @@ class Simulation:
             self.files = RunFiles(self.comm, self.out_dir, self.out_explicit, self.overwrite)
             self.out_dir = self.files.claim({
                 "run_id": s.run_id, "continues": s.continues, "scene": name, "ranks": self.size,
-                "files": ["summary.json", f"{series}.xdmf", f"{series}.h5", f"{name}.png",
-                          "history.csv", "history.h5", "history.png"]})
+                "files": ["scene.toml", "summary.json", f"{series}.xdmf", f"{series}.h5",
+                          f"{name}.png", "history.csv", "history.h5", "history.png"]})
+            self.files.write_scene(s.scene.to_toml())  # what ran, as a scene file to run again
             if self.data["output"]["snapshots"]:
                 self.files.open_snapshots(series, self.dim)
             return self._run()
@@ -149,60 +163,86 @@ class Simulation:
     def _run(self) -> dict:
         callbacks = standard_callbacks(self) + self.callbacks
         self.checkpoints = Checkpoints()
-        self.stopped = None
+        self.stopped, self.summary = None, None
+        self._warm_wall, self._warm_steps = None, 0
         tm = self.data["time"]
         progress = Progress(total_steps=tm["steps"], end_time=tm["end"],
                             enabled=not self.quiet and self.rank == 0)
         self._wall0 = time.perf_counter()
         try:
-            if not self.state.restart:  # a restarted run has these from before
-                for cb in sorted((c for c in callbacks if c.start is not None),
-                                 key=lambda c: c.start):
-                    cb.action(self)
-            warm_wall, warm_steps = self._loop(callbacks, progress)
-            for cb in callbacks:
-                if cb.at_end is not None and cb.at_end(cb, self):
-                    cb.action(self)
-            if stop_agreed(self):
-                raise interrupted(self)
-        finally:
-            progress.close()
-            closing = self.files.close_snapshots()  # never raises: a failing run's error wins
-        agree(self.comm, closing)
-        self.state.next_output = self.out_schedule.next_time
-        return self._finish(warm_wall, warm_steps)
+            try:
+                if not self.state.restart:  # a restarted run has these from before
+                    for cb in sorted((c for c in callbacks if c.start is not None),
+                                     key=lambda c: c.start):
+                        cb.action(self)
+                self._loop(callbacks, progress)
+                for cb in callbacks:
+                    if cb.at_end is not None and cb.at_end(cb, self):
+                        cb.action(self)
+                if stop_agreed(self):
+                    raise interrupted(self)
+            finally:
+                progress.close()
+                closing = self.files.close_snapshots()  # never raises: a failing run's error wins
+            agree(self.comm, closing)
+            self.state.next_output = self.out_schedule.next_time
+            return self._finish()
+        except RunInterrupted:
+            if self.summary is None:
+                self._summary_of_interrupted_run()
+            raise
 
-    def _loop(self, callbacks: list, progress: Progress) -> tuple[float | None, int]:
-        """Step until the clock is done or a callback stops the run; returns the wall clock
-        after the first step (which includes JIT compilation) and the steps after it."""
+    def _loop(self, callbacks: list, progress: Progress) -> None:
+        """Step until the clock is done or a callback stops the run; keeps the wall clock after
+        the first step (which includes JIT compilation) and the steps after it."""
         clock, stepper = self.clock, self.stepper
-        warm_wall, warm_steps = None, 0
         while not clock.done():
             dt = clock.next_dt()
             clock.tick(dt, stepper.step(dt, self.gravity(clock.t), clock.t))
-            if warm_wall is None:
-                warm_wall = time.perf_counter()  # the first step includes JIT compilation
+            if self._warm_wall is None:
+                self._warm_wall = time.perf_counter()  # the first step includes JIT compilation
                 stepper.timers = dict.fromkeys(stepper.timers, 0.0)
             else:
-                warm_steps += 1
+                self._warm_steps += 1
             for cb in callbacks:
                 if cb.schedule.due(clock.t, clock.nstep):
                     self.stopped = cb.action(self)
                     if self.stopped:
-                        return warm_wall, warm_steps
+                        return
                     cb.schedule.advance(clock.t)
-            elapsed = time.perf_counter() - (warm_wall or self._wall0)
+            warm_steps = self._warm_steps
+            elapsed = time.perf_counter() - (self._warm_wall or self._wall0)
             rate = self.n_total * warm_steps / elapsed if warm_steps and elapsed > 0 else 0.0
             progress.update(clock.nstep, clock.t, rate)
-        return warm_wall, warm_steps
 
-    def _finish(self, warm_wall: float | None, warm_steps: int) -> dict:
-        """The summary (written), then the figure; a stop signal meanwhile still checkpoints."""
+    def _write_summary(self) -> dict:
+        """The summary of the run so far, written to summary.json (collective)."""
         wall = time.perf_counter() - self._wall0
-        loop = time.perf_counter() - warm_wall if warm_wall else wall
+        loop = time.perf_counter() - self._warm_wall if self._warm_wall else wall
         wall, loop = (float(v) for v in allreduce_max(self.comm, np.array([wall, loop])))
-        summary = measures.summary(self.state, self.out_dir, self.stopped, wall, loop, warm_steps)
+        summary = measures.summary(self.state, self.out_dir, self.stopped, wall, loop,
+                                   self._warm_steps)
+        summary.update(run_info(self.size))
+        if self.stopped == "interrupted":
+            summary["checkpoint"] = str(self.checkpoints.last_path)
         self.files.write_summary(summary)
+        self.summary = summary
+        return summary
+
+    def _summary_of_interrupted_run(self) -> None:
+        """summary.json of a run a signal stopped (its checkpoint is written; the ranks agreed,
+        so this is collective). A failure here is a warning: the interrupt and its restart line
+        must reach the user all the same."""
+        self.stopped = "interrupted"
+        try:
+            self._write_summary()
+        except Exception as exc:  # noqa: BLE001 (any failure: the interrupt wins)
+            log.warning("summary.json of the interrupted run not written: %s",
+                        " ".join(str(exc).split()) or type(exc).__name__)
+
+    def _finish(self) -> dict:
+        """The summary (written), then the figure; a stop signal meanwhile still checkpoints."""
+        summary = self._write_summary()
         if stop_agreed(self):  # a signal while the summary was made: no figure
             raise interrupted(self)
         if self.data["output"]["figure"]:

@@ -9,6 +9,7 @@ Mostly subprocess tests, as a user runs it: exit codes, help text, the one-line 
 from __future__ import annotations
 
 import io
+import json
 import logging
 import os
 import subprocess
@@ -56,6 +57,26 @@ def test_run_help(tmp_path):
     assert proc.returncode == 0, proc.stderr
     for word in ("usage: parmpm run", "SCENE", "--set", "KEY=VALUE", "--out", "--quiet"):
         assert word in proc.stdout
+
+
+def test_run_and_restart_help_name_logging_options(tmp_path):
+    for command in ("run", "restart"):
+        proc = parmpm(command, "--help", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        for word in ("-v, --verbose", "--log-file PATH"):
+            assert word in proc.stdout, (command, proc.stdout)
+
+
+def test_help_does_not_import_numba_or_mpi(tmp_path):
+    """``parmpm --help`` builds every command's options, the benchmark's too: without numba
+    (about a second) and without starting MPI."""
+    code = ("import sys; from parmpm.__main__ import build_parser; build_parser()\n"
+            "print(sorted(m for m in ('numba', 'mpi4py') if m in sys.modules))")
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=TIMEOUT_S)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"
 
 
 def test_version(tmp_path):
@@ -114,6 +135,57 @@ def test_bad_scene_under_mpirun_prints_once(tmp_path, mpirun):
     proc = subprocess.run([mpirun, "-n", "2", sys.executable, "-m", "parmpm", "run", "missing.toml"],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
     assert_one_line_error(proc, "missing.toml")
+
+
+# ---------------------------------------------------------------- MPI that cannot be loaded
+
+
+@pytest.fixture
+def mpi4py_without_mpi(tmp_path):
+    """An mpi4py whose ``MPI`` module fails as PyPI's mpi4py does on a machine without an MPI
+    library (``RuntimeError: cannot load MPI library``), first on the path."""
+    fake = tmp_path / "fake" / "mpi4py"
+    fake.mkdir(parents=True)
+    (fake / "__init__.py").write_text("")
+    (fake / "MPI.py").write_text('raise RuntimeError("cannot load MPI library\\n'
+                                 'libmpi.so.12: cannot open shared object file")\n')
+    return tmp_path / "fake"
+
+
+def _run_without_mpi(tmp_path, fake, **launcher):
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("PMI_SIZE", "PMI_RANK", "OMPI_COMM_WORLD_SIZE", "SLURM_STEP_NUM_TASKS")}
+    env.update(launcher, PYTHONPATH=os.pathsep.join([str(fake), str(REPO)]))
+    return subprocess.run([sys.executable, "-m", "parmpm", "run", "hanging_bar_1d", "--quiet",
+                           "--set", "time.steps=2", "--set", "output.figure=false",
+                           "-o", str(tmp_path / "out")],
+                          cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=TIMEOUT_S)
+
+
+def test_an_mpi4py_without_mpi_library_runs_on_one_rank(tmp_path, mpi4py_without_mpi):
+    """``pip install parmpm`` without the mpich extra, no MPI on the machine: before, the
+    RuntimeError of ``from mpi4py import MPI`` was a 30-line traceback."""
+    proc = _run_without_mpi(tmp_path, mpi4py_without_mpi)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["ranks"] == 1
+
+
+@pytest.mark.parametrize("launcher", [{"PMI_SIZE": "2", "PMI_RANK": "0"},
+                                      {"OMPI_COMM_WORLD_SIZE": "4"},
+                                      {"SLURM_STEP_NUM_TASKS": "3"}])
+def test_several_ranks_without_mpi_library_say_how_to_get_mpi(tmp_path, mpi4py_without_mpi,
+                                                              launcher):
+    proc = _run_without_mpi(tmp_path, mpi4py_without_mpi, **launcher)
+    assert_one_line_error(proc, "MPI ranks", "cannot load MPI library", "parmpm[mpich]",
+                          "--no-binary mpi4py")
+    assert not (tmp_path / "out").exists()
+
+
+def test_several_ranks_without_mpi_other_ranks_stay_silent(tmp_path, mpi4py_without_mpi):
+    proc = _run_without_mpi(tmp_path, mpi4py_without_mpi, PMI_SIZE="2", PMI_RANK="1")
+    assert proc.returncode == 2 and proc.stderr == ""
 
 
 # ---------------------------------------------------------------- error paths of main(), in process
@@ -230,7 +302,7 @@ def test_progress_disabled_writes_nothing(capsys):
 def test_progress_shows_steps_time_and_rate(capsys, kwargs, expected):
     from parmpm.progress import Progress
 
-    bar = Progress(**kwargs)
+    bar = Progress(**kwargs, interactive=True)  # a terminal's bar (capsys is none)
     for step in range(1, 11):
         bar.update(step, 0.1 * step, 2.5e6)
     bar.close()

@@ -11,12 +11,13 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["to_jsonable", "write_summary", "format_summary"]
+__all__ = ["to_jsonable", "write_summary", "format_summary", "run_info", "parmpm_version"]
 
 SUMMARY_NAME = "summary.json"
 
@@ -51,6 +52,25 @@ def to_jsonable(obj):
     if hasattr(obj, "item"):  # other numpy scalars
         return to_jsonable(obj.item())
     return str(obj)
+
+
+def parmpm_version() -> str:
+    """The installed parmpm's version (the package's own when it runs from a source tree)."""
+    try:
+        from importlib.metadata import PackageNotFoundError, version
+        return version("parmpm")
+    except (ImportError, PackageNotFoundError):
+        from parmpm import __version__
+        return f"{__version__} (not installed)"
+
+
+def run_info(ranks: int) -> dict:
+    """What produced a summary, so a results folder says how to make it again: the version,
+    the command line as this process saw it (``sys.argv``; under ``mpirun`` the launcher's own
+    arguments are not in it, hence ``ranks``) and the interpreter."""
+    return {"parmpm_version": parmpm_version(),
+            "command": {"argv": list(sys.argv), "ranks": int(ranks),
+                        "python": sys.executable}}
 
 
 def _umask() -> int:

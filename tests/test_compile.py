@@ -1,0 +1,134 @@
+"""Compiling the kernels ahead (``parmpm compile``), the first-run notice, and rank 0 compiling
+first under MPI (:mod:`parmpm.compile`).
+
+The cold-cache tests give numba an empty ``NUMBA_CACHE_DIR`` of their own, so they compile for
+real (tens of seconds: marked ``slow``): the notice shows exactly when numba compiles, never
+when it loads, and after ``parmpm compile`` a run of the same dimension and method compiles
+nothing.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import parmpm.compile as comp
+from parmpm.scene import scene_from_toml
+
+REPO = Path(__file__).resolve().parents[1]
+TIMEOUT_S = 600
+
+
+@pytest.mark.parametrize("dim", comp.DIMS)
+def test_the_tiny_scenes_are_valid_scenes(dim):
+    for method in comp.METHODS:
+        for update in (*comp.COMPILED_UPDATES, "auto"):
+            scene = scene_from_toml(comp.tiny_scene_toml(dim, method, update))
+            data = scene.data
+            assert data["dim"] == dim and data["method"]["interpolator"] == method
+            assert data["time"]["steps"] == 2 and data["metrics"]["kind"] == "hanging_bar"
+            assert len(data["output"]["history"]["probes"]) == 2
+
+
+class FakeComm:
+    """What compile_first asks of a communicator: rank, size and a barrier's request."""
+
+    def __init__(self, rank: int, size: int = 2):
+        self.rank, self.size, self.barriers = rank, size, 0
+
+    def Get_rank(self):
+        return self.rank
+
+    def Get_size(self):
+        return self.size
+
+    def Ibarrier(self):
+        self.barriers += 1
+        return type("Done", (), {"Test": lambda self: True})()
+
+
+@pytest.fixture
+def warm_ups(monkeypatch):
+    calls = []
+    monkeypatch.setattr(comp, "_WARMED", set())
+    monkeypatch.setattr(comp, "warm_up", lambda *key: calls.append(key) or 0.1)
+    return calls
+
+
+def _data(dim=2, method="cpdi", update="auto"):
+    return {"dim": dim, "method": {"interpolator": method, "update": update}}
+
+
+def test_rank_0_compiles_first_once_per_case(warm_ups):
+    comm = FakeComm(0)
+    comp.compile_first(_data(), comm)
+    comp.compile_first(_data(), comm)  # the same case again in this process: nothing
+    comp.compile_first(_data(3, "mpm"), comm)
+    assert warm_ups == [(2, "cpdi", "auto"), (3, "mpm", "auto")] and comm.barriers == 2
+
+
+def test_the_other_ranks_only_wait(warm_ups):
+    comm = FakeComm(1)
+    comp.compile_first(_data(), comm)
+    assert warm_ups == [] and comm.barriers == 1
+
+
+def test_one_rank_needs_no_staging(warm_ups):
+    comp.compile_first(_data(), FakeComm(0, size=1))
+    comp.compile_first(_data(), None)
+    assert warm_ups == []
+
+
+def test_a_failed_warm_up_still_releases_the_others(monkeypatch):
+    monkeypatch.setattr(comp, "_WARMED", set())
+
+    def broken(*key):
+        raise RuntimeError("no compiler today")
+
+    monkeypatch.setattr(comp, "warm_up", broken)
+    comm = FakeComm(0)
+    comp.compile_first(_data(), comm)  # a debug message; the run compiles as before
+    assert comm.barriers == 1
+
+
+def _cli(*args: str, cache: Path, cwd: Path, launcher=()) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(REPO), NUMBA_CACHE_DIR=str(cache))
+    return subprocess.run([*launcher, sys.executable, "-m", "parmpm", *args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=TIMEOUT_S)
+
+
+@pytest.mark.slow
+def test_compile_fills_the_cache_and_the_run_then_compiles_nothing(tmp_path):
+    cache = tmp_path / "cache"
+    first = _cli("compile", "--dim", "1", "--methods", "mpm", "--update", "musl",
+                 cache=cache, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    assert first.stderr.count("compiling kernels (first run") == 1
+    assert str(cache) in first.stderr and "kernels compiled" in first.stderr
+    again = _cli("compile", "--dim", "1", "--methods", "mpm", "--update", "musl",
+                 cache=cache, cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert "compiling kernels" not in again.stderr and "every kernel was cached" in again.stderr
+    run = _cli("run", "hanging_bar_1d", "--set", "method.interpolator=mpm", "--set",
+               "time.steps=3", "-o", "out", "-v", cache=cache, cwd=tmp_path)  # auto: musl
+    assert run.returncode == 0, run.stderr
+    assert "compiling kernels" not in run.stderr and "compiled " not in run.stderr
+
+
+@pytest.mark.slow
+def test_two_ranks_on_a_cold_cache_compile_once(tmp_path, mpirun):
+    """Rank 0 runs the tiny scene while rank 1 waits; after it the run itself compiles only
+    what a single rank never calls (the separation count across ranks)."""
+    cache = tmp_path / "cache"
+    proc = _cli("run", "hanging_bar_1d", "--set", "method.interpolator=mpm", "--set",
+                "time.steps=3", "-o", "out", "-v", cache=cache, cwd=tmp_path,
+                launcher=(mpirun, "-n", "2"))
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("compiling kernels (first run") == 1
+    after = proc.stderr.split("rank 0 warmed up the kernels")[1]
+    late = [line.split("compiled ")[1].split()[0] for line in after.splitlines()
+            if "DEBUG parmpm.compile: compiled " in line]
+    assert all(name.startswith("parmpm.connectivity.") for name in late), late
