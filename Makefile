@@ -9,7 +9,9 @@
 #   make test                     the linter (ruff) and the test suite; pytest options with
 #                                 PYTEST_ARGS='-k cli -x' (-m "not slow": no studies)
 #   make lint                     only the linter
-#   make figures                  run_scripts/make_figures.py, where it exists
+#   make figures                  run_scripts/make_figures.py, where it exists (the only target
+#                                 that writes docs/figures/)
+#   make clean                    caches and build files only; results (parmpm-out/) are kept
 #
 # PYTHON picks the interpreter that creates the venv (Python >= 3.11): make test PYTHON=python3.12
 
@@ -31,7 +33,7 @@ help:
 	@echo "make lint     run the linter (ruff check)"
 	@echo "make figures  regenerate the README figures (run_scripts/make_figures.py)"
 	@echo "make venv     only create $(VENV) and install parmpm[$(EXTRAS)] into it"
-	@echo "make clean    remove outputs and caches (keeps $(VENV))"
+	@echo "make clean    remove caches and build files (keeps results: parmpm-out/, run_scripts/out/; keeps $(VENV))"
 
 $(BIN)/python:
 	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info < (3, 11))' || \
@@ -61,6 +63,10 @@ figures: $(STAMP)
 	  echo "run_scripts/make_figures.py does not exist yet (planned)"; \
 	fi
 
+# Results are never cleaned: parmpm-out/ (runs) and run_scripts/out/ (studies) stay. Removing
+# __pycache__ also empties numba's cache of the sources here (kernels recompile on the next run);
+# a NUMBA_CACHE_DIR elsewhere is yours to empty.
 clean:
-	rm -rf parmpm-out .pytest_cache build *.egg-info
-	find . -path ./$(VENV) -prune -o -name __pycache__ -type d -exec rm -rf {} +
+	rm -rf .pytest_cache build *.egg-info
+	find . -path ./$(VENV) -prune -o -path ./parmpm-out -prune -o -path ./run_scripts/out -prune \
+	  -o -name __pycache__ -type d -exec rm -rf {} +

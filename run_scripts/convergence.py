@@ -62,16 +62,17 @@ Expected (the literature) and found (full study, RMS error / relative error; ord
 Outputs: ``convergence.csv`` (manufactured; one row per run: problem, dim, method, update,
 cells, h, ppc, error, order against the previous resolution of its series, error at t = T,
 steps, wall_seconds) and ``verification.csv`` (the bars: one row per run; ``error`` as above)
-in ``--out`` (default ``run_scripts/out/convergence``); PNGs in ``docs/figures`` (``--quick``:
-in ``--out``): ``convergence_manufactured.png`` (error against h, one panel per dimension) and
-``verification_bars.png`` (the bars against their exact solutions, and their errors against h).
+in ``--out`` (default ``run_scripts/out/convergence``); PNGs in ``--out`` too (``make figures``
+passes ``--figures docs/figures``): ``convergence_manufactured.png`` (error against h, one panel
+per dimension) and ``verification_bars.png`` (the bars against their exact solutions, and their
+errors against h).
 
 Runtime, one core: full ~5 min (2D at 64 cells ~1.5 min, 3D ~2 min); ``--quick``
 (1D cpdi/cpGIMP at 16, 32, 64 cells, 2D at 8, 16, 32, the vibrating bar USL/MUSL with cpdi at
 16 cells, the hanging bar at 10 and 20 cells) ~10 s. Results are identical on any number of
 ranks (only ``wall_seconds`` differs)::
 
-    python run_scripts/convergence.py                 # full study, figures to docs/figures
+    python run_scripts/convergence.py                 # full study, figures beside the CSV
     python run_scripts/convergence.py --quick         # the smoke test's mode
     mpirun -n 2 python run_scripts/convergence.py --quick
     python run_scripts/convergence.py --only manufactured-2d,vibrating-bar --out /tmp/c

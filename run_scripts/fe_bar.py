@@ -37,13 +37,13 @@ changes it by 2e-6 m. cpdi is within 0.8 % (Δx = 0.1 m) and 0.05 % (0.05 m) of 
 
 Outputs: ``fe_bar.csv`` (one row per run: model, support, resolution, first peak, its time,
 rebound, its time) in ``--out`` (default ``run_scripts/out/fe_bar``) and ``fe_bar.png`` (the
-corner histories) in ``docs/figures`` (``--quick``: in ``--out``).
+corner histories) in ``--out`` too (``make figures`` passes ``--figures docs/figures``).
 
 Runtime: full ~10 min on a core shared with other jobs (FE 80 × 80 ~3–4 min per support, MPM
 Δx = 0.05 m ~1 min per support); ``--quick`` (FE n = 10 and 20 to 0.12 s, MPM Δx = 0.1 m roller
 to 0.12 s) ~20 s::
 
-    python run_scripts/fe_bar.py            # full study, figure to docs/figures
+    python run_scripts/fe_bar.py            # full study, figure beside the CSV
     python run_scripts/fe_bar.py --quick    # the smoke test's mode
 """
 from __future__ import annotations

@@ -55,16 +55,17 @@ steps, wall time, the error of a blown-up run) and ``fracture_alignment_summary.
 cases, separated cases, mean/min/max/spread/std (population) of the separation stretch over the
 separated cases, the mean excess over the predicted failure stretch, the fraction of *all* cases
 whose crack lies within the weak band, retried and unstable cases) in ``--out`` (default
-``run_scripts/out/fracture_alignment``); ``fracture_alignment.png`` in ``docs/figures``
-(``--quick``: in ``--out``): separation stretch against angle, one panel per mode on one stretch
-scale, a marker per offset, the prediction and the freeze mode's two-cell allowance drawn in.
+``run_scripts/out/fracture_alignment``); ``fracture_alignment.png`` in ``--out`` too (``make
+figures`` passes ``--figures docs/figures``): separation stretch against angle, one panel per mode
+on one stretch scale, a marker per offset, the prediction and the freeze mode's two-cell allowance
+drawn in.
 
 Runtime, one core: full (32 runs) ~30 s — freeze cases ~0.2 s each, lcr 0.2–3 s (the later
 they separate the longer, and their time step shrinks after failure); ``--quick`` (angles 0 and 30°, offsets (0, 0) and
 (0.5, 0.37), max stretch 1.6: 8 runs) ~8 s. Results are identical on any number of ranks (only
 ``wall_s`` differs)::
 
-    python run_scripts/fracture_alignment.py                    # full study, figure to docs/figures
+    python run_scripts/fracture_alignment.py                    # full study, figure beside the CSV
     python run_scripts/fracture_alignment.py --quick            # the smoke test's mode
     mpirun -n 2 python run_scripts/fracture_alignment.py --quick
     python run_scripts/fracture_alignment.py --angles 0,10,20 --offsets 2 --modes freeze

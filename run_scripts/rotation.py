@@ -45,19 +45,20 @@ Expected and found (full run; the lead's earlier numbers for the first block rep
 * Kinetic energy dips periodically (the disk, started unstressed, breathes: exact) and drifts
   down by 3–4 % (Δx = 0.05 m; 0.6–2 % at 0.025 m) for every method; mpm loses the most.
 
-Outputs: ``rotation.csv`` (one row per case: the summary figures plus the area ratio near 90°,
-180° and 270°) and ``rotation_history.csv`` (every metrics sample: angle, area ratio, smallest
+Outputs: ``rotation.csv`` (one row per case: the summary figures plus the area ratio near 90°, 180°
+and 270°) and ``rotation_history.csv`` (every metrics sample: angle, area ratio, smallest
 single-domain ratio, stress, energy and momentum ratios) in ``--out`` (default
-``run_scripts/out/rotation``); ``rotation.png`` in ``docs/figures`` (``--quick``: in ``--out``):
-against the rotation angle (ω = 2π, Δx = 0.05 m), the total domain area over its initial value
-(log scale; cpGIMP also at ω = 4π, dashed, and Δx = 0.025 m, dotted; thin: its smallest single
-domain), the largest stress over ρ0ω²R², kinetic energy and angular momentum over their initial
-values; and a bar chart of the largest stress ratio of every case; a colour per method.
+``run_scripts/out/rotation``); ``rotation.png`` in ``--out`` too (``make figures`` passes
+``--figures docs/figures``): against the rotation angle (ω = 2π, Δx = 0.05 m), the total domain area
+over its initial value (log scale; cpGIMP also at ω = 4π, dashed, and Δx = 0.025 m, dotted; thin:
+its smallest single domain), the largest stress over ρ0ω²R², kinetic energy and angular momentum
+over their initial values; and a bar chart of the largest stress ratio of every case; a colour per
+method.
 
 Runtime, one core: full (12 runs) ~75 s (the Δx = 0.025 m runs ~15 s each); ``--quick`` (4 runs)
 ~3 s. Results are identical on any number of ranks (only ``wall_seconds`` differs)::
 
-    python run_scripts/rotation.py                   # full study, figure to docs/figures
+    python run_scripts/rotation.py                   # full study, figure beside the CSV
     python run_scripts/rotation.py --quick           # the smoke test's mode
     mpirun -n 2 python run_scripts/rotation.py --quick
     python run_scripts/rotation.py --quick --methods cpdi,cpgimp

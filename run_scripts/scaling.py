@@ -42,8 +42,8 @@ Outputs (``--out``, default ``run_scripts/out/scaling``): ``scaling.csv`` (one r
 (predictions, and the check rows against the measurements), ``cost_model.json`` (the fitted and
 the assumed constants, labelled), the bench and probe JSON of every run; ``scaling.png``
 (efficiency and time per step against ranks, ideal lines, model check) and ``cost_model.png``
-(predicted efficiency against ranks) in ``docs/figures`` (``--quick``: in ``--out``; ``--figures``
-overrides).
+(predicted efficiency against ranks) in ``--out`` too (``make figures`` passes ``--figures
+docs/figures``).
 
 Runtime on 2 cores: full about a minute per ``--repeat`` (2D 1e6 on 1 and 2 ranks — the weak
 2-rank run is the same run —, 5e5 on 1 rank, 3D 2e5 on 1 rank, the probe); ``--quick`` (2e4

@@ -52,11 +52,11 @@ Found (a run of every case but the 64-cell ones, one core, shared machine):
   second transfer included), within the noise of this shared 2-core machine (single runs
   up to 2–3 µs when it was busy); particle_steps is not noisy.
 
-Outputs: ``speed_accuracy.csv`` (one row per case; ``on_front_time`` / ``on_front_psteps``
-mark the Pareto fronts of each problem) in ``--out`` (default ``run_scripts/out/speed_accuracy``)
-and ``speed_accuracy.png`` in ``docs/figures`` (``--quick``: in ``--out``): error against
-step_seconds (left) and against particle-steps (right), log-log, one row per problem, a colour
-and marker per method, marker size by ppc, thin lines along refinement, the Pareto front as a
+Outputs: ``speed_accuracy.csv`` (one row per case; ``on_front_time`` / ``on_front_psteps`` mark the
+Pareto fronts of each problem) in ``--out`` (default ``run_scripts/out/speed_accuracy``) and
+``speed_accuracy.png`` in ``--out`` too (``make figures`` passes ``--figures docs/figures``): error
+against step_seconds (left) and against particle-steps (right), log-log, one row per problem, a
+colour and marker per method, marker size by ppc, thin lines along refinement, the Pareto front as a
 black staircase with ringed points.
 
 Runtime, one core: full (96 cases, 2D up to 36 864 particles × 864 steps) ~6 min (all but the

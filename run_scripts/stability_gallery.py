@@ -73,13 +73,13 @@ Expected (the seed) and found, 2D, Δx = 0.1 m, roller; separation time in s (ax
   bar), never through its cap on the published support at ppc 3.
 
 Outputs: ``gallery.csv`` (one row per case) in ``--out`` (default
-``run_scripts/out/stability_gallery``); figures in ``docs/figures`` (``--quick``: in ``--out``):
-``gallery_<method>.png`` — one row per ppc (2D, Δx = 0.1 m), four frames each (t = 0, the first
-stretch peak, the loss of the support, separation or 0.2 s, the end), particle domains as the
-interpolation sees them (mpm: its nominal box) coloured by axial stretch |F e_y| on one colour
-scale for all figures — and ``gallery_summary.png``, separation time and stretch at separation
-per method and (dim, Δx, ppc), hatched where the bar held to 0.3 s, ▼ where it tore off.
-``gallery_lcr_separation.png``: the l_cr series (stretch at separation and separation time
+``run_scripts/out/stability_gallery``); figures in ``--out`` too (``make figures`` passes
+``--figures docs/figures``): ``gallery_<method>.png`` — one row per ppc (2D, Δx = 0.1 m), four
+frames each (t = 0, the first stretch peak, the loss of the support, separation or 0.2 s, the end),
+particle domains as the interpolation sees them (mpm: its nominal box) coloured by axial stretch
+|F e_y| on one colour scale for all figures — and ``gallery_summary.png``, separation time and
+stretch at separation per method and (dim, Δx, ppc), hatched where the bar held to 0.3 s, ▼ where
+it tore off. ``gallery_lcr_separation.png``: the l_cr series (stretch at separation and separation time
 against κ; see :func:`lcr_figure`).
 
 Runtime: full (64 gallery cases + 66 of the l_cr series) ~20 min on a core shared with other
@@ -88,7 +88,7 @@ jobs (the gallery ~2 min of it, the series' 1 s runs of the bars that hold ~10�
 l_cr = 5.0, 1.8, 1.2·Δx/3 at ppc 3) ~30 s, ~35 s under ``mpirun -n 2`` on two busy cores. Results
 are identical on any number of ranks (only ``wall_seconds`` differs)::
 
-    python run_scripts/stability_gallery.py                  # full study, figures to docs/figures
+    python run_scripts/stability_gallery.py                  # full study, figures beside the CSV
     python run_scripts/stability_gallery.py --quick          # the smoke test's mode
     mpirun -n 2 python run_scripts/stability_gallery.py --quick
     python run_scripts/stability_gallery.py --cases '2d_cpdi*_ppc3_dx0.1' --out /tmp/g

@@ -6,9 +6,10 @@ run_scripts/<study>.py`` gives results identical to one rank: the solver is bit-
 rank count). Only rank 0 writes the CSV and the PNGs. Any exception on any rank aborts every
 rank (``main_guard``), so a study never hangs under mpirun.
 
-Outputs: ``--out`` (default ``run_scripts/out/<study>``) gets the CSV; figures go to
-``docs/figures`` for a full run and next to the CSV in ``--quick`` mode (so the smoke tests never
-touch the committed figures).
+Outputs: ``--out`` (default ``run_scripts/out/<study>``) gets the CSV and the figures;
+``--figures DIR`` puts the figures elsewhere. Only ``make figures`` (run_scripts/make_figures.py,
+which passes ``--figures docs/figures``) writes the README's committed figures: a study run by
+hand, or by the tests, never overwrites them.
 """
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
+#: the README's figures: written only when asked (``--figures``; ``make figures`` asks)
 FIGURES = ROOT / "docs" / "figures"
 
 
@@ -44,16 +46,17 @@ def parser(doc: str) -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(description=doc.strip().splitlines()[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--quick", action="store_true", help="small grids and few cases (seconds)")
-    p.add_argument("--out", type=Path, default=None, help="folder for the CSV (default run_scripts/out/<study>)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="folder for the CSV and the PNGs (default run_scripts/out/<study>)")
     p.add_argument("--figures", type=Path, default=None,
-                   help="folder for the PNGs (default docs/figures; with --quick: --out)")
+                   help="folder for the PNGs (default: --out; make figures gives docs/figures)")
     return p
 
 
 def folders(args, study: str) -> tuple[Path, Path]:
     """(csv folder, figure folder) for ``args`` (see the module docstring)."""
     out = args.out or ROOT / "run_scripts" / "out" / study
-    figs = args.figures or (out if args.quick else FIGURES)
+    figs = args.figures or out
     return Path(out), Path(figs)
 
 

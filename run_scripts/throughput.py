@@ -17,10 +17,9 @@ found): ~20 s.
     python run_scripts/throughput.py --particles 1e6 --repeat 3
     python run_scripts/throughput.py --quick
 
-Output: ``run_scripts/out/throughput/throughput.csv`` and ``docs/figures/throughput.png``
-(``--quick``: both in ``--out``). ``--yardstick PATH`` (default ``../shared/bench/ref_step.py``
-beside the repository; ``none`` skips it).
-"""
+Output: ``throughput.csv`` and ``throughput.png`` in ``--out`` (default
+``run_scripts/out/throughput``; ``--figures docs/figures`` for the README's figure). ``--yardstick
+PATH`` (default ``../shared/bench/ref_step.py`` beside the repository; ``none`` skips it)."""
 from __future__ import annotations
 
 import json

@@ -70,19 +70,19 @@ Found (full run, one core):
   USL-CPDI's limit; a scene that raises ``time.cfl`` above 0.8 with CPDI should expect
   trouble.
 
-Outputs: ``update_order.csv`` (one row per run, ``study`` = accuracy | cfl | tiling | seed_bar,
-plus ``cfl_limit`` rows) in ``--out`` (default ``run_scripts/out/update_order``) and
-``update_order.png`` in ``docs/figures`` (``--quick``: in ``--out``): accuracy against
-resolution (manufactured, vibrating bar), the tiling residual against time, the two CFL scans,
-and a table of the CFL limits, tiling residuals and 2D-bar outcomes; solid lines USL, dashed
-MUSL, a colour per method.
+Outputs: ``update_order.csv`` (one row per run, ``study`` = accuracy | cfl | tiling | seed_bar, plus
+``cfl_limit`` rows) in ``--out`` (default ``run_scripts/out/update_order``) and ``update_order.png``
+in ``--out`` too (``make figures`` passes ``--figures docs/figures``): accuracy against resolution
+(manufactured, vibrating bar), the tiling residual against time, the two CFL scans, and a table of
+the CFL limits, tiling residuals and 2D-bar outcomes; solid lines USL, dashed MUSL, a colour per
+method.
 
 Runtime, one core: full ~3 min (accuracy up to 64 cells, 2 × 88 CFL runs, 4 tiling runs, 8
 2D bars); ``--quick`` (manufactured 8, 16 cells; bar 16, 32 cells; CFL scans of 6 values, the
 manufactured one at 8 cells; tiling; the 2D bar with cpGIMP and CPDI) ~15 s. Results are
 identical on any number of ranks (only ``wall_seconds`` differs)::
 
-    python run_scripts/update_order.py                   # full study, figure to docs/figures
+    python run_scripts/update_order.py                   # full study, figure beside the CSV
     python run_scripts/update_order.py --quick           # the smoke test's mode
     mpirun -n 2 python run_scripts/update_order.py --quick
 """
