@@ -52,6 +52,8 @@ examples:
   python -m parmpm scenes                            list the built-in scenes
   mpirun -n 4 python -m parmpm run hanging_bar --set method.interpolator=mpm --set time.end=0.1
   python -m parmpm run path/to/scene.toml --out results/
+  python -m parmpm show hanging_bar > my.toml        the resolved scene, a file to edit and run
+  python -m parmpm compile --dim 2 3                 fill numba's cache (all cases: ~1 min, once)
 
 Without a command, parmpm runs the built-in scene 'hanging_bar'.
 """
@@ -360,7 +362,9 @@ def _run_guarded(args: argparse.Namespace) -> int:
 
     _interrupt_on_sigterm()
     try:
-        rank, size, comm = _world()
+        # `parmpm compile` outside a launcher needs no MPI (a batch shell may not start it)
+        solo = args.command == "compile" and _launcher_size() == 1
+        rank, size, comm = (0, 1, None) if solo else _world()
     except ParmpmError as exc:  # several ranks, no MPI: each process is alone, rank 0 says it
         if _launcher_rank() == 0:
             print(f"parmpm: error: {_one_line(exc)}", file=sys.stderr, flush=True)
@@ -392,15 +396,31 @@ def _run_guarded(args: argparse.Namespace) -> int:
         return fail(f"parmpm: error: {_one_line(exc)}", 2)
     except KeyboardInterrupt:
         return fail("parmpm: interrupted", 130)
+    except RuntimeError as exc:
+        if "no locator available" not in str(exc):  # numba's: no folder it can cache into
+            return _bug(log, size, comm)
+        return fail(f"parmpm: error: numba cannot cache the kernels: {_one_line(exc)} (no "
+                    "writable __pycache__ beside the sources, nor ~/.cache/numba); set "
+                    "NUMBA_CACHE_DIR to a writable folder (on a cluster: one every node sees)", 2)
     except Exception:
-        to_file_only(log, traceback.format_exc().rstrip(), logging.ERROR)
-        traceback.print_exc()
-        sys.stderr.flush()
-        if size > 1:
-            comm.Abort(1)
-        return 1
+        return _bug(log, size, comm)
     finally:
         close_log_file()
+
+
+def _bug(log, size: int, comm) -> int:
+    """An exception no user caused: the traceback (also into the log file), exit code 1; under
+    MPI the job is aborted, since other ranks may be waiting for this one."""
+    import logging
+
+    from parmpm.log import to_file_only
+
+    to_file_only(log, traceback.format_exc().rstrip(), logging.ERROR)
+    traceback.print_exc()
+    sys.stderr.flush()
+    if size > 1:
+        comm.Abort(1)
+    return 1
 
 
 def _default_command(argv: list[str]) -> list[str]:

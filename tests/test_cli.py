@@ -188,6 +188,18 @@ def test_several_ranks_without_mpi_other_ranks_stay_silent(tmp_path, mpi4py_with
     assert proc.returncode == 2 and proc.stderr == ""
 
 
+def test_no_folder_for_numbas_cache_is_one_line(tmp_path):
+    """A read-only install and no writable ~/.cache: numba finds no folder to cache the kernels
+    in (here: only the zip-file locator allowed) and raised a traceback at import."""
+    env = dict(os.environ, PYTHONPATH=str(REPO), NUMBA_CACHE_LOCATOR_CLASSES="ZipCacheLocator")
+    env.pop("NUMBA_CACHE_DIR", None)
+    proc = subprocess.run([sys.executable, "-m", "parmpm", "run", "hanging_bar_1d", "-o", "out"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=TIMEOUT_S)
+    assert_one_line_error(proc, "numba cannot cache the kernels", "NUMBA_CACHE_DIR")
+    assert not (tmp_path / "out").exists()
+
+
 # ---------------------------------------------------------------- error paths of main(), in process
 
 
