@@ -24,9 +24,8 @@ them, and the job is aborted, since the other ranks may be waiting on them in a 
 The two cases are told apart by a non-blocking barrier on a private communicator, given a few
 seconds to complete.
 
-MPI is optional: without mpi4py, or with an mpi4py that finds no MPI library to load (a ``pip
-install parmpm`` without the ``mpich`` extra on a machine without MPI), parmpm runs on one rank;
-started by a launcher as several ranks it stops instead, with one line on how to get MPI.
+MPI is optional (:mod:`parmpm.launch`): without an MPI library mpi4py can load, parmpm runs on
+one rank; started by a launcher as several ranks it stops instead, with one line on how to get it.
 """
 
 from __future__ import annotations
@@ -34,17 +33,18 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 import traceback
 from pathlib import Path
 
 from parmpm.errors import ParmpmError, RunInterrupted
+from parmpm.launch import all_ranks_here as _all_ranks_here
+from parmpm.launch import launcher_rank as _launcher_rank
+from parmpm.launch import launcher_size as _launcher_size
+from parmpm.launch import world as _world
 from parmpm.shapes import interpolator_names
 
 DEFAULT_SCENE = "hanging_bar"
 DEFAULT_OUT = Path("parmpm-out")
-#: seconds that ranks failing together get to reach the error handler before the job is aborted
-AGREE_TIMEOUT_S = 5.0
 
 _EPILOG = """\
 examples:
@@ -57,10 +57,6 @@ examples:
 
 Without a command, parmpm runs the built-in scene 'hanging_bar'.
 """
-
-#: how to get an MPI library mpi4py can load
-MPI_HELP = ("pip install 'parmpm[mpich]' (MPICH's wheel, with its own mpirun), or build mpi4py "
-            "against the system MPI: pip install --force-reinstall --no-binary mpi4py mpi4py")
 
 _RUN_EPILOG = """\
 --set takes a dotted scene key and a TOML value (a bare word is read as a string), e.g.
@@ -79,28 +75,6 @@ def _version() -> str:
         return version("parmpm")
     except PackageNotFoundError:
         return "unknown (not installed)"
-
-
-def _launcher_rank() -> int:
-    """This process's rank as the MPI launcher announces it (0 when not launched by one), read
-    from the environment so that argument errors need not start MPI."""
-    for var in ("PMI_RANK", "OMPI_COMM_WORLD_RANK", "PMIX_RANK", "MV2_COMM_WORLD_RANK",
-                "SLURM_PROCID"):
-        value = os.environ.get(var, "")
-        if value.isdigit():
-            return int(value)
-    return 0
-
-
-def _launcher_size() -> int:
-    """How many ranks the MPI launcher started (1 when not launched by one), from the
-    environment: whether a run without a loadable MPI library may go on alone."""
-    for var in ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MV2_COMM_WORLD_SIZE",
-                "SLURM_STEP_NUM_TASKS"):
-        value = os.environ.get(var, "")
-        if value.isdigit():
-            return int(value)
-    return 1
 
 
 class _Parser(argparse.ArgumentParser):
@@ -200,40 +174,6 @@ def _logging_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--log-file", type=str, default=None, metavar="PATH",
                         help="also write rank 0's messages (info, or debug with -v, even with "
                         "--quiet), the progress lines and the closing error to PATH (appended)")
-
-
-def _world():
-    """(rank, size, comm) of MPI_COMM_WORLD; (0, 1, None) when there is no MPI to use: mpi4py
-    missing, or unable to load an MPI library (its RuntimeError). Launched as several ranks
-    without MPI, each process would run the whole scene alone: a ParmpmError instead."""
-    try:
-        from mpi4py import MPI
-    except (ImportError, RuntimeError) as exc:
-        ranks = _launcher_size()
-        if ranks > 1:
-            why = ("mpi4py is not installed" if isinstance(exc, ImportError)
-                   else f"mpi4py cannot load an MPI library ({_one_line(exc)})")
-            raise ParmpmError(f"started as {ranks} MPI ranks, but {why}; {MPI_HELP}") from None
-        return 0, 1, None
-    comm = MPI.COMM_WORLD
-    return comm.Get_rank(), comm.Get_size(), comm
-
-
-def _all_ranks_here(comm, timeout: float) -> bool:
-    """True when every rank of ``comm`` reaches this call within ``timeout`` seconds.
-
-    A non-blocking barrier, polled: ranks that fail together agree here; a rank that failed alone
-    gets False, because the others are elsewhere (possibly blocked waiting for it).
-    """
-    if comm is None or comm.Get_size() == 1:
-        return True
-    request = comm.Ibarrier()
-    deadline = time.monotonic() + timeout
-    while not request.Test():
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.005)
-    return True
 
 
 def _one_line(message: str) -> str:
@@ -377,7 +317,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
 
     def fail(message: str, code: int) -> int:
         to_file_only(log, message, logging.ERROR)
-        if _all_ranks_here(err_comm, AGREE_TIMEOUT_S):
+        if _all_ranks_here(err_comm):
             if rank == 0:
                 print(message, file=sys.stderr, flush=True)
             return code
