@@ -4,7 +4,8 @@
     mpirun -n 4 python -m parmpm run vibrating_bar --set method.interpolator=mpm
     python -m parmpm run my_scene.toml --out results/ --quiet
     python -m parmpm scenes                                       # the built-in scenes
-    mpirun -n 3 python -m parmpm restart parmpm-out/hanging_bar/checkpoint_00000200.h5
+    python -m parmpm run hanging_bar --set checkpoint.every_steps=200 --out runs/bar
+    mpirun -n 3 python -m parmpm restart runs/bar/checkpoint_00000200.h5 --set time.end=0.5
     python -m parmpm show hanging_bar --set time.end=0.1 > my.toml    # a scene file to edit
     python -m parmpm compile --dim 2 3                            # fill numba's cache (a job's first step)
 
