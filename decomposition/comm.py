@@ -32,11 +32,12 @@ class SerialComm:
 
 
 def world(use_mpi: bool = True):
-    """``MPI.COMM_WORLD`` when mpi4py imports, else a :class:`SerialComm`."""
+    """``MPI.COMM_WORLD`` when mpi4py imports, else a :class:`SerialComm` (also when mpi4py is
+    installed without an MPI library: its import then raises ``RuntimeError``)."""
     if use_mpi:
         try:
             from mpi4py import MPI
-        except ImportError:
+        except (ImportError, RuntimeError):
             return SerialComm()
         return MPI.COMM_WORLD
     return SerialComm()

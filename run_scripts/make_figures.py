@@ -4,11 +4,15 @@
     python run_scripts/make_figures.py --np 2          # each under mpirun -n 2 (same numbers)
     python run_scripts/make_figures.py gallery rotation
 
-(``make figures`` runs the first line.) Each study writes its PNGs into ``docs/figures/`` and its
-CSV into ``run_scripts/out/<study>/``. Runtime on a 2-core machine: ~25–35 minutes in all, most of
-it the stability gallery's 3D bars and the convergence study's 3D resolutions. The speed-accuracy
-and scaling charts time the solver: run them on a quiet machine. ``scaling`` launches
-``mpirun -n 1`` and ``-n 2`` itself, so ``--np`` does not apply to it.
+(``make figures`` runs the first line.) Each study is given ``--figures docs/figures``, so its
+PNGs replace the README's, and writes its CSV into ``run_scripts/out/<study>/``; run on its own,
+a study writes both into its ``--out`` folder and leaves ``docs/figures/`` alone. Runtime on a
+2-core machine: ~25–35 minutes for the first seven, most of it the stability gallery's 3D bars
+and the convergence study's 3D resolutions; ``fe_bar`` adds ~10 minutes, ``throughput`` ~2 and
+``energy_history`` under one. The speed-accuracy,
+throughput and scaling charts time the solver: run them on a quiet machine. ``scaling`` launches
+``mpirun -n 1`` and ``-n 2`` itself and ``throughput`` times one core, so ``--np`` does not
+apply to them.
 """
 import argparse
 import shutil
@@ -18,6 +22,7 @@ import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+FIGURES = HERE.parent / "docs" / "figures"
 STUDIES = {
     "gallery": "stability_gallery.py",
     "convergence": "convergence.py",
@@ -26,9 +31,12 @@ STUDIES = {
     "fracture_alignment": "fracture_alignment.py",
     "speed_accuracy": "speed_accuracy.py",
     "scaling": "scaling.py",
+    "fe_bar": "fe_bar.py",
+    "throughput": "throughput.py",
+    "energy_history": "energy_history.py",
 }
-#: studies that launch mpirun themselves (one bench per rank count): never wrapped in --np
-LAUNCHERS = {"scaling"}
+#: studies that launch their own processes (bench runs): never wrapped in --np
+LAUNCHERS = {"scaling", "throughput"}
 
 
 def main() -> int:
@@ -52,7 +60,8 @@ def main() -> int:
         t0 = time.perf_counter()
         print(f"== {name}", flush=True)
         wrap = [] if name in LAUNCHERS else launcher
-        proc = subprocess.run(wrap + [sys.executable, str(HERE / STUDIES[name])])
+        proc = subprocess.run(wrap + [sys.executable, str(HERE / STUDIES[name]),
+                                      "--figures", str(FIGURES)])
         if proc.returncode != 0:
             print(f"make_figures: {name} failed (exit {proc.returncode})", file=sys.stderr)
             return proc.returncode
