@@ -134,8 +134,9 @@ def format_summary(summary: dict) -> str:
     ``particles`` | ``n_particles``; ``steps`` | ``n_steps``; ``time`` | ``t_end`` |
     ``simulated_time``; ``wall_time`` | ``wall_time_s`` | ``wall_s``; ``particle_steps_per_s``
     (else particles·steps/wall); ``decomposition`` (patches allocated of the dense box, patch size,
-    ghost width; on several ranks the load imbalance and halo bytes per step); ``metrics`` (a dict:
-    its scalar entries are listed).
+    ghost width; on several ranks the load imbalance and halo bytes per step); ``energy.balance``
+    (the history's last energy balance: the residual, its estimate, the energy given); ``metrics``
+    (a dict: its scalar entries are listed).
     """
     scene = summary.get("scene")
     name = _get(summary, "scene_name", "scene.name", "name")
@@ -179,6 +180,15 @@ def format_summary(summary: dict) -> str:
         if (dec.get("ranks") or 1) > 1:
             line += (f", imbalance {100 * float(dec.get('imbalance', 0.0)):.1f} %,"
                      f" halo {float(dec.get('halo_bytes_per_step', 0)) / 1024:.1f} KiB/step")
+        lines.append(line)
+    balance = (summary.get("energy") or {}).get("balance") if isinstance(summary.get("energy"), dict) else None
+    if isinstance(balance, dict) and balance.get("energy_residual") is not None:
+        scale = float(balance.get("scale") or 0.0)
+        line = (f"energy      balance residual {float(balance['energy_residual']):.4g} J"
+                f" (estimate {float(balance.get('residual_estimate', float('nan'))):.4g} J)")
+        if scale > 0:
+            line += (f", {100 * abs(float(balance['energy_residual'])) / scale:.2g} % of the"
+                     f" {scale:.4g} J given")
         lines.append(line)
     metrics = summary.get("metrics")
     if isinstance(metrics, dict) and metrics:
