@@ -164,7 +164,7 @@ class Simulation:
         callbacks = standard_callbacks(self) + self.callbacks
         self.checkpoints = Checkpoints()
         self.stopped, self.summary = None, None
-        self._warm_wall, self._warm_steps = None, 0
+        self._warm_wall, self._warm_steps, self._loop_wall = None, 0, None
         tm = self.data["time"]
         progress = Progress(total_steps=tm["steps"], end_time=tm["end"],
                             enabled=not self.quiet and self.rank == 0)
@@ -176,6 +176,7 @@ class Simulation:
                                      key=lambda c: c.start):
                         cb.action(self)
                 self._loop(callbacks, progress)
+                self._loop_wall = time.perf_counter()  # the rate leaves out the end's outputs
                 for cb in callbacks:
                     if cb.at_end is not None and cb.at_end(cb, self):
                         cb.action(self)
@@ -217,8 +218,9 @@ class Simulation:
 
     def _write_summary(self) -> dict:
         """The summary of the run so far, written to summary.json (collective)."""
-        wall = time.perf_counter() - self._wall0
-        loop = time.perf_counter() - self._warm_wall if self._warm_wall else wall
+        now = time.perf_counter()
+        wall = now - self._wall0
+        loop = (self._loop_wall or now) - self._warm_wall if self._warm_wall else wall
         wall, loop = (float(v) for v in allreduce_max(self.comm, np.array([wall, loop])))
         summary = measures.summary(self.state, self.out_dir, self.stopped, wall, loop,
                                    self._warm_steps)
