@@ -32,6 +32,7 @@ import numpy as np
 
 from decomposition import allreduce_max, ordered_sum
 from parmpm.collective import agree
+from parmpm.errors import ParmpmError
 from parmpm.jit import kernel
 from parmpm.log import get_logger
 from parmpm.materials.laws import stored_energy
@@ -294,13 +295,15 @@ class HistoryOutput:
                 self.file.close()
                 columns, attrs = self.file.table()
                 snapshots = sim.files.snapshots if sim.files is not None else None
-                if snapshots is not None and hasattr(snapshots, "write_table"):
+                if snapshots is not None:  # the run's snapshot file: its /history group
                     snapshots.write_table("history", columns, attrs)
                 else:
                     write_table_h5(sim.out_dir / "history.h5", "history", columns, attrs)
                 if sim.data["output"]["figure"] and len(self.file.rows) > 1:
                     plot_history(columns, sim.out_dir / "history.png",
                                  f"{sim.data['name']} · {sim.interp.name} · energy history")
+            except ParmpmError as exc:  # the snapshot writer's one line (a full disk)
+                problem = str(exc)
             except OSError as exc:
                 problem = f"cannot write the history to '{sim.out_dir}': {exc.strerror or exc}"
         agree(sim.comm, problem)

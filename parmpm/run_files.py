@@ -16,6 +16,7 @@ from parmpm.io.run_folder import claim
 from parmpm.io.summary import write_summary
 from parmpm.io.xdmf import SnapshotWriter
 from parmpm.log import get_logger
+from parmpm.snapshot_fields import field_info
 
 log = get_logger(__name__)
 
@@ -60,18 +61,20 @@ class RunFiles:
         problem = None
         if self.root:
             try:
-                self.snapshots = SnapshotWriter(self.folder, series, dim)
+                self.snapshots = SnapshotWriter(self.folder, series, dim, fields=field_info(dim))
             except (ParmpmError, OSError) as exc:
                 problem = _one_line(exc, f"snapshots to '{self.folder}'")
         agree(self.comm, problem)
 
     def write_snapshot(self, t: float, gathered: dict | None) -> None:
-        """``gathered``: the particle fields on rank 0 (with ``x``), None elsewhere."""
+        """``gathered``: the particle fields on rank 0 (:func:`parmpm.snapshot_fields.snapshot_fields`:
+        with ``x``, and optionally ``domains`` and ``step``), None elsewhere."""
         problem = None
         if self.snapshots is not None and gathered is not None:
             try:
-                x = gathered.pop("x")
-                self.snapshots.write(t, x, gathered)
+                x, step = gathered.pop("x"), gathered.pop("step", None)
+                domains = gathered.pop("domains", None)
+                self.snapshots.write(t, x, gathered, step=step, domains=domains)
             except (ParmpmError, OSError) as exc:
                 problem = _one_line(exc, f"snapshot to '{self.folder}'")
         agree(self.comm, problem)

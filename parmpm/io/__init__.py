@@ -1,16 +1,20 @@
-"""Output: summary.json, XDMF particle snapshots (meshio/h5py), PNG figures (matplotlib).
+"""Output: summary.json, particle snapshots (XDMF + HDF5 with h5py; read back with
+:func:`load_snapshots`), PNG figures (matplotlib).
 
-meshio, h5py and matplotlib are imported only when a writer or a figure is used, so the solver
-runs without them.
+h5py, meshio and matplotlib are imported only when a writer, a reader or a figure is used, so
+the solver runs without them.
 """
 
 from parmpm.io.figures import plot_particles
+from parmpm.io.snapshot_reader import Snapshots, load_snapshots
 from parmpm.io.summary import format_summary, to_jsonable, write_summary
 from parmpm.io.xdmf import SnapshotWriter, pad_point_data
 
 __all__ = [
     "SnapshotWriter",
+    "Snapshots",
     "format_summary",
+    "load_snapshots",
     "pad_point_data",
     "plot_particles",
     "to_jsonable",

@@ -1,34 +1,53 @@
-"""XDMF time series of particles (meshio + HDF5), for ParaView.
+"""Particle snapshots: XDMF 3 XML + HDF5 (h5py), for ParaView, VTK, meshio and plain numpy.
 
-Each snapshot is one uniform grid of the temporal collection holding its own geometry (particles
-move, so unlike meshio's fixed-mesh time series every step has its own points), a ``Polyvertex``
-topology (one vertex cell per particle) and the point data. The grids are written through the
-internals of one ``meshio.xdmf.TimeSeriesWriter`` (its ``points``/``cells``/``point_data``
-serialisers and its HDF5 naming); the heavy data goes to ``<name>.h5`` next to
-``<name>.xdmf`` (meshio itself would put the .h5 in the working directory). The XML index is
-rewritten atomically at most every ``flush_seconds`` and on :meth:`SnapshotWriter.close`, so a
-crashed run still leaves a readable series of what was flushed.
+``<name>.h5`` (next to ``<name>.xdmf``) holds one group per snapshot, named by the run's step::
 
-Every failure to write (a full disk, a read-only folder, an I/O error) is one ``ParmpmError``
-line, without a chained traceback: ``disk full writing '<name>.h5': N MB needed, M MB free``
-when the free space (checked before each snapshot against its size) is short, or the system's
-reason otherwise. The writer then closes: the index keeps the snapshots written before, and
-:meth:`SnapshotWriter.close` does nothing more. HDF5 writes through
+    /                           attrs: format, format_version, dim, fields (JSON: units, description)
+    /step_00000120/             attrs: time, step, index (0, 1, ... in the order written)
+        x             (N, 3)    positions, zero-padded to 3 columns (the XDMF geometry)
+        velocity      (N, 3)    per-axis vectors padded to 3 columns (a scalar in 1D)
+        stress, F     (N, 9)    tensors, row-major 3×3, zero-padded (a scalar in 1D)
+        volume, ...   (N,)      scalars; integer ids stay integers (gid int64, rank int32)
+        domains       (N·c, 3)  the c corners of every particle's domain, in VTK/XDMF node order
+    /connectivity/<cell>_<N>    (N, c) int64: node numbers of the cells (shared by every step)
+    /history/<column>           the run's history table (:meth:`SnapshotWriter.write_table`)
+
+Every dataset carries ``units``, ``description`` and ``shape`` (the per-particle shape before
+padding, which :func:`parmpm.io.snapshot_reader.load_snapshots` restores). Fields are whatever
+the caller hands :meth:`SnapshotWriter.write`; a run's are :mod:`parmpm.snapshot_fields`.
+
+The XML index (``<name>.xdmf``) holds two temporal collections under one ``Domain``, so ParaView
+shows two blocks: ``domains`` (one uniform grid per snapshot: the domains as cells — ``Polyline``
+of 2 nodes in 1D, ``Quadrilateral`` in 2D, ``Hexahedron`` in 3D — carrying every particle field
+as cell data, by reference to the same datasets) and ``particles`` (one uniform grid per
+snapshot: a ``Polyvertex`` cell per particle, its own geometry, the fields as point data).
+Every grid has its own geometry, so readers that follow XDMF (ParaView, VTK's
+``vtkXdmfReader``/``vtkXdmf3Reader``) see the points move. The particle collection is the last
+grid of the domain, which is what meshio's ``TimeSeriesReader`` reads: ``read_data(k)`` gives
+snapshot ``k``'s time and point data (positions included, as the point field ``x``); its
+``read_points_cells()`` reads one geometry (the first snapshot's) for all steps — meshio's time
+series are fixed meshes, so take positions from ``x``. ``meshio.read`` reads only files of one
+grid: on any time series (this one included) it prints meshio's ``ReadError`` ("Only supports
+one grid") and exits the interpreter; :meth:`parmpm.io.Snapshots.to_meshio` gives one snapshot
+as a ``meshio.Mesh`` instead.
+
+The XML index is rewritten atomically at most every ``flush_seconds`` and on
+:meth:`SnapshotWriter.close`, so a crashed run still leaves a readable series of what was
+flushed. Every failure to write (a full disk, a read-only folder, an I/O error) is one
+``ParmpmError`` line, without a chained traceback: ``disk full writing '<name>.h5': N MB
+needed, M MB free`` when the free space (checked before each snapshot against its size) is
+short, or the system's reason otherwise. The writer then closes: the index keeps the snapshots
+written before, and :meth:`SnapshotWriter.close` does nothing more. HDF5 writes through
 :class:`parmpm.io.guarded_file.GuardedFile`, so it never sees a failed write (HDF5 crashes the
 process when it closes a file whose writes failed); a write error is found after each snapshot.
 
-meshio's ``TimeSeriesReader`` reads it back: ``read_points_cells()`` gives the first snapshot's
-geometry and ``read_data(k)`` the time and point data of snapshot ``k``.
-
-Arrays are the gathered particle state (call from one rank); points are padded to 3D,
-per-axis vectors ``(N, dim)`` to ``(N, 3)`` and tensors ``(N, dim, dim)`` to ``(N, 9)``
-(row-major 3×3), which is what ParaView expects of ``Vector`` and ``Tensor`` attributes; in 1D
-vectors and tensors are written as scalars (see :func:`pad_point_data`).
+Call from one rank, with the gathered particle state (:meth:`parmpm.simulation.Simulation.gather`).
 """
 
 from __future__ import annotations
 
 import errno
+import json
 import logging
 import os
 import shutil
@@ -43,7 +62,15 @@ from parmpm.io.guarded_file import GuardedFile, space_message
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["SnapshotWriter", "pad_point_data"]
+__all__ = ["SnapshotWriter", "pad_point_data", "xdmf_cells", "FORMAT", "FORMAT_VERSION"]
+
+FORMAT, FORMAT_VERSION = "parmpm snapshots", 1
+
+#: XDMF topology of a domain, by dimension: (type, nodes per cell)
+CELL_TYPES = {1: ("Polyline", 2), 2: ("Quadrilateral", 4), 3: ("Hexahedron", 8)}
+#: :func:`parmpm.domains.domain_corners`' 3D box order (axis 0 fastest) → XDMF/VTK hexahedron
+#: order (the bottom face counter-clockwise, then the top face)
+BOX_TO_HEXAHEDRON = (0, 1, 3, 2, 4, 5, 7, 6)
 
 
 def _pad_columns(a: np.ndarray, width: int) -> np.ndarray:
@@ -53,6 +80,7 @@ def _pad_columns(a: np.ndarray, width: int) -> np.ndarray:
 
 
 _XDMF_WIDTHS = (3, 6, 9)  # Vector, Tensor6, Tensor: the column counts XDMF names
+_ATTRIBUTE_TYPES = {1: "Scalar", 3: "Vector", 6: "Tensor6", 9: "Tensor"}
 
 
 def pad_point_data(name: str, data, n: int, dim: int) -> dict[str, np.ndarray]:
@@ -62,7 +90,8 @@ def pad_point_data(name: str, data, n: int, dim: int) -> dict[str, np.ndarray]:
     ``(N, dim)`` → ``(N, 3)`` vector and ``(N, dim, dim)`` or ``(N, dim²)`` → ``(N, 9)``
     tensor (zero-padded, row-major 3×3); ``(N, 3)``, ``(N, 6)``, ``(N, 9)`` are kept; any
     other shape is flattened and written as scalar columns ``name_0``, ``name_1``, ... (XDMF has
-    no attribute type for them). Booleans become int8, other non-float types float64.
+    no attribute type for them). Booleans become int8, integers stay integers, anything else
+    becomes float64.
     """
     a = np.asarray(data)
     if a.shape[:1] != (n,):
@@ -86,37 +115,66 @@ def pad_point_data(name: str, data, n: int, dim: int) -> dict[str, np.ndarray]:
     return {f"{name}_{j}": np.ascontiguousarray(a[:, j]) for j in range(k)}
 
 
+def xdmf_cells(corners) -> np.ndarray:
+    """Domain corners as :func:`parmpm.domains.domain_corners` gives them, ``(N, 2^d, d)``, in
+    XDMF/VTK node order: unchanged in 1D (a segment) and 2D (already counter-clockwise); the 3D
+    box order (axis 0 fastest) reordered to a hexahedron's (:data:`BOX_TO_HEXAHEDRON`)."""
+    c = np.asarray(corners, dtype=np.float64)
+    return c[:, BOX_TO_HEXAHEDRON, :] if c.shape[1] == 8 else c
+
+
+def _data_item(h5_name: str, path: str, a) -> ET.Element:
+    """A ``DataItem`` pointing at the HDF5 dataset ``path`` holding ``a`` (its shape and type)."""
+    dt = np.dtype(a.dtype)
+    kind = {"i": "Int", "u": "UInt"}.get(dt.kind, "Float")
+    if dt.itemsize == 1:
+        kind = "Char" if dt.kind == "i" else "UChar"
+    item = ET.Element("DataItem", DataType=kind, Precision=str(dt.itemsize),
+                      Dimensions=" ".join(str(s) for s in a.shape), Format="HDF")
+    item.text = f"{h5_name}:{path}"
+    return item
+
+
 class SnapshotWriter:
     """Write particle snapshots to ``<out_dir>/<name>.xdmf`` (+ ``<name>.h5``).
 
-    ``write(t, x, point_data)`` adds one time step; ``close()`` finishes the files. Usable as a
-    context manager. One ``meshio.xdmf.TimeSeriesWriter`` stays open across writes.
+    ``write(t, x, point_data, step=, domains=)`` adds one snapshot; ``write_table`` a table
+    (the run's history); ``close()`` finishes the files. Usable as a context manager.
+    ``fields``: ``{name: {"units": ..., "description": ...}}``, the attributes of the datasets
+    of that name (and of the root's field list).
     """
 
     #: bytes a snapshot adds beyond its arrays (object headers, the group's index), bounded
     OVERHEAD = 64 * 1024
 
-    def __init__(self, out_dir, name: str, dim: int, flush_seconds: float = 5.0):
+    def __init__(self, out_dir, name: str, dim: int, flush_seconds: float = 5.0,
+                 fields: dict[str, dict] | None = None):
         import h5py
-        from meshio.xdmf import TimeSeriesWriter
 
         self.out_dir = Path(out_dir)
         self.dim = int(dim)
         self.path = self.out_dir / f"{name}.xdmf"
         self.h5_path = self.out_dir / f"{name}.h5"
         self.flush_seconds = float(flush_seconds)
+        self.fields = {k: dict(v) for k, v in (fields or {}).items()}
         self.steps = 0
         self._last_flush = -np.inf
         self._closed = True  # until the files exist
-        self._writer = TimeSeriesWriter(self.path, data_format="HDF")
-        self._writer.h5_file = None
+        self._h5 = None
         self._file = None
+        self._xml = ET.Element("Xdmf", Version="3.0")
+        self._domain = ET.SubElement(self._xml, "Domain")
+        self._particles = ET.SubElement(self._domain, "Grid", Name="particles",
+                                        GridType="Collection", CollectionType="Temporal")
+        self._domains = None  # the domains' collection, at the first snapshot that has them
         try:
             self.out_dir.mkdir(parents=True, exist_ok=True)
-            # what TimeSeriesWriter.__enter__ does, but with the .h5 next to the .xdmf
-            self._writer.h5_filename = str(self.h5_path)
             self._file = GuardedFile(self.h5_path)
-            self._writer.h5_file = h5py.File(self._file, "w")
+            self._h5 = h5py.File(self._file, "w")
+            self._h5.attrs["format"] = FORMAT
+            self._h5.attrs["format_version"] = FORMAT_VERSION
+            self._h5.attrs["dim"] = self.dim
+            self._h5.attrs["fields"] = json.dumps(self.fields)
         except OSError as exc:
             self._fail(exc)
         self._closed = False
@@ -138,7 +196,7 @@ class SnapshotWriter:
         """Close the HDF5 file, ignoring errors (HDF5 cannot flush onto a full disk, and an
         unclosed file crashes the interpreter at exit), and stop writing."""
         self._closed = True
-        h5, self._writer.h5_file = self._writer.h5_file, None
+        h5, self._h5 = self._h5, None
         if h5 is not None:
             try:
                 h5.close()
@@ -168,59 +226,165 @@ class SnapshotWriter:
         why = os.strerror(exc.errno) if exc.errno else (str(exc).splitlines() or ["I/O error"])[0]
         raise ParmpmError(f"cannot write snapshots '{where}': {why}") from None
 
-    # ----------------------------------------------------------------------------------------
-    def write(self, t: float, x, point_data: dict | None = None) -> None:
-        """Add the snapshot at time ``t``: positions ``x`` (N, dim) and named particle fields."""
-        if self._closed:
-            raise ValueError(f"{self.path} is closed")
-        x = np.asarray(x, dtype=np.float64)
-        n = x.shape[0]
-        points = _pad_columns(x.reshape(n, -1), 3)
-        vertices = np.arange(n, dtype=np.int64).reshape(n, 1)
-        fields = {}
-        for key, value in (point_data or {}).items():
-            fields.update(pad_point_data(key, value, n, self.dim))
-        need = points.nbytes + vertices.nbytes + sum(a.nbytes for a in fields.values()) + self.OVERHEAD
+    def _ensure_space(self, need: int) -> None:
+        """Stop cleanly (the index holds every snapshot written so far) when ``need`` bytes do
+        not fit on the disk."""
         free = self._free()
         if free is not None and need > free:
-            try:  # stop cleanly: the index holds every snapshot written so far
+            try:
                 self.flush()
             except OSError:
                 pass
             self._abandon()
             raise ParmpmError(space_message(self.h5_path, need, free))
-        w = self._writer
-        grid = ET.SubElement(w.collection, "Grid", Name=f"step{self.steps}", GridType="Uniform")
+
+    # --- HDF5 ---------------------------------------------------------------------------------
+    def _dataset(self, group, name: str, a: np.ndarray, shape: tuple, base: str | None = None):
+        ds = group.create_dataset(name, data=a)
+        info = self.fields.get(base or name, {})
+        ds.attrs["units"] = info.get("units", "")
+        ds.attrs["description"] = info.get("description", "")
+        ds.attrs["shape"] = np.asarray(shape, dtype=np.int64)
+        return ds
+
+    def _connectivity(self, cell: str, n: int, nodes: int) -> tuple[str, np.ndarray]:
+        """``/connectivity/<cell>_<n>``: node ``j`` of cell ``i`` is ``i·nodes + j`` (written
+        once, shared by every snapshot of ``n`` cells)."""
+        path = f"/connectivity/{cell.lower()}_{n}"
+        if path not in self._h5:
+            a = np.arange(n * nodes, dtype=np.int64).reshape(n, nodes)
+            self._h5.create_dataset(path, data=a)
+        return path, self._h5[path]
+
+    def _connectivity_bytes(self, cell: str, n: int, nodes: int) -> int:
+        return 0 if f"/connectivity/{cell.lower()}_{n}" in self._h5 else 8 * n * nodes
+
+    # --- XML ----------------------------------------------------------------------------------
+    def _grid(self, collection, name: str, t: float, points_path: str, points,
+              cell: str, nodes: int, conn_path: str, conn) -> ET.Element:
+        grid = ET.SubElement(collection, "Grid", Name=name, GridType="Uniform")
+        ET.SubElement(grid, "Time", Value=repr(float(t)))
+        geometry = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
+        geometry.append(_data_item(self.h5_path.name, points_path, points))
+        topology = ET.SubElement(grid, "Topology", TopologyType=cell,
+                                 NumberOfElements=str(conn.shape[0]), NodesPerElement=str(nodes))
+        topology.append(_data_item(self.h5_path.name, conn_path, conn))
+        return grid
+
+    def _attribute(self, grid, name: str, path: str, a, center: str) -> None:
+        kind = _ATTRIBUTE_TYPES[1 if a.ndim == 1 else a.shape[1]]
+        attr = ET.SubElement(grid, "Attribute", Name=name, AttributeType=kind, Center=center)
+        attr.append(_data_item(self.h5_path.name, path, a))
+
+    # ----------------------------------------------------------------------------------------
+    def write(self, t: float, x, point_data: dict | None = None, *, step: int | None = None,
+              domains=None) -> None:
+        """Add the snapshot at time ``t``: positions ``x`` (N, dim), named particle fields,
+        the run's ``step`` (the group's name; default: the snapshot's index) and, optionally,
+        every particle's domain corners ``(N, 2^dim, dim)`` as
+        :func:`parmpm.domains.domain_corners` gives them."""
+        if self._closed:
+            raise ValueError(f"{self.path} is closed")
+        x = np.asarray(x, dtype=np.float64)
+        n = x.shape[0]
+        points = _pad_columns(x.reshape(n, -1), 3)
+        fields, shapes = {}, {}
+        for key, value in (point_data or {}).items():
+            padded = pad_point_data(key, value, n, self.dim)
+            fields.update(padded)
+            for name in padded:
+                shapes[name] = (np.shape(value)[1:] if name == key else (), key)
+        cell, nodes = CELL_TYPES[self.dim]
+        corners = None
+        if domains is not None:
+            c = xdmf_cells(domains)
+            if c.shape != (n, nodes, self.dim):
+                raise ValueError(f"domains have shape {c.shape}, expected {(n, nodes, self.dim)}")
+            corners = _pad_columns(c.reshape(n * nodes, self.dim), 3)
+        need = (points.nbytes + sum(a.nbytes for a in fields.values()) + self.OVERHEAD
+                + self._connectivity_bytes("Polyvertex", n, 1))
+        if corners is not None:
+            need += corners.nbytes + self._connectivity_bytes(cell, n, nodes)
+        self._ensure_space(need)
+
+        index = self.steps
+        name = f"step_{index if step is None else int(step):08d}"
+        if name in self._h5:  # the same step twice (never in a run): keep both
+            name = f"{name}_{index}"
+        grids = []
         try:
-            ET.SubElement(grid, "Time", Value=repr(float(t)))
-            w.points(grid, points)
-            w.cells([("vertex", vertices)], grid)
-            grid.find("Topology").set("NodesPerElement", "1")
-            if fields:
-                w.point_data(fields, grid)
+            g = self._h5.create_group(name)
+            g.attrs["time"] = float(t)
+            g.attrs["step"] = index if step is None else int(step)
+            g.attrs["index"] = index
+            self._dataset(g, "x", points, (x.reshape(n, -1).shape[1],))
+            for key, a in fields.items():
+                shape, base = shapes[key]
+                self._dataset(g, key, a, shape, base)
+            conn_path, conn = self._connectivity("Polyvertex", n, 1)
+            grid = self._grid(self._particles, "particles", t, f"/{name}/x", points,
+                              "Polyvertex", 1, conn_path, conn)
+            grids.append((self._particles, grid))
+            for key, a in {"x": points, **fields}.items():
+                self._attribute(grid, key, f"/{name}/{key}", a, "Node")
+            if corners is not None:
+                self._dataset(g, "domains", corners, (nodes, self.dim))
+                conn_path, conn = self._connectivity(cell, n, nodes)
+                if self._domains is None:  # first: meshio's reader takes the last collection
+                    self._domains = ET.Element("Grid", Name="domains", GridType="Collection",
+                                               CollectionType="Temporal")
+                    self._domain.insert(0, self._domains)
+                grid = self._grid(self._domains, "domains", t, f"/{name}/domains", corners,
+                                  cell, nodes, conn_path, conn)
+                grids.append((self._domains, grid))
+                for key, a in fields.items():
+                    self._attribute(grid, key, f"/{name}/{key}", a, "Cell")
         except Exception as exc:  # noqa: BLE001 - _fail re-raises what is not an I/O error
-            w.collection.remove(grid)
+            for parent, grid in grids:
+                parent.remove(grid)
             self._fail(exc)
         if self._file.error is not None:
-            w.collection.remove(grid)
+            for parent, grid in grids:
+                parent.remove(grid)
             self._fail(self._file.error)
         self.steps += 1
-        now = time.monotonic()
-        if now - self._last_flush >= self.flush_seconds:
+        if time.monotonic() - self._last_flush >= self.flush_seconds:
             try:
                 self.flush()
             except OSError as exc:
                 self._fail(exc)
 
+    def write_table(self, name: str, columns: dict, attrs: dict | None = None) -> None:
+        """``columns`` as 1-D datasets of the group ``/<name>`` (replaced if it exists), each
+        with the attributes ``attrs[column]`` (``units``, ...); flushed at once."""
+        if self._closed:
+            raise ValueError(f"{self.path} is closed")
+        arrays = {c: np.asarray(v) for c, v in columns.items()}
+        self._ensure_space(sum(a.nbytes for a in arrays.values()) + self.OVERHEAD)
+        try:
+            if name in self._h5:
+                del self._h5[name]
+            g = self._h5.create_group(name)
+            for column, a in arrays.items():
+                ds = g.create_dataset(column, data=a)
+                for key, value in (attrs or {}).get(column, {}).items():
+                    ds.attrs[key] = value
+            self.flush()
+        except Exception as exc:  # noqa: BLE001 - _fail re-raises what is not an I/O error
+            self._fail(exc)
+        self._check_io()
+
     def flush(self) -> None:
         """Flush the HDF5 data and atomically rewrite the XML index (an OSError propagates;
         :meth:`write` and :meth:`close` turn it into one line). The index is not rewritten when
         the data did not reach the disk."""
-        self._writer.h5_file.flush()
+        self._h5.flush()
         if self._file.error is not None:
             raise self._file.error
         tmp = self.path.with_name(self.path.name + ".tmp")
-        ET.ElementTree(self._writer.xdmf_file).write(tmp)
+        tree = ET.ElementTree(self._xml)
+        ET.indent(tree)
+        tree.write(tmp, encoding="utf-8", xml_declaration=True)
         os.replace(tmp, self.path)
         self._last_flush = time.monotonic()
 
@@ -230,7 +394,7 @@ class SnapshotWriter:
             return
         try:
             self.flush()
-            h5, self._writer.h5_file = self._writer.h5_file, None
+            h5, self._h5 = self._h5, None
             self._closed = True
             h5.close()
             self._check_io()
