@@ -291,3 +291,22 @@ def test_two_ranks_write_what_one_rank_writes(tmp_path, mpirun):
             if name != "rank":
                 np.testing.assert_array_equal(one[name][k], two[name][k], err_msg=name)
         assert set(np.unique(two["rank"][k])) == {0, 1}
+
+
+# --- the picture --------------------------------------------------------------------------------
+@pytest.mark.slow
+def test_domains_picture_quick(tmp_path):
+    """run_scripts/domains_picture.py --quick: its picture, drawn from the snapshots; the
+    uncapped domains cover the bar (their areas sum to Σ V₀ det F), the capped ones less."""
+    from study_harness import run_quick
+
+    out = run_quick("domains_picture.py", tmp_path / "out")
+    assert (out / "domains.png").read_bytes()[:4] == b"\x89PNG"
+    covered = []
+    for case in ("lcr_2dx", "lcr_0.8dx_3"):
+        last = load_snapshots(out / case / "hanging_bar.xdmf").at(-1)
+        c = last["domains"]
+        areas = 0.5 * np.abs(np.sum(c[..., 0] * np.roll(c[..., 1], -1, 1)
+                                    - c[..., 1] * np.roll(c[..., 0], -1, 1), axis=1))
+        covered.append(areas.sum() / last["volume"].sum())
+    assert covered[0] == pytest.approx(1.0, rel=1e-12) and covered[1] < 0.9
