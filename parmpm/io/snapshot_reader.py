@@ -110,17 +110,22 @@ class Snapshots:
         return self._groups[range(len(self))[k]]
 
     def _read(self, group: str, name: str, raw: bool = False) -> np.ndarray:
+        return self._read_all(group, [name], raw)[name]
+
+    def _read_all(self, group: str, names, raw: bool = False) -> dict[str, np.ndarray]:
         import h5py
 
+        out = {}
         with h5py.File(self.path, "r") as f:
-            ds = f[group][name]
-            a = ds[()]
-            return a if raw else natural_shape(a, ds.attrs.get("shape", a.shape[1:]))
+            for name in names:
+                ds = f[group][name]
+                a = ds[()]
+                out[name] = a if raw else natural_shape(a, ds.attrs.get("shape", a.shape[1:]))
+        return out
 
     def at(self, k: int) -> dict[str, np.ndarray]:
         """Every field of snapshot ``k``."""
-        group = self._group(k)
-        return {name: self._read(group, name) for name in self.fields}
+        return self._read_all(self._group(k), self.fields)
 
     def to_meshio(self, k: int, domains: bool = False):
         """Snapshot ``k`` as a ``meshio.Mesh``: the particles (vertex cells, the fields as point
@@ -128,7 +133,7 @@ class Snapshots:
         import meshio
 
         group = self._group(k)
-        data = {n: self._read(group, n, raw=True) for n in self.fields if n != "domains"}
+        data = self._read_all(group, [n for n in self.fields if n != "domains"], raw=True)
         x = data.pop("x")
         n = x.shape[0]
         if not domains:
