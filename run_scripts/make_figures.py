@@ -9,7 +9,7 @@ PNGs replace the README's, and writes its CSV into ``run_scripts/out/<study>/``;
 a study writes both into its ``--out`` folder and leaves ``docs/figures/`` alone. Runtime on a
 2-core machine: ~25–35 minutes for the first seven, most of it the stability gallery's 3D bars
 and the convergence study's 3D resolutions; ``fe_bar`` adds ~10 minutes, ``throughput`` ~2 and
-``energy_history`` under one. The speed-accuracy,
+``energy_history`` and ``domains`` under one. The speed-accuracy,
 throughput and scaling charts time the solver: run them on a quiet machine. ``scaling`` launches
 ``mpirun -n 1`` and ``-n 2`` itself and ``throughput`` times one core, so ``--np`` does not
 apply to them.
@@ -34,6 +34,7 @@ STUDIES = {
     "fe_bar": "fe_bar.py",
     "throughput": "throughput.py",
     "energy_history": "energy_history.py",
+    "domains": "domains_picture.py",
 }
 #: studies that launch their own processes (bench runs): never wrapped in --np
 LAUNCHERS = {"scaling", "throughput"}
