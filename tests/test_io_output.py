@@ -189,3 +189,15 @@ def test_plot_particles_without_matplotlib(tmp_path, monkeypatch, caplog):
         assert plot_particles(tmp_path / "p.png", np.zeros((2, 1)), np.ones(2), 1) is None
     assert "matplotlib" in caplog.text
     assert not (tmp_path / "p.png").exists()
+
+
+def test_format_summary_energy_balance():
+    """The history's last balance is one line: residual, its estimate, its share of the energy
+    given; a summary without a history has no such line."""
+    balance = {"energy_residual": -39.5, "residual_estimate": -40.1, "scale": 3950.0}
+    text = format_summary({"scene": "s", "particles": 10, "steps": 5,
+                           "energy": {"limit": 1.0, "balance": balance}})
+    line = next(x for x in text.splitlines() if x.startswith("energy"))
+    assert "-39.5 J" in line and "-40.1 J" in line and "1 % of the 3950 J given" in line
+    no_history = format_summary({"scene": "s", "particles": 10, "steps": 5, "energy": {"limit": 1.0}})
+    assert "energy" not in no_history
