@@ -3,10 +3,11 @@
 :func:`set_up` builds the discretisation (with the patch size ``grid.patch_size = "auto"``
 chooses from the scene, :mod:`parmpm.patch_size`), deals the patches out over the ranks (rank 0
 warns when some start without particles) and gives this rank its particles, by one of three
-paths: seeded from the scene (every rank seeds the same
-particles, global ids = seeding order, and keeps its own; :mod:`parmpm.seeding`), seeded and set
-on the manufactured solution's exact field, or read back from a checkpoint
-(:mod:`parmpm.io.checkpoint_gather`). A restart also restores the clock, the metrics' history,
+paths: seeded from the scene (every rank counts the same particles per patch, block by block,
+global ids = seeding order, and builds only its own: a rank never holds the whole scene;
+:mod:`parmpm.seeding`), seeded and set on the manufactured solution's exact field (patches where
+the particles start), or read back from a checkpoint (:mod:`parmpm.io.checkpoint_gather`). A
+seeded run's metrics are built from each rank's own particles by collective reductions. A restart also restores the clock, the metrics' history,
 the energy watch and the output schedule, so that it continues bit for bit. The run loop
 (:mod:`parmpm.simulation`) and the measurements (:mod:`parmpm.measures`) read the result,
 :class:`RankState`; nothing here steps or writes.
@@ -24,6 +25,7 @@ from parmpm.collective import agree
 from parmpm.discretisation import Discretisation, exterior_cells
 from parmpm.energy import EnergyWatch
 from parmpm.errors import ParmpmError, SimulationError
+from parmpm.exact import manufactured_motion
 from parmpm.footprint import check_memory
 from parmpm.grid import BC_CODES
 from parmpm.io.checkpoint import CheckpointReader
@@ -183,59 +185,60 @@ def _check_memory(comm, data: dict, ghost: int) -> None:
 
 
 def _particles(data, comm, D, params, names, checkpoint):
-    """(this rank's particles, the patch set, particles in all, metrics): the three seeding
-    paths. Metrics need every particle's initial position; without them an unturned box is
-    counted per patch axis by axis and never held whole."""
-    layout, d = D.layout, data["dim"]
-    P = seeds = counts = where = x_all = None
+    """(this rank's particles, the patch set, particles in all, metrics): seeded from the scene
+    (:func:`_seeded`) or read back from a checkpoint (:func:`_restored`)."""
     if checkpoint is None:
-        # Every rank seeds the same particles (global ids = seeding order) and builds only
-        # its own once the patches are dealt out (parmpm.seeding).
-        seeds = seed_bodies(data, {n: i for i, n in enumerate(names)})
-        if data.get("manufactured"):  # start on the exact field (before patches are chosen)
-            P, seeds = seeds.particles(params), None
-            manufactured.initialise(P, data["manufactured"]["amplitude"], params)
-        elif data["metrics"]["kind"] == "none":  # no metric needs every particle's x0
-            counts = seeds.patch_counts(D)  # unturned boxes: counted axis by axis
-    if counts is not None:
-        n_total, metrics = seeds.n, None
-    else:
-        if P is not None:
-            x_all, x0_all, mass_all = P.x, P.x0, P.mass
-        elif seeds is not None:
-            x_all = x0_all = seeds.x
-            mass_all = seeds.mass(params) if data["metrics"]["kind"] != "none" else None
-        else:
-            x_all, x0_all, mass_all = (checkpoint.read(k) for k in ("x", "x0", "mass"))
-        n_total = x_all.shape[0]
-        metrics = make_metrics(data, x0_all, mass_all)
-        where = np.zeros(n_total, np.int64)
-        bad, _ = locate_patches(d, x_all, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
-                                layout.patches_per_axis, where, where)
-        if bad >= 0:
-            raise SimulationError(f"particle {bad} at {fmt_vec(x_all[bad])} is outside the grid")
-        counts = np.bincount(where, minlength=layout.n_patches)
-        del x0_all, mass_all
+        return _seeded(data, comm, D, params, names)
+    return _restored(data, comm, D, params, checkpoint)
+
+
+def _seeded(data, comm, D, params, names):
+    """Seeded: every rank counts the particles per patch block by block (global ids = seeding
+    order), deals the patches out, then builds only its own (:mod:`parmpm.seeding`) and the
+    metrics from them (collective): a rank holds one block of seeds and its own particles."""
+    layout, d = D.layout, data["dim"]
+    seeds = seed_bodies(data, {n: i for i, n in enumerate(names)})
+    man = data.get("manufactured")
+    if man:  # the particles start on the exact field: their patches are where they start
+        amplitude, c = man["amplitude"], manufactured.frequency(params)
+        seeds.motion = lambda X: X + manufactured_motion(X, 0.0, amplitude, c)[0]
+    counts = seeds.patch_counts(D)
     dec = data["decomposition"]
     patches = PatchSet(layout, comm, counts, threshold=dec["rebalance_threshold"],
                        cooldown=dec["rebalance_cooldown"])
-    _warn_idle_ranks(comm, D, counts, seeds if where is None else x_all)
-    x_all = None  # no second reference to the seeded arrays while they move
+    _warn_idle_ranks(comm, D, counts, seeds)
+    P = seeds.particles(params, seeds.members(D, patches.rank_of == comm.Get_rank()))
+    if man:
+        manufactured.initialise(P, man["amplitude"], params)
+    locate_patches(d, P.x, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
+                   layout.patches_per_axis, P.patch, P.patch)
+    metrics = make_metrics(data, P.x0, P.mass, comm, P.gid)
+    return P, patches, seeds.n, metrics
+
+
+def _restored(data, comm, D, params, checkpoint):
+    """Read back from a checkpoint: the positions decide the patches, the metrics are rebuilt
+    from every particle's initial position."""
+    layout, d = D.layout, data["dim"]
+    x_all, x0_all, mass_all = (checkpoint.read(k) for k in ("x", "x0", "mass"))
+    n_total = x_all.shape[0]
+    metrics = make_metrics(data, x0_all, mass_all)
+    where = np.zeros(n_total, np.int64)
+    bad, _ = locate_patches(d, x_all, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
+                            layout.patches_per_axis, where, where)
+    if bad >= 0:
+        raise SimulationError(f"particle {bad} at {fmt_vec(x_all[bad])} is outside the grid")
+    counts = np.bincount(where, minlength=layout.n_patches)
+    del x0_all, mass_all
+    dec = data["decomposition"]
+    patches = PatchSet(layout, comm, counts, threshold=dec["rebalance_threshold"],
+                       cooldown=dec["rebalance_cooldown"])
+    _warn_idle_ranks(comm, D, counts, x_all)
+    x_all = None  # no second reference to the read arrays while they move
     owned = patches.rank_of == comm.Get_rank()
-    mine = np.flatnonzero(owned[where]) if where is not None else seeds.members(D, owned)
-    if checkpoint is None:
-        if seeds is not None:
-            P = seeds.particles(params, mine)
-            del seeds
-        elif mine.size != P.n:
-            P.permute(mine)
-    else:
-        P = load_particles(comm, checkpoint, d, n_total, params.shape[0], mine)
-    if where is not None:
-        P.patch = where[mine]
-    else:  # the lattice path: locate only this rank's particles
-        locate_patches(d, P.x, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
-                       layout.patches_per_axis, P.patch, P.patch)
+    mine = np.flatnonzero(owned[where])
+    P = load_particles(comm, checkpoint, d, n_total, params.shape[0], mine)
+    P.patch = where[mine]
     return P, patches, n_total, metrics
 
 

@@ -1,13 +1,20 @@
-"""Seeding: the particles every body starts with, built only where a rank needs them.
+"""Seeding: the particles every body starts with, built block by block, kept only where a rank
+needs them.
 
 Every rank seeds the same particles (global ids = seeding order, body by body, axis 0 fastest)
-but builds a full :class:`parmpm.particles.Particles` only for the ones it keeps
-(:meth:`Seeds.particles`). An unturned box keeps just its per-axis coordinates
-(:class:`_Lattice`): the particles per patch are then products of per-axis counts
-(:meth:`Seeds.patch_counts`) and a rank finds its own particles from a per-axis patch index
-(:meth:`Seeds.members`), so set-up never holds every particle's position — about 1 byte per
-particle of the whole body instead of ``8·dim``. Turned boxes and disks/spheres keep their
-points (their patch membership is not separable by axis).
+but never holds them all: a body is a description (:class:`_Lattice`, :class:`_Turned`,
+:class:`_Ball`) whose points are made one block of :data:`BLOCK` lattice points at a time.
+Set-up (:mod:`parmpm.rank_state`) makes two passes over the blocks — the particles per patch
+(:meth:`Seeds.patch_counts`), then, once the patches are dealt out, the global ids in this
+rank's patches (:meth:`Seeds.members`) — and builds a full :class:`parmpm.particles.Particles`
+only for those (:meth:`Seeds.particles`). A rank's peak is one block plus its own particles.
+
+An unturned box is counted per axis: the particles per patch are products of per-axis counts,
+so :meth:`Seeds.patch_counts` never makes a point. A turned box is its lattice turned about the
+box centre, block by block; its blocks start at multiples of :data:`ALIGN` and a last one shorter
+than that joins the one before, so each point comes out of the same BLAS call position as when
+the whole body was turned at once (the same bits). A disk or sphere is its bounding box's
+lattice masked by the ball, block by block (elementwise: the same bits on any block).
 """
 from __future__ import annotations
 
@@ -16,8 +23,43 @@ import math
 import numpy as np
 
 from decomposition.boxes import patch_of_coordinate
-from parmpm.errors import SceneError
-from parmpm.particles import Particles
+from parmpm.errors import SceneError, SimulationError
+from parmpm.particles import Particles, locate_patches
+from parmpm.reach import fmt_vec
+
+#: lattice points per block (a multiple of ALIGN)
+BLOCK = 1 << 16
+#: block starts are multiples of this; a last block shorter than it joins the one before
+ALIGN = 16
+
+
+class RowWatch:
+    """Debug counter: the most particle rows (positions, patch ids, masks, global ids) that one
+    array built by seeding held since :meth:`reset` — what the set-up memory tests bound by
+    ``own particles + BLOCK + ALIGN``."""
+
+    def __init__(self):
+        self.largest = 0
+
+    def reset(self) -> None:
+        self.largest = 0
+
+    def note(self, rows: int) -> None:
+        self.largest = max(self.largest, int(rows))
+
+
+WATCH = RowWatch()
+
+
+def _block_edges(n: int) -> np.ndarray:
+    """Start of every block of ``n`` lattice points, then ``n``: multiples of BLOCK, a last
+    block shorter than ALIGN joined to the one before."""
+    if BLOCK % ALIGN:
+        raise ValueError(f"seeding.BLOCK ({BLOCK}) must be a multiple of ALIGN ({ALIGN})")
+    edges = list(range(0, n, BLOCK)) + [n]
+    if len(edges) > 2 and edges[-1] - edges[-2] < ALIGN:
+        del edges[-2]
+    return np.asarray(edges, np.int64)
 
 
 class _Lattice:
@@ -28,16 +70,86 @@ class _Lattice:
         self.axes = [lo[k] + (np.arange(n) + 0.5) * spacing[k] for k, n in enumerate(count)]
         self.shape = tuple(int(n) for n in count)
         self.n = int(np.prod(self.shape))
+        self.firsts = _block_edges(self.n)  # blocks: ids = lattice indices
 
     def __len__(self) -> int:
         return self.n
 
     def __getitem__(self, ids) -> np.ndarray:
-        idx = np.unravel_index(np.asarray(ids, np.int64), self.shape, order="F")
+        ids = np.asarray(ids, np.int64)
+        WATCH.note(ids.size)
+        idx = np.unravel_index(ids, self.shape, order="F")
         return np.stack([axis[i] for axis, i in zip(self.axes, idx)], axis=1)
+
+    def points(self, ids) -> np.ndarray:
+        return self[ids]
+
+    def span(self, a: int, b: int) -> np.ndarray:
+        """The points of lattice indices ``a ≤ i < b``."""
+        return self[np.arange(a, b)]
+
+    def block(self, j: int) -> np.ndarray:
+        return self.span(self.firsts[j], self.firsts[j + 1])
 
     def full(self) -> np.ndarray:
         return self[np.arange(self.n)]
+
+
+class _Turned:
+    """A box's lattice turned by ``turn`` about the box centre ``mid``, block by block."""
+
+    def __init__(self, lattice: _Lattice, mid: np.ndarray, turn: np.ndarray):
+        self.lattice, self.mid, self.turn = lattice, mid, turn
+        self.n = lattice.n
+        self.firsts = lattice.firsts
+
+    def __len__(self) -> int:
+        return self.n
+
+    def block(self, j: int) -> np.ndarray:
+        return (self.lattice.block(j) - self.mid) @ self.turn.T + self.mid
+
+    def points(self, ids) -> np.ndarray:
+        return _points_by_block(self, ids)
+
+
+class _Ball:
+    """A disk or sphere: the points of its bounding box's lattice within ``radius`` of
+    ``centre``, in lattice order; one counting pass keeps the first id of every block."""
+
+    def __init__(self, lattice: _Lattice, centre: np.ndarray, radius: float):
+        self.lattice, self.centre, self.radius = lattice, centre, radius
+        kept = [self.block(j).shape[0] for j in range(lattice.firsts.size - 1)]
+        self.firsts = np.concatenate([[0], np.cumsum(kept)]).astype(np.int64)
+        self.n = int(self.firsts[-1])
+
+    def __len__(self) -> int:
+        return self.n
+
+    def block(self, j: int) -> np.ndarray:
+        pts = self.lattice.block(j)
+        return pts[np.sum((pts - self.centre) ** 2, axis=1) <= self.radius * self.radius]
+
+    def points(self, ids) -> np.ndarray:
+        return _points_by_block(self, ids)
+
+
+def _points_by_block(src, ids) -> np.ndarray:
+    """Points ``ids`` (increasing) of a body made block by block: only the blocks holding some."""
+    ids = np.asarray(ids, np.int64)
+    WATCH.note(ids.size)
+    out = np.empty((ids.size, len(src.lattice.shape)))
+    cut = np.searchsorted(ids, src.firsts)
+    for j in np.flatnonzero(np.diff(cut)):
+        s = slice(cut[j], cut[j + 1])
+        out[s] = src.block(j)[ids[s] - src.firsts[j]]
+    return out
+
+
+def _blocks(src):
+    """(first id, points) of every block of a body, in id order."""
+    for j in range(src.firsts.size - 1):
+        yield int(src.firsts[j]), src.block(j)
 
 
 def _lattice(lo, hi, spacing):
@@ -83,104 +195,140 @@ def _initial_velocity(d: int, body: dict, pts: np.ndarray) -> np.ndarray:
 
 
 class Seeds:
-    """The particles every body seeds, as positions per body (``chunks``) and the per-body
-    constants. Every rank seeds the same (global ids = seeding order) but builds a full
-    :class:`Particles` (velocities included) only for the ones it keeps (:meth:`particles`): a
-    seed costs ``dim`` floats, a particle ~40, so set-up memory per rank follows its own share."""
+    """The particles every body seeds: per body (``chunks``) its points' description and the
+    per-body constants. Every rank seeds the same (global ids = seeding order) but makes the
+    points one block at a time and builds a full :class:`Particles` (velocities included) only
+    for the ones it keeps (:meth:`particles`).
+
+    ``motion``: None, or a function of reference positions ``X`` (n, dim) giving the positions
+    the particles start at (the manufactured solution starts displaced): patches are found
+    from those."""
 
     def __init__(self, dim: int, chunks: list):
         self.dim = dim
-        # (points: an array or a _Lattice, body, spacing, material row, turn or None) per body
+        # (points: _Lattice | _Turned | _Ball, body, spacing, material row, turn or None)
         self.chunks = chunks
         self.n = sum(len(c[0]) for c in chunks)
+        self.motion = None
 
     @property
     def x(self) -> np.ndarray:
-        """Every seed's position, in seeding order (made here for lattices)."""
-        parts = [c[0].full() if isinstance(c[0], _Lattice) else c[0] for c in self.chunks]
-        if len(parts) == 1:
-            return parts[0]
+        """Every seed's reference position, in seeding order (a one-rank convenience: set-up
+        never makes it)."""
+        parts = [np.concatenate([b for _, b in _blocks(c[0])]) for c in self.chunks]
+        WATCH.note(self.n)
         return np.concatenate(parts) if parts else np.zeros((0, self.dim))
 
-    @property
-    def separable(self) -> bool:
-        """Every body an unturned box: patch membership factorises by axis."""
-        return bool(self.chunks) and all(isinstance(c[0], _Lattice) for c in self.chunks)
+    def _separable(self, src) -> bool:
+        """An unturned box starting on its seeds: patch membership factorises by axis."""
+        return isinstance(src, _Lattice) and self.motion is None
 
-    def _axis_patches(self, disc):
-        """Per body and axis, the patch index of every lattice coordinate — the same
+    @staticmethod
+    def _axis_patches(lat: _Lattice, disc):
+        """Per axis, the patch index of every lattice coordinate — the same
         :func:`~decomposition.boxes.patch_of_coordinate` as
         :func:`parmpm.particles.locate_patches`, on the same ``(x − origin)·(1/h)`` — or None if
         one lies outside the grid."""
         lay = disc.layout
-        out = []
-        for lat, *_ in self.chunks:
-            per_axis = []
-            for k, axis in enumerate(lat.axes):
-                o, ih = float(disc.origin3[k]), float(disc.inv_h3[k])
-                cells, ps = int(lay.cells3[k]), int(lay.psize3[k])
-                q = np.array([patch_of_coordinate((float(c) - o) * ih, cells, ps, 1.0 / ps)
-                              for c in axis], np.int64)
-                if q.size and q.min() < 0:
-                    return None
-                per_axis.append(q)
-            out.append(per_axis)
-        return out
+        per_axis = []
+        for k, axis in enumerate(lat.axes):
+            o, ih = float(disc.origin3[k]), float(disc.inv_h3[k])
+            cells, ps = int(lay.cells3[k]), int(lay.psize3[k])
+            q = np.array([patch_of_coordinate((float(c) - o) * ih, cells, ps, 1.0 / ps)
+                          for c in axis], np.int64)
+            if q.size and q.min() < 0:
+                return None
+            per_axis.append(q)
+        return per_axis
 
     @staticmethod
     def _ppa(disc) -> list[int]:
         return [int(n) for n in disc.layout.patches_per_axis]  # padded axes: 1
 
-    def patch_counts(self, disc) -> np.ndarray | None:
-        """Particles in every patch of the layout (flat ids), from per-axis counts; None when
-        the bodies are not all unturned boxes or a particle lies outside the grid."""
-        if not self.separable:
-            return None
-        axes = self._axis_patches(disc)
-        if axes is None:
-            return None
+    def _locate(self, disc, pts: np.ndarray, first: int) -> np.ndarray:
+        """Flat patch id of the block ``pts`` (global ids from ``first``) where the particles
+        start; a particle outside the grid is an error naming it."""
+        x = pts if self.motion is None else self.motion(pts)
+        lay = disc.layout
+        where = np.zeros(x.shape[0], np.int64)
+        WATCH.note(where.size)
+        bad, _ = locate_patches(self.dim, x, disc.origin3, disc.inv_h3, lay.cells3, lay.psize3,
+                                lay.patches_per_axis, where, where)
+        if bad >= 0:
+            raise SimulationError(f"particle {first + bad} at {fmt_vec(x[bad])} is outside the grid")
+        return where
+
+    def patch_counts(self, disc) -> np.ndarray:
+        """Particles in every patch of the layout (flat ids): unturned boxes from per-axis
+        counts, other bodies block by block. A particle outside the grid is an error."""
+        counts = np.zeros(disc.layout.n_patches, np.int64)
         ppa = self._ppa(disc)
-        counts = np.zeros(ppa[::-1], np.int64)  # indexed [q2, q1, q0]: flat id q0 fastest
-        for per_axis in axes:
-            hist = [np.bincount(q, minlength=n) for q, n in zip(per_axis, ppa)]
-            hist += [np.ones(1, np.int64)] * (3 - len(hist))
-            counts += np.einsum("k,j,i->kji", hist[2], hist[1], hist[0])
-        return counts.ravel()
+        first = 0
+        for src, *_ in self.chunks:
+            per_axis = self._axis_patches(src, disc) if self._separable(src) else None
+            if per_axis is not None:
+                hist = [np.bincount(q, minlength=n) for q, n in zip(per_axis, ppa)]
+                hist += [np.ones(1, np.int64)] * (3 - len(hist))
+                counts += np.einsum("k,j,i->kji", hist[2], hist[1], hist[0]).ravel()
+            else:
+                for start, pts in _blocks(src):
+                    counts += np.bincount(self._locate(disc, pts, first + start),
+                                          minlength=counts.size)
+            first += len(src)
+        return counts
 
     def members(self, disc, owned: np.ndarray) -> np.ndarray:
         """Global ids (increasing) of the particles in the patches where ``owned`` (a bool per
-        flat patch id) is true; for seeds that :meth:`patch_counts` could count."""
-        own = np.asarray(owned, bool).reshape(self._ppa(disc)[::-1])  # [q2, q1, q0]
+        flat patch id) is true, block by block."""
+        owned = np.asarray(owned, bool)
         out, first = [], 0
-        for (lat, *_), per_axis in zip(self.chunks, self._axis_patches(disc)):
-            q = per_axis + [np.zeros(1, np.int64)] * (3 - len(per_axis))
-            mask = own[np.ix_(q[2], q[1], q[0])]  # [i2, i1, i0]: raveled, i0 fastest = id order
-            out.append(np.flatnonzero(mask.ravel()) + first)
-            first += len(lat)
-        return np.concatenate(out) if out else np.zeros(0, np.int64)
+        for src, *_ in self.chunks:
+            per_axis = self._axis_patches(src, disc) if self._separable(src) else None
+            if per_axis is not None:  # per-axis patch indices of the lattice's own points
+                ppa = self._ppa(disc)
+                for j in range(src.firsts.size - 1):
+                    a, b = src.firsts[j], src.firsts[j + 1]
+                    idx = np.unravel_index(np.arange(a, b), src.shape, order="F")
+                    pid = np.zeros(b - a, np.int64)
+                    for k in reversed(range(len(per_axis))):  # flat id, axis 0 fastest
+                        pid = pid * ppa[k] + per_axis[k][idx[k]]
+                    WATCH.note(pid.size)
+                    out.append(np.flatnonzero(owned[pid]) + (first + a))
+            else:
+                for start, pts in _blocks(src):
+                    where = self._locate(disc, pts, first + start)
+                    out.append(np.flatnonzero(owned[where]) + (first + start))
+            first += len(src)
+        mine = np.concatenate(out) if out else np.zeros(0, np.int64)
+        WATCH.note(mine.size)
+        return mine
 
     def mass(self, params: np.ndarray) -> np.ndarray:
+        """Every particle's mass (a one-rank convenience)."""
+        WATCH.note(self.n)
         return np.concatenate([np.full(len(c[0]), params[c[3], 1] * np.prod(c[2]))
                                for c in self.chunks])
 
     def particles(self, params: np.ndarray, keep: np.ndarray | None = None) -> Particles:
         """The particles of global ids ``keep`` (increasing; default all), fields filled."""
         keep = np.arange(self.n) if keep is None else np.asarray(keep, np.int64)
+        WATCH.note(keep.size)
         P = Particles(self.dim, keep.size)
         P.gid[:] = keep
         first = 0
-        for pts, body, spacing, row, turn in self.chunks:  # pts: an array or a _Lattice
-            lo, hi = np.searchsorted(keep, [first, first + len(pts)])
+        for src, body, spacing, row, turn in self.chunks:
+            lo, hi = np.searchsorted(keep, [first, first + len(src)])
             s, ids = slice(lo, hi), keep[lo:hi] - first
-            P.x[s] = pts[ids]
-            P.x0[s] = pts[ids]
-            P.v[s] = _initial_velocity(self.dim, body, pts[ids])
+            pts = src.points(ids)
+            P.x[s] = pts
+            P.x0[s] = pts
+            P.v[s] = _initial_velocity(self.dim, body, pts)
             P.vol0[s] = np.prod(spacing)
             P.mass[s] = params[row, 1] * np.prod(spacing)
             P.mat[s] = row
             P.lh0[s] = 0.5 * spacing
             P.r0[s] = np.diag(0.5 * spacing) if turn is None else turn * (0.5 * spacing)
-            first += len(pts)
+            first += len(src)
         return P
 
 
@@ -189,7 +337,8 @@ def fmt_spacing(spacing) -> str:
 
 
 def seed_bodies(scene: dict, material_rows: dict[str, int]) -> Seeds:
-    """Seed every body: ``ppc`` per cell per axis, domains tiling the body."""
+    """Every body's seeds: ``ppc`` per cell per axis, domains tiling the body (descriptions:
+    the points are made block by block when asked for)."""
     d = scene["dim"]
     h = np.asarray(scene["grid"]["cell_size"], float)
     origin = np.asarray(scene["grid"]["origin"], float)
@@ -204,15 +353,15 @@ def seed_bodies(scene: dict, material_rows: dict[str, int]) -> Seeds:
             pts = _Lattice(lo, spacing, count)
             if body.get("angle"):  # the lattice turned about the box centre, domains with it
                 turn = _turn(d, body["angle"])
-                mid = 0.5 * (lo + hi)
-                pts = (pts.full() - mid) @ turn.T + mid
+                pts = _Turned(pts, 0.5 * (lo + hi), turn)
         else:  # disk / sphere on a grid-aligned lattice
             c, r = np.asarray(body["center"], float), float(body["radius"])
             spacing = h / ppc
             lo = origin + np.floor((c - r - origin) / spacing) * spacing
             n = np.ceil((c + r - lo) / spacing).astype(int)
-            pts = _lattice(lo, lo + n * spacing, spacing)
-            pts = pts[np.sum((pts - c) ** 2, axis=1) <= r * r]
+            # the bounding lattice's counts as _lattice computes them from its corners
+            count = np.round((lo + n * spacing - lo) / spacing).astype(int)
+            pts = _Ball(_Lattice(lo, spacing, count), c, r)
             if not len(pts):
                 raise SceneError(f"bodies.{k}: a {body['shape']} of radius {r:g} m holds no point "
                                  f"of its particle lattice (spacing {fmt_spacing(spacing)} m); "
@@ -224,5 +373,3 @@ def seed_bodies(scene: dict, material_rows: dict[str, int]) -> Seeds:
 def bodies_to_particles(scene: dict, material_rows: dict[str, int], params: np.ndarray) -> Particles:
     """Every body's particles (all of them: a one-rank convenience; see :class:`Seeds`)."""
     return seed_bodies(scene, material_rows).particles(params)
-
-

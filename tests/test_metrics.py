@@ -298,3 +298,113 @@ def test_metrics_read_only_the_resolved_scene():
         m = make_metrics(data, x0, np.ones(2))
         assert m.kind == kind and m.axis == (
             data["bodies"][0]["vibration"]["axis"] if kind == "vibrating_bar" else data["metrics"]["axis"])
+
+
+# --------------------------------------------------------------------------------------------
+# built from each rank's own particles: the same metric as from every particle, bit for bit
+
+
+class _ThreadComm:
+    """A communicator for ranks run as threads of one process: what the metrics' set-up uses
+    (rank, size, ``allgather``, ``Allreduce`` with MAX)."""
+
+    def __init__(self, rank, size, shared):
+        self.rank, self.size, self.shared = rank, size, shared
+
+    def Get_rank(self):
+        return self.rank
+
+    def Get_size(self):
+        return self.size
+
+    def allgather(self, obj):
+        slots, barrier = self.shared
+        slots[self.rank] = obj
+        barrier.wait()
+        out = list(slots)
+        barrier.wait()
+        return out
+
+    def Allreduce(self, send, recv, op=None):  # MAX: the only reduction the metrics use
+        recv[:] = np.max(np.stack(self.allgather(np.array(send))), axis=0)
+
+
+def _on_ranks(kind_scene, x0, mass, size, seed=0):
+    """The metric built on ``size`` thread-ranks, each holding a random share of the particles
+    (in a random order; from 3 ranks on, the last holds none); the metrics of every rank."""
+    import threading
+
+    owner = np.random.default_rng(seed).integers(0, size - (size >= 3), x0.shape[0])
+    shared = ([None] * size, threading.Barrier(size))
+    out, errors = [None] * size, []
+
+    def build(r):
+        try:
+            gid = np.random.default_rng(r).permutation(np.flatnonzero(owner == r))
+            out[r] = make_metrics(kind_scene, x0[gid], mass[gid], _ThreadComm(r, size, shared), gid)
+        except Exception as exc:  # pragma: no cover - reported below
+            errors.append(exc)
+            shared[1].abort()
+
+    threads = [threading.Thread(target=build, args=(r,)) for r in range(size)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors
+    return out
+
+
+def _disk_scene(kind):
+    scene = {
+        "dim": 2,
+        "materials": {"rubber": {"model": "neo_hookean", "density": 1050.0, "youngs_modulus": 1e6,
+                                 "poisson_ratio": 0.0}},
+        "bodies": [{"shape": "disk", "center": [0.5, 0.5], "radius": 0.5, "material": "rubber",
+                    "vibration": None, "angular_velocity": 2.0}],
+        "gravity": {"g": [0.0, -1000.0], "ramp_time": 0.0},
+        "metrics": {"kind": kind, "every_steps": 1, "axis": 1},
+    }
+    if kind == "vibrating_bar":
+        scene["bodies"][0]["vibration"] = {"amplitude": 0.1, "mode": 1, "axis": 0}
+    c = (np.arange(40) + 0.5) / 40
+    x0 = np.stack(np.meshgrid(c, c, indexing="ij"), axis=-1).reshape(-1, 2)
+    x0 = x0[np.sum((x0 - 0.5) ** 2, axis=1) <= 0.25]
+    return scene, x0, np.full(x0.shape[0], 0.37)
+
+
+@pytest.mark.parametrize("size", [2, 3, 5])
+def test_metrics_built_per_rank_are_the_whole_scenes(size):
+    """Tip, corner, span, tip distance, bar mass and rotation radius from each rank's own
+    particles and collective reductions equal those from every particle (and no rank keeps a
+    particle field)."""
+    scene, x0, mass = _scene_1d(n=37)
+    scene2, x02, mass2, _ = _vib_scene(dim=2, n=50)
+    mass2 = mass2 * (1.0 + 0.1 * (np.arange(50) >= 20))  # two runs of masses
+    disk, xd, md = _disk_scene("hanging_bar")
+    vib, xv, mv = _disk_scene("vibrating_bar")
+    rot, xr, mr = _disk_scene("rotation")
+    for data, x, m, keys in ((scene, x0, mass, ("tip", "corner", "L", "X_tip")),
+                             (disk, xd, md, ("tip", "corner", "L", "X_tip")),
+                             (scene2, x02, mass2, ("L", "bar_mass", "period")),
+                             (vib, xv, mv * (1.0 + (xv[:, 0] > 0.5)), ("L", "bar_mass")),
+                             (rot, xr, mr, ("stress_scale",))):
+        whole = make_metrics(data, x, m)
+        for r, part in enumerate(_on_ranks(data, x, m, size)):
+            assert part.x0 is None and part.mass is None
+            for k in keys:
+                a, b = getattr(whole, k), getattr(part, k)
+                assert np.asarray(a).tobytes() == np.asarray(b).tobytes(), (data["metrics"], k, r)
+
+
+def test_pairwise_runs_is_numpys_sum():
+    from parmpm.metrics.sums import pairwise_runs
+
+    rng = np.random.default_rng(5)
+    for trial in range(200):
+        k = int(rng.integers(1, 5))
+        counts = rng.integers(1, 400_000 if trial % 25 == 0 else 300, k)
+        values = rng.standard_normal(k) * 10.0 ** rng.integers(-4, 4, k)
+        assert pairwise_runs(values, counts) == np.sum(np.repeat(values, counts)), (values, counts)
+    assert pairwise_runs([], []) == 0.0
+    assert str(pairwise_runs([-0.0], [3])) == str(np.sum(np.full(3, -0.0)))

@@ -11,8 +11,9 @@ from parmpm.errors import SceneError
 from parmpm.exact import (hanging_bar_static, hanging_bar_static_displacement, lame_parameters,
                           mode_constants, nominal_stress_1d, vibrating_bar_com_velocity)
 from parmpm.metrics import register_metrics
-from parmpm.metrics.common import (History, as_points, bar_mask, bar_material, bar_span, gravity,
-                                   material_constants, to_plain)
+from parmpm.metrics.common import (History, as_points, bar_box, bar_material, bar_span, gather_rows,
+                                   glb_bounds, gravity, in_bar, material_constants, to_plain)
+from parmpm.metrics.sums import gid_order_sum
 
 logger = logging.getLogger(__name__)
 
@@ -45,10 +46,9 @@ class HangingBarMetrics(History):
       static state, peaking at twice it in small strain.
     """
 
-    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
+    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
         self.dim = int(scene_data["dim"])
-        self.x0 = as_points(x0, np.shape(mass)[0], self.dim)
-        self.mass = np.asarray(mass, dtype=float)
+        x0, mass, gid = self._own(x0, mass, comm, gid)
         g = gravity(scene_data)
         self.axis = int(scene_data["metrics"]["axis"])
         self.g = math.hypot(*g)  # no overflow warning for an absurd g
@@ -56,24 +56,29 @@ class HangingBarMetrics(History):
         self.up_sign = -1.0 if down > 0 else 1.0  # displacement · up_sign < 0 means downward
 
         body = scene_data["bodies"][0]
-        self.bar = bar_mask(scene_data, body, self.x0)
-        xa = self.x0[:, self.axis]
-        bar_coords = xa[self.bar]
-        extreme = bar_coords.max() if down > 0 else bar_coords.min()
-        tol = 1e-9 * max(float(np.ptp(bar_coords)), 1.0)
-        self.tip = np.flatnonzero(self.bar & (np.abs(xa - extreme) <= tol))
-        self.tip_mask = np.zeros(self.x0.shape[0], bool)
-        self.tip_mask[self.tip] = True
-        self.corner = self.tip
+        self.bar_box = bar_box(scene_data, body)
+        bar = in_bar(self.bar_box, x0)
+        xa = x0[:, self.axis]
+        lo3, hi3 = glb_bounds(comm, x0[bar])  # the bar's extent per axis, over every rank
+
+        def tol(k):
+            return 1e-9 * max(float(hi3[k] - lo3[k]), 1.0)
+
+        extreme = hi3[self.axis] if down > 0 else lo3[self.axis]
+        # the tip particles (a face of the bar: a few) on every rank, in global-id order
+        tip = bar & (np.abs(xa - extreme) <= tol(self.axis))
+        self.tip, tip_x0 = gather_rows(comm, gid[tip], x0[tip])
+        corner, cx = self.tip, tip_x0
         for k in range(self.dim):
             if k != self.axis:
-                c = self.x0[self.corner, k]
-                self.corner = self.corner[c - c.min() <= 1e-9 * max(float(np.ptp(self.x0[self.bar, k])), 1.0)]
-        self.corner = int(self.corner[0])
-        lo, hi = bar_span(body, self.x0[self.bar], self.axis)
+                keep = cx[:, k] - cx[:, k].min() <= tol(k)
+                corner, cx = corner[keep], cx[keep]
+        self.corner = int(corner[0])
+        lo, hi = bar_span(body, x0[bar], self.axis, comm)
         self.L = hi - lo
         # reference distance of the tip particles from the support (the top of the bar)
-        self.X_tip = float(np.mean(hi - xa[self.tip])) if down <= 0 else float(np.mean(xa[self.tip] - lo))
+        xt = tip_x0[:, self.axis]
+        self.X_tip = float(np.mean(hi - xt)) if down <= 0 else float(np.mean(xt - lo))
 
         self.exact_static_elongation = None
         self.exact_static_tip_displacement = None
@@ -104,15 +109,16 @@ class HangingBarMetrics(History):
         n = np.shape(gid)[0]
         x = as_points(x, n, self.dim)
         F = np.asarray(F, dtype=float).reshape(n, self.dim, self.dim)
-        tip = self.tip_mask[gid]
+        x0, _ = self.reference(gid, context.get("particles"))
+        tip = np.isin(gid, self.tip)
         corner = np.asarray(gid) == self.corner
-        u = x[:, self.axis] - self.x0[gid, self.axis]
+        u = x[:, self.axis] - x0[:, self.axis]
         sums = np.zeros((n, 4))
         sums[:, 0] = np.where(tip, u, 0.0)
         sums[:, 1] = tip
         sums[:, 2] = np.where(corner, u, 0.0)
         sums[:, 3] = corner
-        bar = self.bar[gid]
+        bar = in_bar(self.bar_box, x0)
         stretch = np.sqrt(np.sum(F[bar, :, self.axis] ** 2, axis=1))
         return sums, np.array([stretch.max() if stretch.size else -np.inf])
 
@@ -205,11 +211,9 @@ class VibratingBarMetrics(History):
     in 2D (plane strain, laterally free, long waves) and ``E`` in 3D; all equal ``E`` for ν = 0.
     """
 
-    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
+    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
         self.dim = int(scene_data["dim"])
-        n = np.shape(mass)[0]
-        self.x0 = as_points(x0, n, self.dim)
-        self.mass = np.asarray(mass, dtype=float)
+        x0, mass, gid = self._own(x0, mass, comm, gid)
         body = scene_data["bodies"][0]
         vib = body["vibration"]
         if not vib:
@@ -217,15 +221,17 @@ class VibratingBarMetrics(History):
         self.v0 = float(vib["amplitude"])
         self.mode = int(vib["mode"])
         self.axis = int(vib["axis"])
-        lo, hi = bar_span(body, self.x0, self.axis)
+        lo, hi = bar_span(body, x0, self.axis, comm)
         self.L = hi - lo
         _, E, nu, self.rho = material_constants(bar_material(scene_data, body))
         lam, mu = lame_parameters(E, nu)
         self.modulus = {1: lam + 2.0 * mu, 2: E / (1.0 - nu * nu)}.get(self.dim, E)
         _, omega, _ = mode_constants(self.L, self.modulus, self.rho, self.mode)
         self.period = 2.0 * math.pi / omega
-        self.bar = bar_mask(scene_data, body, self.x0)
-        self.bar_mass = float(np.sum(self.mass[self.bar]))
+        self.bar_box = bar_box(scene_data, body)
+        bar = in_bar(self.bar_box, x0)
+        # Σ m over the bar in global-id order, as one process holding every particle sums it
+        self.bar_mass = gid_order_sum(comm, gid[bar], mass[bar])
         self.times: list[float] = []
         self.com_velocity: list[float] = []
         self.com_velocity_exact: list[float] = []
@@ -234,7 +240,8 @@ class VibratingBarMetrics(History):
         """Per-particle momentum along the axis of the bar's particles ``gid``; no maxima."""
         n = np.shape(gid)[0]
         v = as_points(v, n, self.dim)
-        sums = np.where(self.bar[gid], self.mass[gid] * v[:, self.axis], 0.0)[:, None]
+        x0, mass = self.reference(gid, context.get("particles"))
+        sums = np.where(in_bar(self.bar_box, x0), mass * v[:, self.axis], 0.0)[:, None]
         return sums, np.zeros(0)
 
     def record(self, t, sums, maxes, components, v_time=None) -> None:

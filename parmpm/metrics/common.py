@@ -1,6 +1,8 @@
 """What the metrics classes share: reading the bar (body 0) from the *resolved* scene
 (:func:`parmpm.scene_schema.resolve`: every key present, materials keyed by name, per-axis
-values as lists of ``dim`` numbers) and the history base class :class:`History`.
+values as lists of ``dim`` numbers), the collective reductions a metric is built with (what one
+rank holds reduced over all: bounds, distinct values, a few rows gathered) and the history base
+class :class:`History`.
 """
 
 from __future__ import annotations
@@ -9,6 +11,8 @@ import logging
 import math
 
 import numpy as np
+
+from decomposition import allreduce_max, is_parallel
 
 logger = logging.getLogger(__name__)
 
@@ -32,10 +36,12 @@ def body_box(body: dict):
     return np.asarray(body["min"], dtype=float), np.asarray(body["max"], dtype=float)
 
 
-def lattice_span(coord: np.ndarray) -> tuple[float, float]:
+def lattice_span(coord: np.ndarray, comm=None) -> tuple[float, float]:
     """Span of a uniform particle lattice along one axis: the particles' range widened by half
-    a particle spacing at each end (particles sit at the centres of their sub-cells)."""
-    u = np.unique(coord)
+    a particle spacing at each end (particles sit at the centres of their sub-cells).
+    ``coord``: this rank's particles' coordinates; the distinct values of every rank's are
+    gathered (one lattice line, not the particles)."""
+    u = glb_unique(comm, coord)
     if u.size < 2:
         return (float(u[0]), float(u[0])) if u.size else (0.0, 0.0)
     gaps = np.diff(u)
@@ -43,28 +49,76 @@ def lattice_span(coord: np.ndarray) -> tuple[float, float]:
     return float(u[0] - 0.5 * spacing), float(u[-1] + 0.5 * spacing)
 
 
-def bar_span(body: dict, x0: np.ndarray, axis: int) -> tuple[float, float]:
-    """``(lo, hi)`` of body 0 along ``axis``: its box, else the particle lattice."""
+def bar_span(body: dict, x0: np.ndarray, axis: int, comm=None) -> tuple[float, float]:
+    """``(lo, hi)`` of body 0 along ``axis``: its box, else the particle lattice (``x0``: this
+    rank's particles; collective when ``comm`` is)."""
     box = body_box(body)
     if box is not None:
         return float(box[0][axis]), float(box[1][axis])
-    span = lattice_span(x0[:, axis])
+    span = lattice_span(x0[:, axis], comm)
     logger.info("body 0 has no box geometry; bar span %s taken from the particle lattice", span)
     return span
 
 
-def bar_mask(scene_data: dict, body: dict, x0: np.ndarray) -> np.ndarray:
-    """Particles of body 0: all of them in a one-body scene, else those inside body 0's box."""
-    n = x0.shape[0]
+def bar_box(scene_data: dict, body: dict):
+    """What :func:`in_bar` tests: None (every particle is the bar's: a one-body scene, or
+    body 0 is not a box) or ``(min, max, tol)`` of body 0's box."""
     if len(scene_data["bodies"]) <= 1:
-        return np.ones(n, dtype=bool)
+        return None
     box = body_box(body)
     if box is None:
         logger.warning("several bodies and body 0 is not a box: metrics use all particles")
-        return np.ones(n, dtype=bool)
+        return None
     lo, hi = box
-    tol = 1e-9 * max(float(np.max(hi - lo)), 1.0)
+    return lo, hi, 1e-9 * max(float(np.max(hi - lo)), 1.0)
+
+
+def in_bar(box, x0: np.ndarray) -> np.ndarray:
+    """Particles of body 0 among reference positions ``x0`` (``box``: :func:`bar_box`);
+    elementwise, so the same for any subset of the particles."""
+    if box is None:
+        return np.ones(x0.shape[0], dtype=bool)
+    lo, hi, tol = box
     return np.all((x0 >= lo - tol) & (x0 <= hi + tol), axis=1)
+
+
+def bar_mask(scene_data: dict, body: dict, x0: np.ndarray) -> np.ndarray:
+    """Particles of body 0: all of them in a one-body scene, else those inside body 0's box."""
+    return in_bar(bar_box(scene_data, body), x0)
+
+
+# --- collective reductions of what one rank holds (comm None or one rank: local) -------------
+def glb_bounds(comm, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per column, the smallest and largest value over every rank's rows ``x`` (n, k), exact
+    (``±inf`` where no rank has a row)."""
+    k = x.shape[1]
+    local = np.concatenate([-x.min(axis=0, initial=np.inf), x.max(axis=0, initial=-np.inf)])
+    both = allreduce_max(comm, local) if is_parallel(comm) else local
+    return -both[:k], both[k:]
+
+
+def glb_max(comm, value: float) -> float:
+    """The largest of every rank's ``value`` (exact)."""
+    v = np.array([value], float)
+    return float((allreduce_max(comm, v) if is_parallel(comm) else v)[0])
+
+
+def glb_unique(comm, values: np.ndarray) -> np.ndarray:
+    """The distinct values over every rank's ``values``, sorted."""
+    u = np.unique(values)
+    return np.unique(np.concatenate(comm.allgather(u))) if is_parallel(comm) else u
+
+
+def gather_rows(comm, gid: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every rank's ``(gid, rows)`` (a few particles: a bar's tip) on every rank, in global-id
+    order."""
+    gid, rows = np.asarray(gid, np.int64), np.asarray(rows)
+    if is_parallel(comm):
+        parts = comm.allgather((gid, rows))
+        gid = np.concatenate([p[0] for p in parts])
+        rows = np.concatenate([p[1] for p in parts])
+    order = np.argsort(gid, kind="stable")
+    return gid[order], rows[order]
 
 
 def gravity(scene_data: dict) -> np.ndarray:
@@ -85,16 +139,41 @@ def to_plain(value):
 
 
 class History:
-    """Base of the metrics classes: checkpointing of a metric's history (the attributes named in
-    ``_STATE``) and :meth:`sample`. ``needs_components`` (the run then counts connected pieces)
-    is set from the kind's registry entry (:data:`parmpm.metrics.METRIC_KINDS`)."""
+    """Base of the metrics classes: the particles a metric is built from (:meth:`_own`), their
+    reference fields at sampling time (:meth:`reference`), checkpointing of a metric's history
+    (the attributes named in ``_STATE``) and :meth:`sample`. ``needs_components`` (the run then
+    counts connected pieces) is set from the kind's registry entry
+    (:data:`parmpm.metrics.METRIC_KINDS`).
+
+    A metric is built from the particles one rank holds (``x0``, ``mass``, global ids ``gid``)
+    and a communicator ``comm``: what it needs of the others comes from collective reductions,
+    and it keeps only those (scalars, a bar's tip), never a particle field. Built without a
+    communicator, the arrays are every particle's (one process) and are kept for
+    :meth:`sample`."""
 
     _STATE: tuple[str, ...] = ()
     needs_components = False
 
+    def _own(self, x0, mass, comm, gid):
+        """``(x0 (n, dim), mass, gid)`` of the particles the metric is built from (``gid``
+        default: 0..n−1); kept as ``self.x0``, ``self.mass`` only without ``comm``."""
+        mass = np.asarray(mass, dtype=float)
+        x0 = as_points(x0, mass.shape[0], self.dim)
+        gid = np.arange(mass.shape[0]) if gid is None else np.asarray(gid, np.int64)
+        self.x0, self.mass = (x0, mass) if comm is None else (None, None)
+        return x0, mass, gid
+
+    def reference(self, gid, particles=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(x0, mass)`` of the particles ``gid``: the particle store's rows (``particles``,
+        in the order of ``gid``), else those kept at construction."""
+        if particles is not None:
+            return particles.x0, particles.mass
+        return self.x0[gid], self.mass[gid]
+
     def sample(self, t, x, v, F, components, v_time=None) -> None:
-        """Record one sample from arrays of *all* particles in global-id order (for metrics
-        whose :meth:`terms` need no particle context beyond x, v, F and t)."""
+        """Record one sample from arrays of *all* particles in global-id order (a metric built
+        without a communicator, whose :meth:`terms` need no particle context beyond x, v, F
+        and t)."""
         n = self.x0.shape[0]
         sums, maxes = self.terms(np.arange(n), x, v, F, t=t)
         self.record(t, sums.sum(axis=0), maxes, components, v_time)

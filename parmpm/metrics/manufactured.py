@@ -21,9 +21,9 @@ from parmpm.metrics.common import History, as_points, to_plain
 class ManufacturedMetrics(History):
     """RMS and maximum position error against the manufactured motion."""
 
-    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
+    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
         self.dim = int(scene_data["dim"])
-        self.x0 = as_points(x0, np.shape(mass)[0], self.dim)
+        self._own(x0, mass, comm, gid)  # nothing of the particles is needed beyond sampling
         man = scene_data.get("manufactured")
         if not man:
             raise SceneError('metrics.kind = "manufactured" needs a [manufactured] table')
@@ -38,7 +38,7 @@ class ManufacturedMetrics(History):
     def terms(self, gid, x, v, F, t=0.0, **context):
         """Per-particle squared error and count; the local maximum error."""
         n = np.shape(gid)[0]
-        X = self.x0[gid]
+        X, _ = self.reference(gid, context.get("particles"))
         u, _, _ = manufactured_motion(X, t, self.A, self.c)
         e2 = np.sum((as_points(x, n, self.dim) - X - u) ** 2, axis=1)
         sums = np.stack([e2, np.ones(n)], axis=1)

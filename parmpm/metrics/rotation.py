@@ -24,14 +24,14 @@ import numpy as np
 from parmpm.domains import domain_sizes
 from parmpm.errors import SceneError
 from parmpm.metrics import register_metrics
-from parmpm.metrics.common import History, as_points, to_plain
+from parmpm.metrics.common import History, as_points, glb_max, to_plain
 
 
 @register_metrics("rotation")
 class RotationMetrics(History):
     """Domain size, stress, energy and angular momentum of a spinning body (2D)."""
 
-    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
+    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
         self.dim = int(scene_data["dim"])
         if self.dim != 2:
             raise SceneError('metrics.kind = "rotation" is for 2D scenes')
@@ -41,10 +41,11 @@ class RotationMetrics(History):
         self.omega = float(body["angular_velocity"])
         self.centre = (np.asarray(body["center"], float) if body["shape"] != "box" else
                        0.5 * (np.asarray(body["min"], float) + np.asarray(body["max"], float)))
-        self.x0 = as_points(x0, np.shape(mass)[0], self.dim)
-        self.mass = np.asarray(mass, float)
+        x0, _, _ = self._own(x0, mass, comm, gid)
         rho = scene_data["materials"][body["material"]]["density"]
-        radius = float(np.sqrt(np.max(np.sum((self.x0 - self.centre) ** 2, axis=1))))
+        # the largest distance of a particle from the centre, over every rank (exact)
+        radius = float(np.sqrt(glb_max(comm, np.max(np.sum((x0 - self.centre) ** 2, axis=1),
+                                                     initial=-np.inf))))
         self.stress_scale = rho * self.omega**2 * radius**2
         self.times: list[float] = []
         self.area_ratio: list[float] = []
@@ -58,13 +59,13 @@ class RotationMetrics(History):
         maxima of the stress norm and of ``−(size / size at rest)``."""
         n = np.shape(gid)[0]
         x, v = as_points(x, n, 2), as_points(v, n, 2)
-        m = self.mass[gid]
+        _, m = self.reference(gid, particles)
         size = domain_sizes(2, method, lcr, F, particles.r0, particles.lh0)
         size0 = np.prod(2.0 * particles.lh0, axis=1)
         r = x - self.centre
         sums = np.stack([size, size0, 0.5 * m * np.sum(v * v, axis=1),
                          m * (r[:, 0] * v[:, 1] - r[:, 1] * v[:, 0])], axis=1)
-        stress = np.sqrt(np.sum(particles.stress.reshape(n, -1) ** 2, axis=1))
+        stress = np.sqrt(np.sum(particles.stress.reshape(n, 4) ** 2, axis=1))  # n = 0: idle rank
         return sums, np.array([stress.max(initial=-np.inf), (-size / size0).max(initial=-np.inf)])
 
     def record(self, t, sums, maxes, components, v_time=None) -> None:

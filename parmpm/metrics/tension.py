@@ -39,9 +39,20 @@ def _box_frame(body: dict, dim: int):
     return 0.5 * (lo + hi), axes, 0.5 * (hi - lo)
 
 
+def _project(x0: np.ndarray, origin: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    """``(x0 − origin)·axesᵀ`` summed elementwise in a fixed order (not BLAS, whose rounding
+    depends on where a row sits in the array): the same bits for any subset of the particles."""
+    r = x0 - origin
+    out = np.zeros((x0.shape[0], axes.shape[0]))
+    for i in range(axes.shape[0]):
+        for k in range(x0.shape[1]):
+            out[:, i] += r[:, k] * axes[i, k]
+    return out
+
+
 def _inside(body: dict, dim: int, x0: np.ndarray) -> np.ndarray:
     centre, axes, half = _box_frame(body, dim)
-    local = (x0 - centre) @ axes.T
+    local = _project(x0, centre, axes)
     return np.all(np.abs(local) <= half * (1 + 1e-9) + 1e-12, axis=1)
 
 
@@ -68,15 +79,15 @@ class TensionBarMetrics(History):
               "failure_time", "stretch_at_failure", "separation_time", "stretch_at_separation",
               "crack_position", "crack_range")
 
-    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray):
+    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
         self.dim = d = int(scene_data["dim"])
-        self.x0 = as_points(x0, np.shape(mass)[0], d)
-        self.mass = np.asarray(mass, dtype=float)
+        self._own(x0, mass, comm, gid)  # the grips and the bar are told from x0 when sampling
         grip = scene_data["metrics"]["grip"]
         bodies = scene_data["bodies"]
         grips = [b for b in bodies if b["material"] == grip]
         if len(grips) != 2:
             raise SceneError(f"tension_bar metrics need two bodies of material {grip!r}")
+        self.grips = grips  # their boxes tell a particle's part from its x0 (_parts)
         (cA, _, _), (cB, _, _) = _box_frame(grips[0], d), _box_frame(grips[1], d)
         axis = cB - cA
         self.e = axis / np.linalg.norm(axis)
@@ -85,10 +96,6 @@ class TensionBarMetrics(History):
         self.mid = 0.5 * (cA + cB)
         self.h = _extent(grips[0], d, self.e) + _extent(grips[1], d, self.e)
         self.L0 = float(np.linalg.norm(axis)) - self.h
-        self.grip_a = _inside(grips[0], d, self.x0)
-        self.grip_b = _inside(grips[1], d, self.x0) & ~self.grip_a
-        self.bar = ~(self.grip_a | self.grip_b)
-        self.s0 = (self.x0 - self.mid) @ self.e
 
         materials = scene_data["materials"]
         bar_bodies = [b for b in bodies if b["material"] != grip]
@@ -126,17 +133,16 @@ class TensionBarMetrics(History):
         n = np.shape(gid)[0]
         d = self.dim
         x = as_points(x, n, d)
-        m = self.mass[gid]
+        x0, m = self.reference(gid, particles)
+        grip_a, grip_b, bar, s = self._parts(x0)
         sums = np.zeros((n, 2 * d + 5))
-        for k, grip in enumerate((self.grip_a[gid], self.grip_b[gid])):
+        for k, grip in enumerate((grip_a, grip_b)):
             col = k * (d + 1)
             sums[:, col] = np.where(grip, m, 0.0)
             sums[:, col + 1:col + 1 + d] = np.where(grip[:, None], m[:, None] * x, 0.0)
         damage = (np.zeros(n) if particles is None or particles.damage.size != n
                   else particles.damage)
-        bar = self.bar[gid]
         failed = bar & (damage >= FULL)
-        s = self.s0[gid]
         sums[:, -2] = failed
         sums[:, -1] = np.where(failed, s, 0.0)
         if particles is not None and particles.stress.shape[0] == n:  # ∫ σ_ee dV over the bar
@@ -146,6 +152,14 @@ class TensionBarMetrics(History):
         maxes = np.array([damage[bar].max(initial=0.0),
                           s[failed].max(initial=-np.inf), (-s[failed]).max(initial=-np.inf)])
         return sums, maxes
+
+    def _parts(self, x0: np.ndarray):
+        """Of particles at reference positions ``x0``: in grip A, in grip B, in the bar, and
+        ``s = (X − mid)·e`` (elementwise: the same for any subset of the particles)."""
+        d = self.dim
+        grip_a = _inside(self.grips[0], d, x0)
+        grip_b = _inside(self.grips[1], d, x0) & ~grip_a
+        return grip_a, grip_b, ~(grip_a | grip_b), _project(x0, self.mid, self.e[None, :])[:, 0]
 
     def record(self, t, sums, maxes, components, v_time=None) -> None:
         d = self.dim
