@@ -16,10 +16,10 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
+from run_waits import wait_for_steps
 
 import parmpm
 from parmpm.callbacks import Callback, Schedule
@@ -30,6 +30,8 @@ from parmpm.simulation import Simulation
 
 REPO = Path(__file__).resolve().parents[1]
 QUIET_SCENE = ["output.snapshots=false", "output.figure=false", "output.history=false"]
+#: a run that a test signals: history rows every step, the proof that it is stepping
+SIGNALLED_SCENE = ["output.snapshots=false", "output.figure=false", "output.history.every_steps=1"]
 
 
 def _sim(folder: Path, *over: str) -> Simulation:
@@ -117,15 +119,12 @@ def test_sigterm_under_mpirun_writes_the_summary_on_every_rank_count(tmp_path, m
     (collectively) and stop with exit 130 — nothing hangs."""
     out = tmp_path / "o"
     cmd = [mpirun, "-n", "2", sys.executable, "-m", "parmpm", "run", "vibrating_bar", "-o",
-           str(out), "--quiet", "--set", "time.end=1e6", *(a for o in QUIET_SCENE
+           str(out), "--quiet", "--set", "time.end=1e6", *(a for o in SIGNALLED_SCENE
                                                             for a in ("--set", o))]
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env=env)
-    deadline = time.monotonic() + 120
-    while not (out / "parmpm-run.json").exists() and time.monotonic() < deadline:
-        time.sleep(0.2)  # the folder is claimed just before the first step
-    time.sleep(2)
+    wait_for_steps(proc, out / "history.csv")
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err

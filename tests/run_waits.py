@@ -1,0 +1,32 @@
+"""Waiting for a launched run to reach its time loop, without racing it.
+
+A signal before the loop stops a run at once (no checkpoint); after it, the run checkpoints. A
+fixed sleep loses that race on a loaded machine with a cold numba cache, so tests that signal a
+run wait for proof of steps instead: ``history.csv`` (one row per step with
+``output.history.every_steps = 1``, flushed row by row) holding a few rows.
+"""
+from __future__ import annotations
+
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+#: the ``--set`` options that make a run write one history row per step
+HISTORY_EVERY_STEP = ["--set", "output.history.every_steps=1"]
+
+
+def wait_for_steps(proc: subprocess.Popen, history: Path, rows: int = 3,
+                   limit: float = 300.0) -> None:
+    """Return once ``history`` holds more than ``rows`` lines (header + steps); fail the test
+    (killing ``proc``) if the run ends or ``limit`` seconds pass first (a hang, not a timing)."""
+    deadline = time.monotonic() + limit
+    while time.monotonic() < deadline and proc.poll() is None:
+        if history.exists() and len(history.read_text().splitlines()) > rows:
+            return
+        time.sleep(0.2)
+    if proc.poll() is None:
+        proc.kill()
+    _, err = proc.communicate()
+    pytest.fail(f"the run did not reach its time loop (exit {proc.returncode}): {err[-2000:]}")
