@@ -200,8 +200,10 @@ class Checkpoints:
                  "lcr": s.lcr if s.lcr is not None else float("nan"), "ranks": s.size,
                  "particles": s.n_total, "dim": s.dim, "state": json.dumps(state),
                  "lineage": s.run_id}
+        ck = sim.data["checkpoint"]
         path = write_checkpoint(s.comm, s.particles, sim.out_dir / checkpoint_name(clock.nstep),
-                                s.n_total, attrs, sim.data["checkpoint"]["keep"], s.run_id)
+                                s.n_total, attrs, ck["keep"], s.run_id, s.disc,
+                                ck.get("ranks_per_file", "auto"))
         self.last_step, self.last_path = clock.nstep, path
         log.info("wrote %s (step %d, t = %.6g s)", path, clock.nstep, clock.t)
         return path

@@ -28,8 +28,8 @@ from parmpm.errors import ParmpmError, SimulationError
 from parmpm.exact import manufactured_motion
 from parmpm.footprint import check_memory
 from parmpm.grid import BC_CODES
-from parmpm.io.checkpoint import CheckpointReader
-from parmpm.io.checkpoint_gather import load_particles
+from parmpm.io.checkpoint_gather import load_patches, load_rows
+from parmpm.io.checkpoint_parts import CheckpointReader
 from parmpm.log import get_logger
 from parmpm.materials import PARAM, material_table
 from parmpm.metrics import make_metrics
@@ -91,7 +91,7 @@ class RankState:
 
 def set_up(scene, comm, checkpoint=None) -> RankState:
     """This rank's state of ``scene`` (collective); ``checkpoint``: an open
-    :class:`parmpm.io.checkpoint.CheckpointReader` to continue from."""
+    :class:`parmpm.io.checkpoint_parts.CheckpointReader` to continue from."""
     data = scene.data
     d = data["dim"]
     interp = INTERPOLATORS[data["method"]["interpolator"]]
@@ -217,29 +217,73 @@ def _seeded(data, comm, D, params, names):
 
 
 def _restored(data, comm, D, params, checkpoint):
-    """Read back from a checkpoint: the positions decide the patches, the metrics are rebuilt
-    from every particle's initial position."""
+    """Read back from a checkpoint. Version 4 on the same patch grid (the grid is chosen from
+    the scene alone, so a restart has the checkpoint's unless it overrides the grid): the
+    index's counts deal the patches out and each rank reads exactly its patches' rows, then
+    checks that each particle lies in the patch the index says. Otherwise (versions 1–3, or
+    another grid) every rank reads every position to find the patches, then its own rows."""
     layout, d = D.layout, data["dim"]
-    x_all, x0_all, mass_all = (checkpoint.read(k) for k in ("x", "x0", "mass"))
-    n_total = x_all.shape[0]
-    metrics = make_metrics(data, x0_all, mass_all)
-    where = np.zeros(n_total, np.int64)
-    bad, _ = locate_patches(d, x_all, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
-                            layout.patches_per_axis, where, where)
-    if bad >= 0:
-        raise SimulationError(f"particle {bad} at {fmt_vec(x_all[bad])} is outside the grid")
-    counts = np.bincount(where, minlength=layout.n_patches)
-    del x0_all, mass_all
+    rank, n_materials = comm.Get_rank(), params.shape[0]
+    indexed = checkpoint.indexed_for(D)
+    if indexed:
+        counts, where = checkpoint.patch_counts(), None
+    else:
+        if checkpoint.version >= 4 and rank == 0:
+            logger.info("%s was written on another patch grid: every rank reads every position "
+                        "to find the patches", checkpoint.path)
+        x_all = checkpoint.read("x")
+        where = np.zeros(x_all.shape[0], np.int64)
+        bad, _ = locate_patches(d, x_all, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
+                                layout.patches_per_axis, where, where)
+        if bad >= 0:
+            raise SimulationError(f"particle {bad} at {fmt_vec(x_all[bad])} is outside the grid")
+        counts = np.bincount(where, minlength=layout.n_patches)
+        del x_all
     dec = data["decomposition"]
     patches = PatchSet(layout, comm, counts, threshold=dec["rebalance_threshold"],
                        cooldown=dec["rebalance_cooldown"])
-    _warn_idle_ranks(comm, D, counts, x_all)
-    x_all = None  # no second reference to the read arrays while they move
-    owned = patches.rank_of == comm.Get_rank()
-    mine = np.flatnonzero(owned[where])
-    P = load_particles(comm, checkpoint, d, n_total, params.shape[0], mine)
-    P.patch = where[mine]
-    return P, patches, n_total, metrics
+    _warn_idle_ranks(comm, D, counts, _StoredPositions(checkpoint))
+    owned = patches.rank_of == rank
+    if indexed:
+        P = load_patches(comm, checkpoint, d, n_materials, np.flatnonzero(owned))
+        _check_patches(comm, D, P, checkpoint)
+    else:
+        mine = np.flatnonzero(owned[where])
+        P = load_rows(comm, checkpoint, d, n_materials, mine, where[mine])
+    metrics = make_metrics(data, P.x0, P.mass, comm, P.gid)
+    return P, patches, checkpoint.n, metrics
+
+
+def _check_patches(comm, D: Discretisation, P: Particles, checkpoint) -> None:
+    """Every particle read by the index lies in the patch the index files it under (one line
+    on every rank otherwise: a damaged index)."""
+    lay = D.layout
+    at = np.zeros(P.n, np.int64)
+    locate_patches(D.dim, P.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
+                   lay.patches_per_axis, at, at)
+    wrong = np.flatnonzero(at != P.patch)
+    problem = None
+    if wrong.size:
+        i = int(wrong[0])
+        problem = (f"checkpoint '{checkpoint.path}': damaged: its index files particle "
+                   f"{int(P.gid[i])} under patch {int(P.patch[i])}, but it lies in patch {int(at[i])}")
+    agree(comm, problem, root=None)
+
+
+class _StoredPositions:
+    """A checkpoint's positions for the idle-ranks advice (:func:`_warn_idle_ranks`), read only
+    if rank 0 has advice to give (some ranks start without particles)."""
+
+    def __init__(self, checkpoint):
+        self.checkpoint = checkpoint
+
+    def patch_counts(self, D: Discretisation) -> np.ndarray:
+        lay = D.layout
+        x = self.checkpoint.read("x")
+        at = np.zeros(x.shape[0], np.int64)
+        locate_patches(D.dim, x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
+                       lay.patches_per_axis, at, at)
+        return np.bincount(at, minlength=lay.n_patches)
 
 
 def _warn_idle_ranks(comm, D: Discretisation, counts: np.ndarray, where) -> None:

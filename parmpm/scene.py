@@ -84,8 +84,11 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   (int >= 1, default 50: imbalance checks skipped after a re-partition that would not help).
 * ``[checkpoint]``: ``every_steps`` (int >= 1), ``every`` (simulated s), ``wall_minutes``
   (wall-clock minutes) — a checkpoint is written whenever any set schedule fires (default: none);
-  ``keep`` (int >= 1, default 3: older ones are deleted), ``at_end`` (bool, default false). A
-  SIGTERM or SIGINT always writes a final checkpoint before the run stops.
+  ``keep`` (int >= 1, default 3: older ones are deleted), ``at_end`` (bool, default false),
+  ``ranks_per_file`` (``"auto"``, default: one part file per rank up to 256 ranks, then groups of
+  ⌈ranks/256⌉ consecutive ranks; or an integer >= 1: each group's lowest rank writes the group's
+  particles; as many as the ranks: one file). A SIGTERM or SIGINT always writes a final
+  checkpoint before the run stops.
 
 Absent optional values (``time.end``, ``time.dt_max``, ``output.every``, ``bodies.N.vibration``,
 ...) are ``None`` in ``Scene.data`` and omitted from ``Scene.to_toml()``.

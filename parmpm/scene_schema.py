@@ -55,7 +55,7 @@ TIME_KEYS = ("end", "steps", "cfl", "dt_max", "max_energy_growth")
 OUTPUT_KEYS = ("every", "every_steps", "snapshots", "figure", "domains", "history")
 METRICS_KEYS = ("kind", "every_steps", "axis", "stop_on_separation", "grip")
 DECOMPOSITION_KEYS = ("rebalance_threshold", "rebalance_cooldown")
-CHECKPOINT_KEYS = ("every_steps", "every", "wall_minutes", "keep", "at_end")
+CHECKPOINT_KEYS = ("every_steps", "every", "wall_minutes", "keep", "at_end", "ranks_per_file")
 
 DEFAULT_PATCH_SIZE = {1: 64, 2: 64, 3: 16}  # measured: see README "Throughput"
 DEFAULT_LCR = "2dx"
@@ -123,6 +123,10 @@ def resolve(raw: dict, where: str, default_name: str,
             "checkpoint.wall_minutes", ck["wall_minutes"], "a number > 0 (minutes)", lambda x: x > 0),
         "keep": c.integer("checkpoint.keep", ck.get("keep", 3), "an integer >= 1", lambda n: n >= 1),
         "at_end": c.boolean("checkpoint.at_end", ck.get("at_end", False)),
+        # "auto": one part file per rank up to 256 ranks (parmpm.io.checkpoint_parts)
+        "ranks_per_file": ck.get("ranks_per_file", "auto") if ck.get("ranks_per_file", "auto")
+        == "auto" else c.integer("checkpoint.ranks_per_file", ck["ranks_per_file"],
+                                 '"auto" or an integer >= 1', lambda n: n >= 1),
     }
     return out
 

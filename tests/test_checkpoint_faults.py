@@ -1,7 +1,9 @@
 """Checkpoint and snapshot files under faults: flipped bits (every corruption either reads back
 identical data or is a one-line error naming the file), full disks and read-only folders (one
 line, the temporary file removed, earlier checkpoints intact, no crash), pruning by lineage and
-the clean-up of leftover temporary files.
+the clean-up of leftover temporary files. The files here are one-writer (version 4) checkpoints
+written as the run driver writes them, and version 1-3 files as those versions wrote them; the
+part files of many writers are tests/test_checkpoint_parts.py's.
 
 The full-filesystem tests mount a small tmpfs (root only; skipped where mounting is not
 permitted); the read-only tests mount it read-only (root, who ignores permissions) or take the
@@ -22,8 +24,9 @@ import pytest
 from parmpm.errors import ParmpmError
 from parmpm.io import SnapshotWriter
 from parmpm.io import checkpoint as ck
-from parmpm.io.checkpoint import (FIELDS, CheckpointReader, CheckpointWriter, attrs_digest,
-                                  estimate_bytes, prune, remove_stale_tmp)
+from parmpm.io.checkpoint import (FIELDS, CheckpointWriter, attrs_digest, estimate_bytes, prune,
+                                  remove_stale_tmp)
+from parmpm.io.checkpoint_parts import CheckpointReader, top_tables
 
 DIM = 2
 TAIL = {"x": (DIM,), "v": (DIM,), "x0": (DIM,), "lh0": (DIM,),
@@ -43,23 +46,38 @@ def _fields(n, seed=0):
     return out
 
 
-def _attrs(n, lineage=None):
+#: one patch: the whole file is its rows (the index is then trivial)
+LAYOUT = '{"cells": [4, 4], "patch_size": [4, 4], "ghost": 2, "origin": [0, 0, 0], "h": [1, 1, 1]}'
+
+
+def _attrs(n, lineage=None, v4=True):
     a = {"scene": 'name = "fault"\n[grid]\ncells = [4, 4]\n', "step": 7, "time": 0.25,
          "dt": 1e-3, "vmax": 12.5, "method": "cpdi", "lcr": 0.2, "ranks": 1, "particles": n,
          "dim": DIM, "state": '{"metrics": null, "next_output": 0.5}'}
+    if v4:
+        a.update(layout=LAYOUT, part_files=1)
     if lineage is not None:
         a["lineage"] = lineage
     return a
 
 
+def _writer(path, n, data, block_rows=512, lineage=None):
+    return CheckpointWriter(path, n, {k: v[:0] for k, v in data.items()}, _attrs(n, lineage),
+                            block_rows=block_rows)
+
+
+def _tables(n):
+    return top_tables(np.array([[0, n]]), [0, n], [(".", "")])
+
+
 def _write(path, n=200, block_rows=64, step=128, seed=0, lineage=None):
-    """A checkpoint written as the run driver writes one: ascending blocks of ``step`` rows."""
+    """A one-writer checkpoint written as the run driver writes one: ascending blocks of
+    ``step`` rows, digest segments of ``block_rows``."""
     data = _fields(n, seed)
-    w = CheckpointWriter(path, n, {k: v[:0] for k, v in data.items()}, _attrs(n, lineage),
-                         block_rows=block_rows)
+    w = _writer(path, n, data, block_rows, lineage)
     for lo in range(0, n, step):
         w.write(lo, {k: v[lo:lo + step] for k, v in data.items()})
-    w.commit()
+    w.commit(_tables(n))
     return data
 
 
@@ -91,9 +109,9 @@ def _one_line_naming(exc, path):
 # --- silent corruption ----------------------------------------------------------------------------
 def test_random_single_bit_flips_never_read_different_data(tmp_path):
     """300 single-bit flips (seeded), each on a fresh copy, anywhere in a small checkpoint (4
-    chunks per field, so the chunk indexes are real): each is a one-line ParmpmError naming the
-    file or reads back every field and attribute identical. Before the data digests, flips in a
-    chunk index read whole chunks back as zeros, without an error."""
+    digest segments per field): each is a one-line ParmpmError naming the file or reads back
+    every field and attribute identical. Before the data digests (version 3), flips in a chunk
+    index read whole chunks back as zeros, without an error."""
     good = tmp_path / "checkpoint_00000007.h5"
     _write(good)
     ref = _read_all(good, 128)
@@ -116,9 +134,9 @@ def test_random_single_bit_flips_never_read_different_data(tmp_path):
     assert failed + same == 300 and failed > 100  # most bytes are data or checked metadata
 
 
-def test_data_rewritten_with_valid_fletcher32_fails_its_digest(tmp_path):
-    """Data that HDF5's own checksums accept (rewritten through h5py, which recomputes
-    Fletcher-32 — as a misdirected chunk address would read) fail the block digest."""
+def test_data_rewritten_through_hdf5_fails_its_digest(tmp_path):
+    """Data that HDF5 itself accepts (rewritten through h5py — as a misdirected address would
+    read) fail the segment digest; a read inside a segment checks the whole segment."""
     path = tmp_path / "checkpoint_00000007.h5"
     _write(path)
     with h5py.File(path, "r+") as f:
@@ -138,7 +156,7 @@ def test_changed_digest_table_fails_on_open(tmp_path):
     _write(path)
     with h5py.File(path, "r+") as f:
         f["digests/F"][1, 0] ^= 1
-    with pytest.raises(ParmpmError, match="data digests fail their checksum") as e:
+    with pytest.raises(ParmpmError, match="fail their checksum") as e:
         CheckpointReader(path)
     assert _one_line_naming(e.value, path)
 
@@ -173,7 +191,7 @@ def _write_old(path, version, n=50, seed=0):
     data = _fields(n, seed)
     if version == 1:
         del data["rf"]
-    attrs = _attrs(n)
+    attrs = _attrs(n, v4=False)
     with h5py.File(path, "w") as f:
         f.attrs["format"] = ck.FORMAT
         f.attrs["version"] = version
@@ -184,6 +202,30 @@ def _write_old(path, version, n=50, seed=0):
         for k, v in data.items():
             g.create_dataset(k, data=v, chunks=v.shape, fletcher32=True)
     return data
+
+
+def write_v3(path, data: dict, attrs: dict, block_rows: int = 1 << 16) -> None:
+    """A version 3 file as version 3 wrote it: rows in global-id order, Fletcher-32 chunks of
+    ``block_rows``, a SHA-256 per block, ``data_digest`` of the tables, ``digest`` of the
+    attributes (also the restart tests' old-format fixture)."""
+    n = next(iter(data.values())).shape[0]
+    with h5py.File(path, "w") as f:
+        f.attrs["format"] = ck.FORMAT
+        f.attrs["version"] = 3
+        for k, v in attrs.items():
+            f.attrs[k] = v
+        f.attrs["block_rows"] = block_rows
+        tables = {}
+        for k, v in data.items():
+            v = np.ascontiguousarray(v, ck.DTYPES[k])
+            f.create_dataset(f"particles/{k}", data=v, chunks=(min(n, block_rows),) + v.shape[1:],
+                             fletcher32=True)
+            tables[k] = np.frombuffer(b"".join(ck.block_digest(k, b, v[lo:lo + block_rows])
+                                               for b, lo in enumerate(range(0, n, block_rows))),
+                                      np.uint8).reshape(-1, 32)
+            f[f"digests/{k}"] = tables[k]
+        f.attrs["data_digest"] = ck.tables_digest(tables)
+        f.attrs["digest"] = attrs_digest({k: v for k, v in f.attrs.items() if k != "digest"})
 
 
 @pytest.mark.parametrize("version", [1, 2])
@@ -202,22 +244,47 @@ def test_older_versions_still_read_with_a_warning(tmp_path, caplog, version):
     assert caplog.text == ""
 
 
-def test_version_3_round_trip_with_unaligned_blocks(tmp_path):
-    """Writes of 100 rows over digest blocks of 64, reads of any slice: exact."""
+def test_version_3_still_reads_and_checks_its_digests(tmp_path, caplog):
+    path = tmp_path / "checkpoint_00000007.h5"
+    data = _fields(333)
+    write_v3(path, data, _attrs(333, lineage="old", v4=False), block_rows=64)
+    with caplog.at_level(logging.WARNING, logger="parmpm.io.checkpoint"):
+        r = CheckpointReader(path)
+    assert caplog.text == "" and r.version == 3 and r.attrs["lineage"] == "old"
+    assert r.patch_rows is None and r.patch_counts() is None
+    for k in FIELDS:
+        for lo, hi in ((0, None), (5, 300), (63, 65), (333, 333)):
+            np.testing.assert_array_equal(r.read(k, lo, hi), data[k][lo:hi], err_msg=k)
+    r.close()
+    with h5py.File(path, "r+") as f:
+        f["particles/v"][100] = 0.0
+    r = CheckpointReader(path)
+    with pytest.raises(ParmpmError, match=r"particles/v: rows 64\.\.127 fail their digest"):
+        r.read("v", 0, 333)
+    r.close()
+
+
+def test_round_trip_with_unaligned_blocks(tmp_path):
+    """Writes of 100 rows over digest segments of 64, reads of any slice: exact; a read takes
+    only the segments it touches."""
     path = tmp_path / "checkpoint_00000007.h5"
     data = _write(path, n=333, block_rows=64, step=100)
     r = CheckpointReader(path)
-    assert r.version == ck.VERSION == 3 and r.attrs.get("lineage") is None
+    assert r.version == ck.VERSION == 4 and r.attrs.get("lineage") is None
     for k in FIELDS:
         for lo, hi in ((0, None), (0, 64), (5, 300), (320, 333), (63, 65), (333, 333)):
             np.testing.assert_array_equal(r.read(k, lo, hi), data[k][lo:hi], err_msg=k)
+    r.rows_read.clear()
+    r.read("x", 64, 128)
+    r.read("x", 70, 130)
+    assert r.rows_read == {"x": 64 + 128}
     r.close()
 
 
 def test_writer_refuses_blocks_out_of_order(tmp_path):
     path = tmp_path / "checkpoint_00000007.h5"
     data = _fields(100)
-    w = CheckpointWriter(path, 100, {k: v[:0] for k, v in data.items()}, _attrs(100), block_rows=32)
+    w = _writer(path, 100, data, block_rows=32)
     with pytest.raises(ParmpmError, match="block at row 50 .expected 0"):
         w.write(50, {k: v[50:] for k, v in data.items()})
     w.abort()
