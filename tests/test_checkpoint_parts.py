@@ -274,7 +274,8 @@ class Counting(rs.CheckpointReader):
 rs.CheckpointReader = Counting
 comm = world()
 setup_logging(comm.Get_rank(), comm.Get_size(), quiet=True)
-sim = Simulation.from_checkpoint(sys.argv[1], out_dir=sys.argv[2], quiet=True, comm=comm)
+sim = Simulation.from_checkpoint(sys.argv[1], sys.argv[4:], out_dir=sys.argv[2], quiet=True,
+                                 comm=comm)
 loaded, rows = sim.particles.n, dict(readers[0].rows_read)
 sim.run()
 Path(sys.argv[3], f"rows_{comm.Get_rank()}.json").write_text(json.dumps([loaded, rows]))
@@ -305,11 +306,11 @@ def _same_particles(a, b):
             assert fa.attrs[k] == fb.attrs[k], k
 
 
-def _restart(mpirun, m, path, out):
+def _restart(mpirun, m, path, out, *overrides):
     """Continue ``path`` on ``m`` ranks; each rank's (particles loaded, rows read per field)."""
     counts = Path(str(out) + "_rows")
     counts.mkdir()
-    cmd = [sys.executable, "-c", RESTART, str(path), str(out), str(counts)]
+    cmd = [sys.executable, "-c", RESTART, str(path), str(out), str(counts), *overrides]
     proc = subprocess.run([mpirun, "-n", str(m)] + cmd, capture_output=True, text=True,
                           timeout=TIMEOUT)
     assert proc.returncode == 0, proc.stderr
@@ -329,6 +330,19 @@ def test_restart_n_to_m_is_bit_identical_and_reads_only_its_own_rows(runs, tmp_p
     assert sum(loaded for loaded, _ in per_rank) == n
     for loaded, rows in per_rank:  # every field: exactly this rank's rows, nothing more
         assert rows == {k: loaded for k in FIELDS}, (loaded, rows)
+
+
+def test_another_patch_grid_reads_every_position_and_continues(runs, tmp_path, mpirun):
+    """A restart that overrides the patch size cannot use the index: every rank reads every
+    position to find its patches (as before version 4), then its rows."""
+    path = runs[3] / CK30
+    per_rank = _restart(mpirun, 2, path, tmp_path, "grid.patch_size=4")
+    with h5py.File(path) as f:
+        n = int(f.attrs["particles"])
+    assert sum(loaded for loaded, _ in per_rank) == n
+    for loaded, rows in per_rank:
+        assert rows["x"] >= n + loaded and rows["gid"] >= loaded
+    assert (tmp_path / CK60).is_file()  # another discretisation: not the same bits (measured)
 
 
 def test_old_format_restarts_bit_identically(runs, tmp_path, mpirun):
