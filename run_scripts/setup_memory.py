@@ -18,7 +18,19 @@ ids; the metrics keep only reductions), so the largest rank's memory above basel
 ``a·N/P + b``: ``a`` bytes per particle, ``b`` a constant (the grid's and the patches'
 descriptions, MPI buffers). The issue's goal: on 8 ranks the largest rank holds at most 1.5/8 of
 the 1-rank run's memory. Runtime: ~10 minutes on two cores (8 ranks oversubscribed is fine for
-memory); ``--quick`` (~5·10⁴ and 10⁵ particles, 1 and 2 ranks): ~1 minute.
+memory); ``--quick`` (~5·10⁴ and 10⁵ particles, 1 and 2 ranks): ~10 seconds.
+
+Measured (two cores, largest rank above baseline; share of the 1-rank run in brackets):
+
+    case  P   set-up, before (seeding all)   set-up, after (blocks)   after one step, after
+    disk  1      616 MB                        599 MB                     783 MB
+    disk  8      140 MB (0.228)                 76 MB (0.127)             112 MB (0.142)
+    box   1     1282 MB                       1099 MB                    5062 MB
+    box   8      267 MB (0.208)                149 MB (0.135)             657 MB (0.130)
+
+after: ≈ 312 B·N/P + 1 MB (disk) and 284 B·N/P + 23 MB (box) at set-up; before, the constant
+was 81 MB and 125 MB (every rank held every particle's position and the metrics' whole-scene
+arrays).
 
     python run_scripts/setup_memory.py                 # both cases on 1, 2, 4, 8 ranks
     python run_scripts/setup_memory.py --quick

@@ -79,14 +79,20 @@ def main() -> None:
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory, mpirun):
     root = tmp_path_factory.mktemp("setup_memory")
-    out = {}
-    for n, block in ((1, 1 << 16), (2, SMALL_BLOCK), (3, SMALL_BLOCK)):
-        folder = root / f"np{n}"
-        folder.mkdir()
-        proc = subprocess.run([mpirun, "-n", str(n), sys.executable, __file__, str(folder),
-                               str(block)], capture_output=True, text=True, timeout=300)
-        assert proc.returncode == 0, f"{n} ranks failed:\n{proc.stderr[-3000:]}"
-        out[n] = folder
+    out, procs = {}, {}
+    for n, block in ((1, 1 << 16), (2, SMALL_BLOCK), (3, SMALL_BLOCK)):  # side by side
+        out[n] = root / f"np{n}"
+        out[n].mkdir()
+        procs[n] = subprocess.Popen([mpirun, "-n", str(n), sys.executable, __file__, str(out[n]),
+                                     str(block)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                    text=True)
+    for n, proc in procs.items():
+        try:
+            _, err = proc.communicate(timeout=300)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            _, err = proc.communicate()
+        assert proc.returncode == 0, f"{n} ranks failed:\n{err[-3000:]}"
     return out
 
 
