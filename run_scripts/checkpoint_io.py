@@ -13,9 +13,12 @@ rows and bytes it read (the reader's count) and the bytes its process read from 
 (``rchar`` of /proc/self/io: every byte HDF5 read, cached or not). Expected: with one part per
 rank each rank reads its own rows only (about N/P rows, 232 bytes each in 2D), and the write
 time falls with P while the disk keeps up. Runtime: about a minute for 4·10⁶ particles on one
-rank (the two steps dominate), more when oversubscribed.
+rank (the two steps dominate), more when oversubscribed. ``--json FILE``: rank 0 also writes
+the numbers there (one record per ``--ranks-per-file`` setting; ``run_scripts/io_scaling.py``
+reads it).
 """
 import argparse
+import json
 import shutil
 import tempfile
 import time
@@ -66,6 +69,7 @@ def main() -> None:
     ap.add_argument("--ranks-per-file", nargs="+", default=["auto", "all"],
                     help='settings to compare: "auto", an integer, or "all" (one writer)')
     ap.add_argument("--out", type=Path, default=None, help="folder (default: a temporary one)")
+    ap.add_argument("--json", type=Path, default=None, help="also write the numbers here (rank 0)")
     args = ap.parse_args()
     comm = world()
     rank, size = comm.Get_rank(), comm.Get_size()
@@ -76,6 +80,8 @@ def main() -> None:
     sim = Simulation(scene, out / "run", quiet=True, comm=comm)
     summary = sim.run()
     step = summary["particles"] / summary["particle_steps_per_second"]
+    record = {"ranks": size, "particles": int(summary["particles"]), "dim": args.dim,
+              "step_seconds": step, "settings": []}
     if rank == 0:
         print(f"{size} rank(s), {summary['particles']:,} particles, {args.dim}D, step {step:.3f} s")
     for k, setting in enumerate(args.ranks_per_file):
@@ -111,10 +117,17 @@ def main() -> None:
             for r, (n_rows, b, rc) in enumerate(per_rank):
                 print(f"  rank {r}: read {n_rows:,} rows, {b / 1e6:.1f} MB of particle data; "
                       f"{rc / 1e6:.1f} MB read from files")
+            record["settings"].append({
+                "ranks_per_file": setting, "files": files, "bytes": _size(path),
+                "write_seconds": t_write, "restart_seconds": t_read,
+                "per_rank": [{"rank": r, "rows": n_rows, "bytes_read": b, "rchar": rc}
+                             for r, (n_rows, b, rc) in enumerate(per_rank)]})
             remove_checkpoint(path)
         comm.Barrier()
     if rank == 0:
         shutil.rmtree(out, ignore_errors=True)
+        if args.json is not None:
+            args.json.write_text(json.dumps(record), encoding="utf-8")
 
 
 if __name__ == "__main__":

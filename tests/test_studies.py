@@ -12,6 +12,9 @@
 * ``run_scripts/speed_accuracy.py`` — rows for every method on both problems, second-order
   convergence of CPDI and cpGIMP on the manufactured solution, and the smallest errors (the end
   of the Pareto front) are CPDI's or cpGIMP's.
+* ``run_scripts/io_scaling.py`` — on 2 ranks each rank reads its own rows at restart (about
+  S·N/2, S = 232 B) and the largest rank's memory falls below the 1-rank run's; the I/O model's
+  parts beat one writer and its 1 % interval is 99 checkpoint times.
 """
 from __future__ import annotations
 
@@ -19,6 +22,7 @@ import math
 from pathlib import Path
 
 import pytest
+from mpi_launch import needs_mpi
 from study_harness import num, read_csv, run_quick
 
 pytestmark = pytest.mark.slow  # a study's smoke run (run_scripts/, --quick)
@@ -162,3 +166,31 @@ def test_speed_accuracy_rows_and_pareto_front(speed):
         assert abs(math.log2(e["10"] / e["20"]) - 2.0) < 0.2, (ppc, e)
     assert any(r["separated"] == "True" for r in bar if r["method"] == "mpm")
     _png_ok(out / "speed_accuracy.png")
+
+
+# --- io_scaling (launches mpirun itself) ---------------------------------------------------------
+@needs_mpi
+def test_io_scaling_reads_n_over_p_and_parts_beat_one_writer(tmp_path):
+    out = run_quick("io_scaling.py", tmp_path / "out")
+    rows = {int(r["ranks"]): r for r in read_csv(out / "io_scaling.csv")}
+    assert set(rows) == {1, 2}
+    n = int(rows[1]["particles"])
+    for P, r in rows.items():
+        ideal = 232 * n / P / 1e6
+        assert num(r["ideal_read_mb"]) == pytest.approx(ideal)
+        # its own patches' rows: within a patch's worth of N/P, never the whole scene
+        assert 0.9 * ideal < num(r["min_read_mb"]) <= num(r["max_read_mb"]) < 1.1 * ideal, r
+        assert num(r["write_s"]) > 0 and num(r["restart_s"]) > 0
+    assert num(rows[2]["max_peak_mb"]) < 0.8 * num(rows[1]["max_peak_mb"])
+    assert num(rows[1]["fit_bytes_per_particle_peak"]) > 0
+    model = read_csv(out / "io_model.csv")
+    assert {int(r["ranks"]) for r in model} == {100, 1000, 10000}
+    for r in model:
+        w = num(r["write_seconds"])
+        assert w < num(r["old_write_seconds"])
+        if int(r["ranks"]) >= 1000:  # 250 writers against one
+            assert 10 * w < num(r["old_write_seconds"]), r
+        if math.isfinite(num(r["step_seconds"])):
+            step = num(r["step_seconds"])  # the interval: whole steps, at least 99 × T_w
+            assert 99 * w <= num(r["interval_minutes"]) * 60 < 99 * w + step + 1e-9
+    _png_ok(out / "io_scaling.png")
