@@ -35,7 +35,7 @@ out, checking the digests, building the stepper) and ``2P·t_md`` every rank's o
 top-level file and its part.
 
 **The old strategy** (format ≤ 3): rank 0 gathered every row and wrote alone,
-``T_w = S·N/min(b_w, B_fs) + S·N·(P − 1)/(P·β)``, and at restart every rank read the whole scene's
+``T_w = S·N/min(b_w, B_fs) + S·N·(P − 1)/(P·β) + t_0``, and at restart every rank read the whole scene's
 positions, reference positions and masses (``8·(2d + 1)`` B per particle) before its own rows:
 ``T_r = max((8(2d+1)·N + S·N/P)/b_r, (P·8(2d+1)·N + S·N)/B_fs) + t_0r``.
 

@@ -193,9 +193,15 @@ def summarise(results: list[tuple[dict, dict]]) -> list[dict]:
             "max_rchar_mb": max(x["rchar"] for x in parts["per_rank"]) / 1e6,
             "tiny_write_s": mem["t_0"], "tiny_restart_s": mem["t_0r"],
             "step_s": io["step_seconds"], "peak": m[0]["peak"]})
+    return add_fits(rows)
+
+
+def add_fits(rows: list[dict]) -> list[dict]:
+    """The largest rank's memory above baseline fitted as ``a·N/P + b`` (``setup_memory.fit``),
+    for each phase: ``fit_bytes_per_particle_<phase>`` (a), ``fit_constant_mb_<phase>`` (b)."""
     if len(rows) > 1:
         P = np.array([r["ranks"] for r in rows], float)
-        for key in ("setup", "peak"):
+        for key in ("setup", "step", "write", "restart", "peak"):
             a, b = sm.fit(P, rows[0]["particles"], np.array([r[f"max_{key}_mb"] for r in rows]))
             for r in rows:
                 r[f"fit_bytes_per_particle_{key}"], r[f"fit_constant_mb_{key}"] = a, b
@@ -220,7 +226,9 @@ def table(rows: list[dict]) -> str:
                      f"write, restart) a = {r['fit_bytes_per_particle_peak']:.0f} B/particle, "
                      f"b = {r['fit_constant_mb_peak']:.1f} MB; set-up a = "
                      f"{r['fit_bytes_per_particle_setup']:.0f} B/particle, "
-                     f"b = {r['fit_constant_mb_setup']:.1f} MB")
+                     f"b = {r['fit_constant_mb_setup']:.1f} MB; " + "; ".join(
+                         f"{k} a = {r[f'fit_bytes_per_particle_{k}']:.0f}, "
+                         f"b = {r[f'fit_constant_mb_{k}']:.1f}" for k in ("step", "write", "restart")))
     worst = max(x["max_read_mb"] / x["ideal_read_mb"] for x in rows)
     lines.append(f"bytes read per rank at restart: at most {worst:.4f} × S·N/P "
                  f"(S = {im.row_bytes(DIM)} B per {DIM}D particle)")
@@ -263,9 +271,13 @@ def model(rows: list[dict], c: dict) -> tuple[list[dict], dict]:
     """(io_model rows, the constants used) from the measured 1-rank rates."""
     one = min(rows, key=lambda r: r["ranks"])
     nbytes = one["checkpoint_mb"] * 1e6
-    # the fixed costs t_0, t_0r are terms of their own: the rates are of what remains
-    b_w = nbytes / max(one["write_s"] - one["tiny_write_s"], 0.5 * one["write_s"])
-    b_r = nbytes / max(one["restart_s"] - one["tiny_restart_s"], 0.5 * one["restart_s"])
+    # on one rank both settings are the same single writer (reader): the faster of the two
+    # (the slower had the disk busy with something else); the fixed costs t_0, t_0r are terms
+    # of their own, so the rates are of what remains
+    t_w = min(one["write_s"], one["one_writer_write_s"])
+    t_r = min(one["restart_s"], one["one_writer_restart_s"])
+    b_w = nbytes / max(t_w - one["tiny_write_s"], 0.5 * t_w)
+    b_r = nbytes / max(t_r - one["tiny_restart_s"], 0.5 * t_r)
     storages = {label: im.Storage(b_w=b_w, b_r=b_r, B_fs=B, t_0=one["tiny_write_s"],
                                   t_0r=one["tiny_restart_s"], t_md=T_MD, beta=c["beta"],
                                   alpha_r=c["alpha_r"] + c["alpha_net"])
@@ -327,9 +339,17 @@ def plot(rows: list[dict], pred: list[dict], path: Path) -> Path:
     ax_t.set_ylabel("seconds")
     ax_t.set_title(f"checkpoint of {rows[0]['checkpoint_mb']:.0f} MB (2 cores: >2 ranks "
                    "oversubscribed)", fontsize=9)
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    plain = FuncFormatter(lambda v, _: f"{v:g}")
     for ax in (ax_m, ax_b, ax_t):
         ax.set_xscale("log", base=2)
         ax.set_yscale("log")
+        ax.set_xticks(P)
+        ax.xaxis.set_major_formatter(plain)
+        ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+        ax.yaxis.set_major_formatter(plain)
+        ax.yaxis.set_minor_formatter(NullFormatter())
         ax.set_xlabel("ranks P")
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3, which="both")
@@ -383,7 +403,7 @@ def main() -> None:
     assert MAX_PARTS == im.MAX_PARTS and all(
         ranks_per_file(P, "auto") == im.ranks_per_file(P) for P in (1, 256, 257, 1000, 10000))
     if args.measured is not None:
-        rows = [{k: _number(v) for k, v in r.items()} for r in study.read_csv(args.measured)]
+        rows = add_fits([{k: _number(v) for k, v in r.items()} for r in study.read_csv(args.measured)])
     else:
         results = []
         for P in ranks:
