@@ -24,7 +24,7 @@ constants as measured by ``scaling.py``, from ``--cost-json`` when given, else t
 gives the checkpoint time and the shortest checkpoint interval under 1 % of run time at 10²,
 10³, 10⁴ ranks for 10⁸, 10⁹, 10¹⁰ particles, parts against the old one-writer strategy.
 
-Runtime: ~15 minutes on two cores for 4·10⁶ particles (8 ranks oversubscribed: fine for memory
+Runtime: ~3–5 minutes on two cores for 4·10⁶ particles (8 ranks oversubscribed: fine for memory
 and bytes, only the trend of the times means anything); ``--quick`` (2·10⁴ particles, 1 and 2
 ranks): ~30 seconds. It launches ``mpirun`` itself: run it with plain ``python``::
 

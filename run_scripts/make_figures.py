@@ -8,11 +8,11 @@
 PNGs replace the README's, and writes its CSV into ``run_scripts/out/<study>/``; run on its own,
 a study writes both into its ``--out`` folder and leaves ``docs/figures/`` alone. Runtime on a
 2-core machine: ~25–35 minutes for the first seven, most of it the stability gallery's 3D bars
-and the convergence study's 3D resolutions; ``fe_bar`` adds ~10 minutes, ``throughput`` ~2 and
-``energy_history`` and ``domains`` under one. The speed-accuracy,
+and the convergence study's 3D resolutions; ``fe_bar`` adds ~10 minutes, ``throughput`` and
+``io_scaling`` ~3 each, ``energy_history`` and ``domains`` under one. The speed-accuracy,
 throughput and scaling charts time the solver: run them on a quiet machine. ``scaling`` launches
-``mpirun -n 1`` and ``-n 2`` itself and ``throughput`` times one core, so ``--np`` does not
-apply to them.
+``mpirun -n 1`` and ``-n 2`` itself, ``io_scaling`` ``mpirun -n 1, 2, 4, 8``, and
+``throughput`` times one core, so ``--np`` does not apply to them.
 """
 import argparse
 import shutil
@@ -35,9 +35,10 @@ STUDIES = {
     "throughput": "throughput.py",
     "energy_history": "energy_history.py",
     "domains": "domains_picture.py",
+    "io_scaling": "io_scaling.py",
 }
 #: studies that launch their own processes (bench runs): never wrapped in --np
-LAUNCHERS = {"scaling", "throughput"}
+LAUNCHERS = {"scaling", "throughput", "io_scaling"}
 
 
 def main() -> int:
