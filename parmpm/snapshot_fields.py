@@ -1,8 +1,10 @@
-"""What a snapshot holds: the particle fields gathered (in global-id order) for the XDMF series.
+"""What a snapshot holds: this rank's particle fields, for the XDMF series.
 
-One function of the run (a :class:`parmpm.simulation.Simulation`), collective: every rank calls
-it, rank 0 gets the fields (None elsewhere) and hands them to the snapshot writer
-(:mod:`parmpm.io.xdmf`), whose datasets carry the units and descriptions of :func:`field_info`.
+One function of the run (a :class:`parmpm.simulation.Simulation`), local: every rank computes
+the fields of its own particles and hands them to :meth:`parmpm.run_files.RunFiles.write_snapshot`,
+which gathers them only within the rank's writer group (:mod:`parmpm.io.xdmf`, "Parts") to the
+group's lead, who writes them; the datasets carry the units and descriptions of
+:func:`field_info`.
 
 The domains (``output.domains``) are the corners :func:`parmpm.domains.domain_corners` gives:
 the domains the interpolation uses, i.e. CPDI's ``R = F·r0`` after the ``l_cr`` cap, the
@@ -39,10 +41,10 @@ def field_info(dim: int) -> dict[str, dict[str, str]]:
     }
 
 
-def snapshot_fields(sim) -> dict | None:
-    """The particle fields of one snapshot, gathered on rank 0 (None on the other ranks): ``x``,
-    the fields of :func:`field_info`, ``domains`` (with ``output.domains``) and ``step`` (the
-    run's step, an int)."""
+def snapshot_fields(sim) -> dict:
+    """The fields of this rank's particles for one snapshot (no communication): ``x``, the
+    fields of :func:`field_info`, ``domains`` (with ``output.domains``) and ``step`` (the run's
+    step, an int)."""
     s, P = sim.state, sim.particles
     d = s.dim
     fields = {"x": P.x, "velocity": P.v, "displacement": P.x - P.x0, "stress": P.stress, "F": P.F,
@@ -52,7 +54,5 @@ def snapshot_fields(sim) -> dict | None:
     if sim.data["output"]["domains"]:
         fields["domains"] = domains.domain_corners(d, s.disc.method, s.disc.lcr, P.x, P.F,
                                                    P.r0, P.lh0)
-    gathered = sim.gather(fields)
-    if gathered is not None:
-        gathered["step"] = int(sim.nstep)
-    return gathered
+    fields["step"] = int(sim.nstep)
+    return fields

@@ -1,8 +1,9 @@
 """The snapshot series as its readers see it (parmpm.io.xdmf, parmpm.io.snapshot_reader):
 ``load_snapshots`` round trips, VTK's XDMF reader (what ParaView uses) with moving particles and
 the domains as cells of the right size, meshio's public reader (what it can and cannot read),
-integer ids, units, the run's history in the same file, and a 2-rank run's snapshots equal to a
-1-rank run's.
+integer ids, units, the run's history in the same file; and a 2-rank run's snapshots, written
+as two parts: VTK's reader sees one series, ``load_snapshots`` a 1-rank run's arrays, meshio's
+reader refuses them, and a part that fails to write is one line on every rank.
 """
 import subprocess
 import sys
@@ -273,24 +274,149 @@ def test_not_a_snapshot_file(tmp_path):
         load_snapshots(tmp_path / "missing.h5")
 
 
-# --- ranks --------------------------------------------------------------------------------------
-def test_two_ranks_write_what_one_rank_writes(tmp_path, mpirun):
-    args = ["-m", "parmpm", "run", "hanging_bar", "--quiet", "--set", "time.steps=6",
+# --- ranks: snapshots written in parts -------------------------------------------------------------
+RUN_ARGS = ["-m", "parmpm", "run", "hanging_bar", "--quiet", "--set", "time.steps=6",
             "--set", "output.every_steps=3", "--set", "output.figure=false",
             "--set", "grid.patch_size=4"]
+
+
+@pytest.fixture(scope="module")
+def ranks_runs(tmp_path_factory, mpirun):
+    """The same tiny run on 1 rank (one file) and on 2 ranks (two parts): their folders."""
+    root = tmp_path_factory.mktemp("ranks")
     for n in (1, 2):
-        proc = subprocess.run([mpirun, "-n", str(n), sys.executable, *args, "-o",
-                               str(tmp_path / f"r{n}")], capture_output=True, text=True,
-                              timeout=600)
+        proc = subprocess.run([mpirun, "-n", str(n), sys.executable, *RUN_ARGS, "-o",
+                               str(root / f"r{n}")], capture_output=True, text=True, timeout=600)
         assert proc.returncode == 0, proc.stderr[-2000:]
-    one, two = (load_snapshots(tmp_path / f"r{n}" / "hanging_bar.xdmf") for n in (1, 2))
+    return root / "r1", root / "r2"
+
+
+def test_two_ranks_write_two_parts(ranks_runs):
+    """One rank keeps the one-file layout; two ranks write a part each (their particles in gid
+    order), rank 0's file holds the steps and the history, the index spatial collections."""
+    one, two = ranks_runs
+    assert not (one / "hanging_bar.parts").exists()
+    assert "Spatial" not in (one / "hanging_bar.xdmf").read_text()
+    parts = sorted(p.name for p in (two / "hanging_bar.parts").iterdir())
+    assert parts == ["part_00000.h5", "part_00001.h5"]
+    with h5py.File(two / "hanging_bar.h5") as f:
+        assert not any("x" in g for n, g in f.items() if n.startswith("step_"))
+        rows = f["step_00000006"].attrs["rows"]
+    for k, name in enumerate(parts):
+        with h5py.File(two / "hanging_bar.parts" / name) as f:
+            gid = f["step_00000006/gid"][()]
+            assert gid.size == rows[k] > 0 and np.all(np.diff(gid) > 0)
+            assert set(np.unique(f["step_00000006/rank"][()])) == {k}
+    xml = (two / "hanging_bar.xdmf").read_text()
+    assert xml.count('CollectionType="Spatial"') == 2 * 3  # particles and domains, 3 steps
+    assert "hanging_bar.parts/part_00001.h5:/step_00000003/x" in xml
+
+
+def test_two_ranks_load_what_one_rank_writes(ranks_runs):
+    """load_snapshots merges the parts by gid: the arrays are a 1-rank run's, byte for byte
+    (the rank aside), and the history is there."""
+    one, two = (load_snapshots(r / "hanging_bar.xdmf") for r in ranks_runs)
     np.testing.assert_array_equal(one.times, two.times)
-    assert one.fields == two.fields and len(one) == 3
+    assert one.fields == two.fields and len(one) == 3 and list(two.steps) == [0, 3, 6]
     for k in range(len(one)):
+        a, b = one.at(k), two.at(k)
         for name in one.fields:
             if name != "rank":
-                np.testing.assert_array_equal(one[name][k], two[name][k], err_msg=name)
-        assert set(np.unique(two["rank"][k])) == {0, 1}
+                assert a[name].dtype == b[name].dtype and a[name].shape == b[name].shape, name
+                assert a[name].tobytes() == b[name].tobytes(), name
+        assert set(np.unique(b["rank"])) == {0, 1}
+    mesh = two.to_meshio(-1, domains=True)  # raw corners reordered by gid as well
+    np.testing.assert_array_equal(mesh.points[:, :2].reshape(-1, 4, 2), one["domains"][-1])
+    np.testing.assert_array_equal(one.history["kinetic"], two.history["kinetic"])
+
+
+def _merged(grids, name, cells=False):
+    """One VTK array over the parts' grids, in gid order."""
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    data = [g.GetCellData() if cells else g.GetPointData() for g in grids]
+    gid = np.concatenate([vtk_to_numpy(d.GetArray("gid")) for d in data])
+    if name == "points":
+        a = np.concatenate([vtk_to_numpy(g.GetPoints().GetData()) for g in grids])
+    else:
+        a = np.concatenate([vtk_to_numpy(d.GetArray(name)) for d in data])
+    return a[np.argsort(gid, kind="stable")]
+
+
+def test_vtk_reads_the_parts_as_one_series(ranks_runs):
+    """VTK's XDMF reader (ParaView's): one time series; at each step each block is a spatial
+    collection of the parts, N points in all that move, and N domain cells."""
+    _, two = ranks_runs
+    s = load_snapshots(two / "hanging_bar.xdmf")
+    n = s["gid"][0].size
+    steps = list(vtk_steps(two / "hanging_bar.xdmf"))
+    assert [t for t, _ in steps] == list(s.times)
+    for k, (_, blocks) in enumerate(steps):
+        assert set(blocks) == {"particles", "domains"}
+        particles = [blocks["particles"].GetBlock(b) for b in range(2)]
+        domains = [blocks["domains"].GetBlock(b) for b in range(2)]
+        assert blocks["particles"].GetNumberOfBlocks() == 2
+        assert sum(g.GetNumberOfPoints() for g in particles) == n
+        assert sum(g.GetNumberOfCells() for g in domains) == n
+        assert {g.GetCellType(0) for g in domains} == {VTK_CELL[2]}
+        np.testing.assert_array_equal(_merged(particles, "points")[:, :2], s["x"][k])
+        np.testing.assert_array_equal(_merged(domains, "damage", cells=True), s["damage"][k])
+    first, last = (_merged([b["particles"].GetBlock(j) for j in range(2)], "points")
+                   for _, b in (steps[0], steps[-1]))
+    assert not np.array_equal(first, last)
+
+
+def test_meshio_cannot_read_parts(ranks_runs):
+    """meshio's TimeSeriesReader wants a uniform grid per time step: a series in parts (spatial
+    collections) is its ReadError "Couldn't find the mesh grid", a clean exception. Go through
+    load_snapshots(...).to_meshio(k) instead."""
+    meshio = pytest.importorskip("meshio")
+    _, two = ranks_runs
+    with pytest.raises(meshio.ReadError, match="Couldn't find the mesh grid"):
+        meshio.xdmf.TimeSeriesReader(two / "hanging_bar.xdmf")
+    mesh = load_snapshots(two / "hanging_bar.xdmf").to_meshio(0)
+    assert len(mesh.points) == mesh.point_data["gid"].size
+
+
+PART_FAILS = """
+import sys
+from mpi4py import MPI
+from parmpm.errors import ParmpmError
+from parmpm.io import xdmf
+from parmpm.scene import load_scene
+from parmpm.simulation import Simulation
+
+free = xdmf.SnapshotWriter._free
+def short(self):  # part 1's disk fills after its first snapshot
+    return 1000 if self.part == 1 and self.steps >= 1 else free(self)
+xdmf.SnapshotWriter._free = short
+scene = load_scene("hanging_bar", overrides=["time.steps=6", "output.every_steps=3",
+                                             "output.figure=false"])
+try:
+    Simulation(scene, sys.argv[1], quiet=True, comm=MPI.COMM_WORLD).run()
+except ParmpmError as exc:
+    print(f"{MPI.COMM_WORLD.Get_rank()}|{exc}", flush=True)
+"""
+
+
+def test_a_part_that_fails_is_one_line_on_every_rank(tmp_path, mpirun):
+    """Part 1 meets a full disk at the second snapshot: both ranks raise the same one line
+    naming the part, and the index lists the first snapshot only (all its parts written)."""
+    script = tmp_path / "fails.py"
+    script.write_text(PART_FAILS)
+    out = tmp_path / "o"
+    proc = subprocess.run([mpirun, "-n", "2", sys.executable, str(script), str(out)],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = sorted(line for line in proc.stdout.splitlines() if "|" in line)
+    assert [line[:2] for line in lines] == ["0|", "1|"], proc.stdout
+    assert lines[0][2:] == lines[1][2:]
+    part = out / "hanging_bar.parts" / "part_00001.h5"
+    assert lines[0][2:].startswith(f"disk full writing '{part}': ")
+    assert lines[0][2:].endswith(" MB needed, 0.0 MB free")
+    s = load_snapshots(out / "hanging_bar.xdmf")
+    assert list(s.steps) == [0] and s["x"][0].shape[0] == s["gid"][0].size
+    assert [t for t, _ in vtk_steps(out / "hanging_bar.xdmf")] == [0.0]
 
 
 # --- the picture --------------------------------------------------------------------------------

@@ -1,5 +1,5 @@
-"""Output: summary.json, particle snapshots (XDMF + HDF5 with h5py; read back with
-:func:`load_snapshots`), PNG figures (matplotlib).
+"""Output: summary.json, particle snapshots (XDMF + HDF5 with h5py, one file or one part per
+writer group under MPI; read back with :func:`load_snapshots`), PNG figures (matplotlib).
 
 h5py, meshio and matplotlib are imported only when a writer, a reader or a figure is used, so
 the solver runs without them.

@@ -12,6 +12,10 @@ particle's own shape: vectors ``(N, dim)``, tensors ``(N, dim, dim)``, scalars `
 ``s.descriptions``, ``s.at(k)`` (every field of snapshot ``k``), ``s.history`` (the run's history
 table, if the run wrote one there) and ``s.to_meshio(k)`` (a ``meshio.Mesh`` of one snapshot, to
 write any format meshio knows: ``s.to_meshio(-1).write("last.vtu")``).
+
+A series written in parts (``<name>.h5`` with a ``parts`` attribute: its steps and history, the
+particles in ``<name>.parts/part_<k>.h5``) reads the same: every read opens each part and merges
+the rows by ``gid``, so arrays are in global-id order whatever the number of ranks that wrote.
 """
 from __future__ import annotations
 
@@ -80,9 +84,16 @@ class Snapshots:
                 groups = [(int(g.attrs["index"]), name, float(g.attrs["time"]), int(g.attrs["step"]))
                           for name, g in f.items() if name.startswith("step_")]
                 groups.sort()
-                names = list(f[groups[0][1]]) if groups else []
+                self._parts = json.loads(f.attrs["parts"]) if "parts" in f.attrs else None
+                if self._parts is None:
+                    names = list(f[groups[0][1]]) if groups else []
                 self.history = ({c: ds[()] for c, ds in f["history"].items()}
                                 if "history" in f else None)
+            if self._parts is not None:
+                names = []
+                if groups:
+                    with self._open(self._parts[0]) as f:
+                        names = list(f[groups[0][1]])
         except OSError as exc:
             raise ParmpmError(f"cannot read snapshots '{self.path}': {exc}") from None
         self._groups = [g[1] for g in groups]
@@ -112,15 +123,33 @@ class Snapshots:
     def _read(self, group: str, name: str, raw: bool = False) -> np.ndarray:
         return self._read_all(group, [name], raw)[name]
 
-    def _read_all(self, group: str, names, raw: bool = False) -> dict[str, np.ndarray]:
+    def _open(self, part: str):
         import h5py
 
+        path = self.path.parent / part
+        try:
+            return h5py.File(path, "r")
+        except OSError as exc:
+            raise ParmpmError(f"cannot read snapshots '{path}': {exc}") from None
+
+    def _read_all(self, group: str, names, raw: bool = False) -> dict[str, np.ndarray]:
+        if self._parts is None:
+            with self._open(self.path.name) as f:
+                return _read_group(f[group], names, raw)
+        pieces, gids = [], []
+        for part in self._parts:
+            with self._open(part) as f:
+                pieces.append(_read_group(f[group], names, raw))
+                gids.append(f[group]["gid"][()])
+        order = np.argsort(np.concatenate(gids), kind="stable")
         out = {}
-        with h5py.File(self.path, "r") as f:
-            for name in names:
-                ds = f[group][name]
-                a = ds[()]
-                out[name] = a if raw else natural_shape(a, ds.attrs.get("shape", a.shape[1:]))
+        for name in names:
+            a = np.concatenate([p[name] for p in pieces])
+            if a.shape[0] != order.size:  # raw corners: (N·c, 3) rows, c per particle
+                a = a.reshape(order.size, -1, *a.shape[1:])[order].reshape(a.shape)
+            else:
+                a = a[order]
+            out[name] = a
         return out
 
     def at(self, k: int) -> dict[str, np.ndarray]:
@@ -144,6 +173,15 @@ class Snapshots:
         points = self._read(group, "domains", raw=True)
         cells = [(_MESHIO_CELLS[self.dim], np.arange(n * nodes).reshape(n, nodes))]
         return meshio.Mesh(points, cells, cell_data={c: [a] for c, a in data.items()})
+
+
+def _read_group(group, names, raw: bool) -> dict[str, np.ndarray]:
+    out = {}
+    for name in names:
+        ds = group[name]
+        a = ds[()]
+        out[name] = a if raw else natural_shape(a, ds.attrs.get("shape", a.shape[1:]))
+    return out
 
 
 def load_snapshots(path) -> Snapshots:

@@ -41,7 +41,32 @@ written before, and :meth:`SnapshotWriter.close` does nothing more. HDF5 writes 
 :class:`parmpm.io.guarded_file.GuardedFile`, so it never sees a failed write (HDF5 crashes the
 process when it closes a file whose writes failed); a write error is found after each snapshot.
 
-Call from one rank, with the gathered particle state (:meth:`parmpm.simulation.Simulation.gather`).
+Parts
+-----
+Under MPI with several writer groups (the checkpoints' rule,
+:func:`parmpm.io.checkpoint_parts.ranks_per_file`: one group per rank up to 256 ranks), each
+group's lead writes its members' particles, in gid order, into its own part
+(``SnapshotWriter(..., part=k)``)::
+
+    <name>.xdmf                 the index (rank 0)
+    <name>.h5                   attrs as above, format_version 2, parts (JSON: the part files);
+                                /step_<step>/ (attrs time, step, index, rows: each part's rows),
+                                /history/<column>; no particles
+    <name>.parts/part_<k>.h5    the single-file layout above for part k's particles (attr part)
+
+Each step of each temporal collection is then a *spatial* collection (``GridType="Collection"
+CollectionType="Spatial"``) of one uniform grid per part that holds particles, pointing at that
+part's datasets by relative name (``<name>.parts/part_00003.h5:/step_00000120/x``). A part
+flushes its snapshot before it reports; rank 0 indexes a step (:meth:`SnapshotWriter.add`) only
+when every lead reported it written, so the index lists no step with a missing part. VTK's XDMF
+reader (ParaView) reads the series as one: each time step a multiblock of the parts, N points
+in all. meshio's ``TimeSeriesReader`` wants a uniform grid per step: on a series in parts it
+raises ``meshio.ReadError("Couldn't find the mesh grid")`` when opened; read such a series with
+:func:`parmpm.io.load_snapshots` (which merges the parts by gid) and ``to_meshio``. One writer
+(one rank, or every rank in one group) writes the single-file layout, format_version 1.
+
+Without parts, call from one rank with the particle state of all ranks in gid order; the run's
+collective side is :class:`parmpm.run_files.RunFiles`.
 """
 
 from __future__ import annotations
@@ -62,9 +87,12 @@ from parmpm.io.guarded_file import GuardedFile, space_message
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["SnapshotWriter", "pad_point_data", "xdmf_cells", "FORMAT", "FORMAT_VERSION"]
+__all__ = ["SnapshotWriter", "pad_point_data", "part_file", "xdmf_cells", "FORMAT",
+           "FORMAT_VERSION", "PARTS_VERSION"]
 
 FORMAT, FORMAT_VERSION = "parmpm snapshots", 1
+#: ``format_version`` of a series written in parts (its ``.h5`` holds no particles)
+PARTS_VERSION = 2
 
 #: XDMF topology of a domain, by dimension: (type, nodes per cell)
 CELL_TYPES = {1: ("Polyline", 2), 2: ("Quadrilateral", 4), 3: ("Hexahedron", 8)}
@@ -123,16 +151,45 @@ def xdmf_cells(corners) -> np.ndarray:
     return c[:, BOX_TO_HEXAHEDRON, :] if c.shape[1] == 8 else c
 
 
-def _data_item(h5_name: str, path: str, a) -> ET.Element:
-    """A ``DataItem`` pointing at the HDF5 dataset ``path`` holding ``a`` (its shape and type)."""
-    dt = np.dtype(a.dtype)
+def _data_item(h5_name: str, path: str, spec) -> ET.Element:
+    """A ``DataItem`` pointing at the HDF5 dataset ``path`` of ``h5_name``, whose shape and type
+    are ``spec`` (``(shape, dtype)``)."""
+    shape, dtype = spec
+    dt = np.dtype(dtype)
     kind = {"i": "Int", "u": "UInt"}.get(dt.kind, "Float")
     if dt.itemsize == 1:
         kind = "Char" if dt.kind == "i" else "UChar"
     item = ET.Element("DataItem", DataType=kind, Precision=str(dt.itemsize),
-                      Dimensions=" ".join(str(s) for s in a.shape), Format="HDF")
+                      Dimensions=" ".join(str(s) for s in shape), Format="HDF")
     item.text = f"{h5_name}:{path}"
     return item
+
+
+def _spec(a: np.ndarray) -> tuple[tuple, str]:
+    return tuple(int(k) for k in a.shape), a.dtype.str
+
+
+def _uniform(parent, name: str, t: float, rec: dict, geometry: str, topology: str,
+             center: str) -> ET.Element:
+    """One part's uniform grid of one snapshot: geometry ``geometry`` (a dataset of the step's
+    group), cells ``topology`` (a connectivity record), every field of ``rec`` as ``center``
+    data (the particles also carry ``x``)."""
+    file, group, arrays = rec["file"], rec["group"], rec["arrays"]
+    cell, nodes, conn_path, conn_shape = rec["topology"][topology]
+    grid = ET.SubElement(parent, "Grid", Name=name, GridType="Uniform")
+    ET.SubElement(grid, "Time", Value=repr(float(t)))
+    geo = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
+    geo.append(_data_item(file, f"/{group}/{geometry}", arrays[geometry]))
+    top = ET.SubElement(grid, "Topology", TopologyType=cell, NumberOfElements=str(conn_shape[0]),
+                        NodesPerElement=str(nodes))
+    top.append(_data_item(file, conn_path, (conn_shape, "<i8")))
+    for key, spec in arrays.items():
+        if key == "domains" or (key == "x" and center == "Cell"):
+            continue
+        kind = _ATTRIBUTE_TYPES[1 if len(spec[0]) == 1 else spec[0][1]]
+        attr = ET.SubElement(grid, "Attribute", Name=key, AttributeType=kind, Center=center)
+        attr.append(_data_item(file, f"/{group}/{key}", spec))
+    return grid
 
 
 class SnapshotWriter:
@@ -142,19 +199,27 @@ class SnapshotWriter:
     (the run's history); ``close()`` finishes the files. Usable as a context manager.
     ``fields``: ``{name: {"units": ..., "description": ...}}``, the attributes of the datasets
     of that name (and of the root's field list).
+
+    In parts (:mod:`parmpm.io.xdmf` doc, "Parts"): ``part=k`` writes only the HDF5 file
+    ``<name>.parts/part_<k>.h5`` (no index; :meth:`write` returns the snapshot's record, flushed);
+    ``parts=K`` writes the index and ``<name>.h5`` (the history, the committed steps) and takes
+    the parts' records with :meth:`add`.
     """
 
     #: bytes a snapshot adds beyond its arrays (object headers, the group's index), bounded
     OVERHEAD = 64 * 1024
 
     def __init__(self, out_dir, name: str, dim: int, flush_seconds: float = 5.0,
-                 fields: dict[str, dict] | None = None):
+                 fields: dict[str, dict] | None = None, *, part: int | None = None,
+                 parts: int | None = None):
         import h5py
 
         self.out_dir = Path(out_dir)
         self.dim = int(dim)
         self.path = self.out_dir / f"{name}.xdmf"
-        self.h5_path = self.out_dir / f"{name}.h5"
+        self.h5_path = (self.out_dir / part_file(name, part) if part is not None
+                        else self.out_dir / f"{name}.h5")
+        self.part, self.parts = part, parts
         self.flush_seconds = float(flush_seconds)
         self.fields = {k: dict(v) for k, v in (fields or {}).items()}
         self.steps = 0
@@ -162,19 +227,26 @@ class SnapshotWriter:
         self._closed = True  # until the files exist
         self._h5 = None
         self._file = None
-        self._xml = ET.Element("Xdmf", Version="3.0")
-        self._domain = ET.SubElement(self._xml, "Domain")
-        self._particles = ET.SubElement(self._domain, "Grid", Name="particles",
-                                        GridType="Collection", CollectionType="Temporal")
-        self._domains = None  # the domains' collection, at the first snapshot that has them
+        self._xml = None
+        if part is None:
+            self._xml = ET.Element("Xdmf", Version="3.0")
+            self._domain = ET.SubElement(self._xml, "Domain")
+            self._particles = ET.SubElement(self._domain, "Grid", Name="particles",
+                                            GridType="Collection", CollectionType="Temporal")
+            self._domains = None  # the domains' collection, at the first snapshot that has them
         try:
-            self.out_dir.mkdir(parents=True, exist_ok=True)
+            self.h5_path.parent.mkdir(parents=True, exist_ok=True)
             self._file = GuardedFile(self.h5_path)
             self._h5 = h5py.File(self._file, "w")
             self._h5.attrs["format"] = FORMAT
-            self._h5.attrs["format_version"] = FORMAT_VERSION
+            self._h5.attrs["format_version"] = FORMAT_VERSION if parts is None else PARTS_VERSION
             self._h5.attrs["dim"] = self.dim
             self._h5.attrs["fields"] = json.dumps(self.fields)
+            if parts is not None:
+                self._h5.attrs["parts"] = json.dumps([part_file(name, k) for k in range(parts)])
+            if part is not None:
+                self._h5.attrs["part"] = int(part)
+            self._h5.flush()
         except OSError as exc:
             self._fail(exc)
         self._closed = False
@@ -183,7 +255,7 @@ class SnapshotWriter:
     # --- failures -----------------------------------------------------------------------------
     def _free(self) -> int | None:
         try:
-            return int(shutil.disk_usage(self.out_dir).free)
+            return int(shutil.disk_usage(self.h5_path.parent).free)
         except OSError:
             return None
 
@@ -204,10 +276,11 @@ class SnapshotWriter:
                 pass
         if self._file is not None:
             self._file.close()
-        try:
-            self.path.with_name(self.path.name + ".tmp").unlink(missing_ok=True)
-        except OSError:
-            pass
+        if self._xml is not None:
+            try:
+                self.path.with_name(self.path.name + ".tmp").unlink(missing_ok=True)
+            except OSError:
+                pass
 
     def _fail(self, exc: BaseException, where: Path | None = None):
         """Abandon the files and raise the write error the guarded file kept (what h5py trips
@@ -247,44 +320,60 @@ class SnapshotWriter:
         ds.attrs["shape"] = np.asarray(shape, dtype=np.int64)
         return ds
 
-    def _connectivity(self, cell: str, n: int, nodes: int) -> tuple[str, np.ndarray]:
+    def _connectivity(self, cell: str, n: int, nodes: int) -> tuple:
         """``/connectivity/<cell>_<n>``: node ``j`` of cell ``i`` is ``i·nodes + j`` (written
-        once, shared by every snapshot of ``n`` cells)."""
+        once, shared by every snapshot of ``n`` cells); its record (cell, nodes, path, shape)."""
         path = f"/connectivity/{cell.lower()}_{n}"
         if path not in self._h5:
             a = np.arange(n * nodes, dtype=np.int64).reshape(n, nodes)
             self._h5.create_dataset(path, data=a)
-        return path, self._h5[path]
+        return cell, nodes, path, (n, nodes)
 
     def _connectivity_bytes(self, cell: str, n: int, nodes: int) -> int:
         return 0 if f"/connectivity/{cell.lower()}_{n}" in self._h5 else 8 * n * nodes
 
     # --- XML ----------------------------------------------------------------------------------
-    def _grid(self, collection, name: str, t: float, points_path: str, points,
-              cell: str, nodes: int, conn_path: str, conn) -> ET.Element:
-        grid = ET.SubElement(collection, "Grid", Name=name, GridType="Uniform")
-        ET.SubElement(grid, "Time", Value=repr(float(t)))
-        geometry = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
-        geometry.append(_data_item(self.h5_path.name, points_path, points))
-        topology = ET.SubElement(grid, "Topology", TopologyType=cell,
-                                 NumberOfElements=str(conn.shape[0]), NodesPerElement=str(nodes))
-        topology.append(_data_item(self.h5_path.name, conn_path, conn))
-        return grid
-
-    def _attribute(self, grid, name: str, path: str, a, center: str) -> None:
-        kind = _ATTRIBUTE_TYPES[1 if a.ndim == 1 else a.shape[1]]
-        attr = ET.SubElement(grid, "Attribute", Name=name, AttributeType=kind, Center=center)
-        attr.append(_data_item(self.h5_path.name, path, a))
+    def _index(self, t: float, records: list[dict]) -> list:
+        """Add snapshot ``t`` to the XML: in each collection one uniform grid (one record) or a
+        spatial collection of one uniform grid per part holding particles. Returns what it
+        added, as (parent, grid) pairs."""
+        added = []
+        domains = any("domains" in r["arrays"] for r in records)
+        if domains and self._domains is None:  # first: meshio's reader takes the last collection
+            self._domains = ET.Element("Grid", Name="domains", GridType="Collection",
+                                       CollectionType="Temporal")
+            self._domain.insert(0, self._domains)
+        for collection, name, geometry, topology, center, wanted in (
+                (self._particles, "particles", "x", "points", "Node", True),
+                (self._domains, "domains", "domains", "domains", "Cell", domains)):
+            if not wanted:
+                continue
+            if self.parts is None:
+                added.append((collection, _uniform(collection, name, t, records[0], geometry,
+                                                   topology, center)))
+                continue
+            spatial = ET.SubElement(collection, "Grid", Name=name, GridType="Collection",
+                                    CollectionType="Spatial")
+            ET.SubElement(spatial, "Time", Value=repr(float(t)))
+            for rec in records:
+                if rec["n"]:  # a part without particles: no grid (0 points upsets readers)
+                    _uniform(spatial, f"{name}_{rec['part']:05d}", t, rec, geometry, topology,
+                             center)
+            added.append((collection, spatial))
+        return added
 
     # ----------------------------------------------------------------------------------------
     def write(self, t: float, x, point_data: dict | None = None, *, step: int | None = None,
-              domains=None) -> None:
+              domains=None) -> dict:
         """Add the snapshot at time ``t``: positions ``x`` (N, dim), named particle fields,
         the run's ``step`` (the group's name; default: the snapshot's index) and, optionally,
         every particle's domain corners ``(N, 2^dim, dim)`` as
-        :func:`parmpm.domains.domain_corners` gives them."""
+        :func:`parmpm.domains.domain_corners` gives them. Returns the snapshot's record (what
+        the index needs to point at its datasets)."""
         if self._closed:
             raise ValueError(f"{self.path} is closed")
+        if self.parts is not None:
+            raise ValueError(f"{self.path} indexes parts: add their records")
         x = np.asarray(x, dtype=np.float64)
         n = x.shape[0]
         points = _pad_columns(x.reshape(n, -1), 3)
@@ -311,34 +400,30 @@ class SnapshotWriter:
         name = f"step_{index if step is None else int(step):08d}"
         if name in self._h5:  # the same step twice (never in a run): keep both
             name = f"{name}_{index}"
+        rel = self.h5_path.relative_to(self.out_dir).as_posix()
+        record = {"file": rel, "part": self.part or 0, "group": name, "n": n, "index": index,
+                  "step": index if step is None else int(step), "time": float(t),
+                  "arrays": {"x": _spec(points), **{k: _spec(a) for k, a in fields.items()}},
+                  "topology": {}}
         grids = []
         try:
             g = self._h5.create_group(name)
             g.attrs["time"] = float(t)
-            g.attrs["step"] = index if step is None else int(step)
+            g.attrs["step"] = record["step"]
             g.attrs["index"] = index
             self._dataset(g, "x", points, (x.reshape(n, -1).shape[1],))
             for key, a in fields.items():
                 shape, base = shapes[key]
                 self._dataset(g, key, a, shape, base)
-            conn_path, conn = self._connectivity("Polyvertex", n, 1)
-            grid = self._grid(self._particles, "particles", t, f"/{name}/x", points,
-                              "Polyvertex", 1, conn_path, conn)
-            grids.append((self._particles, grid))
-            for key, a in {"x": points, **fields}.items():
-                self._attribute(grid, key, f"/{name}/{key}", a, "Node")
+            record["topology"]["points"] = self._connectivity("Polyvertex", n, 1)
             if corners is not None:
                 self._dataset(g, "domains", corners, (nodes, self.dim))
-                conn_path, conn = self._connectivity(cell, n, nodes)
-                if self._domains is None:  # first: meshio's reader takes the last collection
-                    self._domains = ET.Element("Grid", Name="domains", GridType="Collection",
-                                               CollectionType="Temporal")
-                    self._domain.insert(0, self._domains)
-                grid = self._grid(self._domains, "domains", t, f"/{name}/domains", corners,
-                                  cell, nodes, conn_path, conn)
-                grids.append((self._domains, grid))
-                for key, a in fields.items():
-                    self._attribute(grid, key, f"/{name}/{key}", a, "Cell")
+                record["arrays"]["domains"] = _spec(corners)
+                record["topology"]["domains"] = self._connectivity(cell, n, nodes)
+            if self._xml is not None:
+                grids = self._index(t, [record])
+            else:
+                self._h5.flush()  # a part: on disk before the index lists it
         except Exception as exc:  # noqa: BLE001 - _fail re-raises what is not an I/O error
             for parent, grid in grids:
                 parent.remove(grid)
@@ -347,6 +432,33 @@ class SnapshotWriter:
             for parent, grid in grids:
                 parent.remove(grid)
             self._fail(self._file.error)
+        self.steps += 1
+        if self._xml is not None and time.monotonic() - self._last_flush >= self.flush_seconds:
+            try:
+                self.flush()
+            except OSError as exc:
+                self._fail(exc)
+        return record
+
+    def add(self, records: list[dict]) -> None:
+        """Index one snapshot written in parts: ``records``, what each part's :meth:`write`
+        returned, in part order (every part flushed). ``<name>.h5`` records the step (a group
+        with the time, the step, the index and each part's row count)."""
+        if self._closed:
+            raise ValueError(f"{self.path} is closed")
+        rec = records[0]
+        self._ensure_space(self.OVERHEAD)
+        grids = []
+        try:
+            g = self._h5.create_group(rec["group"])
+            for key in ("time", "step", "index"):
+                g.attrs[key] = rec[key]
+            g.attrs["rows"] = np.array([r["n"] for r in records], np.int64)
+            grids = self._index(rec["time"], records)
+        except Exception as exc:  # noqa: BLE001 - _fail re-raises what is not an I/O error
+            for parent, grid in grids:
+                parent.remove(grid)
+            self._fail(exc)
         self.steps += 1
         if time.monotonic() - self._last_flush >= self.flush_seconds:
             try:
@@ -381,6 +493,8 @@ class SnapshotWriter:
         self._h5.flush()
         if self._file.error is not None:
             raise self._file.error
+        if self._xml is None:
+            return
         tmp = self.path.with_name(self.path.name + ".tmp")
         tree = ET.ElementTree(self._xml)
         ET.indent(tree)
@@ -402,7 +516,7 @@ class SnapshotWriter:
             self._check_io()
         except OSError as exc:
             self._fail(exc)
-        logger.debug("wrote %d snapshots to %s", self.steps, self.path)
+        logger.debug("wrote %d snapshots to %s", self.steps, self.h5_path)
 
     def __enter__(self):
         return self
@@ -410,3 +524,8 @@ class SnapshotWriter:
     def __exit__(self, *exc):
         self.close()
         return False
+
+
+def part_file(name: str, k: int) -> str:
+    """Part ``k``'s file, relative to the series' folder: ``<name>.parts/part_<k>.h5``."""
+    return f"{name}.parts/part_{int(k):05d}.h5"
