@@ -87,7 +87,7 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   ``keep`` (int >= 1, default 3: older ones are deleted), ``at_end`` (bool, default false),
   ``ranks_per_file`` (``"auto"``, default: one part file per rank up to 256 ranks, then groups of
   ⌈ranks/256⌉ consecutive ranks; or an integer >= 1: each group's lowest rank writes the group's
-  particles; as many as the ranks: one file). A SIGTERM or SIGINT always writes a final
+  particles; as many as the ranks: one file; snapshots are written in the same groups). A SIGTERM or SIGINT always writes a final
   checkpoint before the run stops.
 
 Absent optional values (``time.end``, ``time.dt_max``, ``output.every``, ``bodies.N.vibration``,

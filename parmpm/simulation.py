@@ -157,7 +157,9 @@ class Simulation:
                           f"{name}.png", "history.csv", "history.h5", "history.png"]})
             self.files.write_scene(s.scene.to_toml())  # what ran, as a scene file to run again
             if self.data["output"]["snapshots"]:
-                self.files.open_snapshots(series, self.dim)
+                # the snapshots' writer groups follow the checkpoints' (checkpoint.ranks_per_file)
+                self.files.open_snapshots(series, self.dim,
+                                          self.data["checkpoint"]["ranks_per_file"])
             return self._run()
 
     def _run(self) -> dict:
