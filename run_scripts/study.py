@@ -283,7 +283,7 @@ class ManufacturedError:
 
     def __call__(self, sim) -> None:
         P = sim.particles
-        sums, _ = sim.metrics.terms(P.gid, P.x, P.v, P.F, t=sim.t)
+        sums, _ = sim.metrics.terms(P.gid, P.x, P.v, P.F, t=sim.t, particles=P)
         g = sim.gather({"e2": np.ascontiguousarray(sums[:, 0])})
         rms = math.sqrt(float(np.sum(g["e2"])) / g["e2"].size) if g is not None else None
         self.t.append(float(sim.t))

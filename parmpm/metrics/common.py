@@ -168,6 +168,9 @@ class History:
         in the order of ``gid``), else those kept at construction."""
         if particles is not None:
             return particles.x0, particles.mass
+        if self.x0 is None:  # built collectively: it keeps no particle field (issue: O(N/P))
+            raise TypeError(f"{type(self).__name__}.terms() needs particles= (the rank's particle "
+                            "store): a metric built with a communicator keeps no positions")
         return self.x0[gid], self.mass[gid]
 
     def sample(self, t, x, v, F, components, v_time=None) -> None:
