@@ -220,13 +220,29 @@ def test_sigterm_writes_a_final_checkpoint(tmp_path, n):
 @needs_mpi
 def test_xdmf_of_a_two_rank_run_reads_back(tmp_path):
     """The snapshot series of a 2-rank run: every step holds all particles in global-id order
-    with velocity, stress, stretch, damage and the rank that held each particle."""
+    with velocity, stress, stretch, damage and the rank that held each particle — written in two
+    parts (read with load_snapshots), or by one writer (read with meshio's public reader)."""
     import meshio
 
-    proc = _cli(2, "run", "hanging_bar", "-o", str(tmp_path), *QUIET, "--set", "time.end=0.02",
-                "--set", "output.every=0.005", "--set", "grid.patch_size=4")
+    from parmpm.io import load_snapshots
+
+    args = (*QUIET, "--set", "time.end=0.02", "--set", "output.every=0.005",
+            "--set", "grid.patch_size=4")
+    proc = _cli(2, "run", "hanging_bar", "-o", str(tmp_path / "parts"), *args)
     assert proc.returncode == 0, proc.stderr
-    with meshio.xdmf.TimeSeriesReader(tmp_path / "hanging_bar.xdmf") as reader:
+    assert len(list((tmp_path / "parts" / "hanging_bar.parts").glob("part_*.h5"))) == 2
+    s = load_snapshots(tmp_path / "parts" / "hanging_bar.xdmf")
+    assert s.times.size == 5
+    for k in range(5):
+        np.testing.assert_array_equal(s["gid"][k], np.arange(900))
+        assert s["velocity"][k].shape == (900, 2) and s["stress"][k].shape == (900, 2, 2)
+    assert set(np.unique(np.concatenate(s["rank"])).tolist()) == {0, 1}
+
+    proc = _cli(2, "run", "hanging_bar", "-o", str(tmp_path / "one"), *args,
+                "--set", "checkpoint.ranks_per_file=2")
+    assert proc.returncode == 0, proc.stderr
+    assert not (tmp_path / "one" / "hanging_bar.parts").exists()
+    with meshio.xdmf.TimeSeriesReader(tmp_path / "one" / "hanging_bar.xdmf") as reader:
         points, cells = reader.read_points_cells()
         n = points.shape[0]
         assert n == 900 and len(cells[0].data) == n
@@ -238,7 +254,7 @@ def test_xdmf_of_a_two_rank_run_reads_back(tmp_path):
             assert pd["velocity"].shape == (n, 3) and pd["stress"].shape == (n, 9)
             assert pd["stretch"].shape == (n,) and pd["damage"].shape == (n,)
             ranks |= set(np.unique(pd["rank"]).tolist())
-        assert ranks == {0.0, 1.0}
+        assert ranks == {0, 1}
 
 
 @needs_mpi

@@ -111,6 +111,12 @@ _XDMF_WIDTHS = (3, 6, 9)  # Vector, Tensor6, Tensor: the column counts XDMF name
 _ATTRIBUTE_TYPES = {1: "Scalar", 3: "Vector", 6: "Tensor6", 9: "Tensor"}
 
 
+def _rows(a: np.ndarray) -> np.ndarray:
+    """``a`` as a table of ``len(a)`` rows (``reshape(n, -1)`` fails when a rank holds no
+    particles: n = 0)."""
+    return a.reshape(a.shape[0], int(np.prod(a.shape[1:], dtype=np.int64)))
+
+
 def pad_point_data(name: str, data, n: int, dim: int) -> dict[str, np.ndarray]:
     """Shape one particle field for XDMF, as ``{name: array}`` (or several scalar columns).
 
@@ -128,7 +134,7 @@ def pad_point_data(name: str, data, n: int, dim: int) -> dict[str, np.ndarray]:
         a = a.astype(np.int8)
     elif a.dtype.kind not in "iuf":
         a = a.astype(np.float64)
-    a = a.reshape(n, -1)
+    a = _rows(a)
     k = a.shape[1]
     if k == 1:
         return {name: np.ascontiguousarray(a[:, 0])}
@@ -376,7 +382,7 @@ class SnapshotWriter:
             raise ValueError(f"{self.path} indexes parts: add their records")
         x = np.asarray(x, dtype=np.float64)
         n = x.shape[0]
-        points = _pad_columns(x.reshape(n, -1), 3)
+        points = _pad_columns(_rows(x), 3)
         fields, shapes = {}, {}
         for key, value in (point_data or {}).items():
             padded = pad_point_data(key, value, n, self.dim)
@@ -411,7 +417,7 @@ class SnapshotWriter:
             g.attrs["time"] = float(t)
             g.attrs["step"] = record["step"]
             g.attrs["index"] = index
-            self._dataset(g, "x", points, (x.reshape(n, -1).shape[1],))
+            self._dataset(g, "x", points, (_rows(x).shape[1],))
             for key, a in fields.items():
                 shape, base = shapes[key]
                 self._dataset(g, key, a, shape, base)
