@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from parmpm.errors import ParmpmError
-from parmpm.io.xdmf import CELL_TYPES, FORMAT
+from parmpm.io.xdmf_layout import CELL_TYPES, FORMAT
 
 __all__ = ["load_snapshots", "Snapshots", "FieldSeries"]
 

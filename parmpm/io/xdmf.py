@@ -66,7 +66,8 @@ raises ``meshio.ReadError("Couldn't find the mesh grid")`` when opened; read suc
 (one rank, or every rank in one group) writes the single-file layout, format_version 1.
 
 Without parts, call from one rank with the particle state of all ranks in gid order; the run's
-collective side is :class:`parmpm.run_files.RunFiles`.
+collective side is :class:`parmpm.run_files.RunFiles`. How fields are shaped for XDMF and the XML
+elements that point at the datasets are :mod:`parmpm.io.xdmf_layout`'s.
 """
 
 from __future__ import annotations
@@ -84,119 +85,14 @@ import numpy as np
 
 from parmpm.errors import ParmpmError
 from parmpm.io.guarded_file import GuardedFile, space_message
+from parmpm.io.xdmf_layout import (CELL_TYPES, FORMAT, FORMAT_VERSION, PARTS_VERSION, array_spec,
+                                   as_rows, pad_columns, pad_point_data, part_file, uniform_grid,
+                                   xdmf_cells)
 
 logger = logging.getLogger(__name__)
 
 __all__ = ["SnapshotWriter", "pad_point_data", "part_file", "xdmf_cells", "FORMAT",
            "FORMAT_VERSION", "PARTS_VERSION"]
-
-FORMAT, FORMAT_VERSION = "parmpm snapshots", 1
-#: ``format_version`` of a series written in parts (its ``.h5`` holds no particles)
-PARTS_VERSION = 2
-
-#: XDMF topology of a domain, by dimension: (type, nodes per cell)
-CELL_TYPES = {1: ("Polyline", 2), 2: ("Quadrilateral", 4), 3: ("Hexahedron", 8)}
-#: :func:`parmpm.domains.domain_corners`' 3D box order (axis 0 fastest) → XDMF/VTK hexahedron
-#: order (the bottom face counter-clockwise, then the top face)
-BOX_TO_HEXAHEDRON = (0, 1, 3, 2, 4, 5, 7, 6)
-
-
-def _pad_columns(a: np.ndarray, width: int) -> np.ndarray:
-    out = np.zeros((a.shape[0], width), dtype=np.float64)
-    out[:, : a.shape[1]] = a
-    return out
-
-
-_XDMF_WIDTHS = (3, 6, 9)  # Vector, Tensor6, Tensor: the column counts XDMF names
-_ATTRIBUTE_TYPES = {1: "Scalar", 3: "Vector", 6: "Tensor6", 9: "Tensor"}
-
-
-def _rows(a: np.ndarray) -> np.ndarray:
-    """``a`` as a table of ``len(a)`` rows (``reshape(n, -1)`` fails when a rank holds no
-    particles: n = 0)."""
-    return a.reshape(a.shape[0], int(np.prod(a.shape[1:], dtype=np.int64)))
-
-
-def pad_point_data(name: str, data, n: int, dim: int) -> dict[str, np.ndarray]:
-    """Shape one particle field for XDMF, as ``{name: array}`` (or several scalar columns).
-
-    ``(N,)`` → scalar; ``(N, 1)`` and ``(N, 1, 1)`` (1D vectors and tensors) → scalar;
-    ``(N, dim)`` → ``(N, 3)`` vector and ``(N, dim, dim)`` or ``(N, dim²)`` → ``(N, 9)``
-    tensor (zero-padded, row-major 3×3); ``(N, 3)``, ``(N, 6)``, ``(N, 9)`` are kept; any
-    other shape is flattened and written as scalar columns ``name_0``, ``name_1``, ... (XDMF has
-    no attribute type for them). Booleans become int8, integers stay integers, anything else
-    becomes float64.
-    """
-    a = np.asarray(data)
-    if a.shape[:1] != (n,):
-        raise ValueError(f"point data {name!r} has shape {a.shape}, expected {n} rows")
-    if a.dtype.kind == "b":
-        a = a.astype(np.int8)
-    elif a.dtype.kind not in "iuf":
-        a = a.astype(np.float64)
-    a = _rows(a)
-    k = a.shape[1]
-    if k == 1:
-        return {name: np.ascontiguousarray(a[:, 0])}
-    if dim < 3 and k == dim:
-        return {name: _pad_columns(a, 3)}
-    if dim < 3 and k == dim * dim:
-        t = np.zeros((n, 3, 3), dtype=np.float64)
-        t[:, :dim, :dim] = a.reshape(n, dim, dim)
-        return {name: t.reshape(n, 9)}
-    if k in _XDMF_WIDTHS:
-        return {name: np.ascontiguousarray(a)}
-    return {f"{name}_{j}": np.ascontiguousarray(a[:, j]) for j in range(k)}
-
-
-def xdmf_cells(corners) -> np.ndarray:
-    """Domain corners as :func:`parmpm.domains.domain_corners` gives them, ``(N, 2^d, d)``, in
-    XDMF/VTK node order: unchanged in 1D (a segment) and 2D (already counter-clockwise); the 3D
-    box order (axis 0 fastest) reordered to a hexahedron's (:data:`BOX_TO_HEXAHEDRON`)."""
-    c = np.asarray(corners, dtype=np.float64)
-    return c[:, BOX_TO_HEXAHEDRON, :] if c.shape[1] == 8 else c
-
-
-def _data_item(h5_name: str, path: str, spec) -> ET.Element:
-    """A ``DataItem`` pointing at the HDF5 dataset ``path`` of ``h5_name``, whose shape and type
-    are ``spec`` (``(shape, dtype)``)."""
-    shape, dtype = spec
-    dt = np.dtype(dtype)
-    kind = {"i": "Int", "u": "UInt"}.get(dt.kind, "Float")
-    if dt.itemsize == 1:
-        kind = "Char" if dt.kind == "i" else "UChar"
-    item = ET.Element("DataItem", DataType=kind, Precision=str(dt.itemsize),
-                      Dimensions=" ".join(str(s) for s in shape), Format="HDF")
-    item.text = f"{h5_name}:{path}"
-    return item
-
-
-def _spec(a: np.ndarray) -> tuple[tuple, str]:
-    return tuple(int(k) for k in a.shape), a.dtype.str
-
-
-def _uniform(parent, name: str, t: float, rec: dict, geometry: str, topology: str,
-             center: str) -> ET.Element:
-    """One part's uniform grid of one snapshot: geometry ``geometry`` (a dataset of the step's
-    group), cells ``topology`` (a connectivity record), every field of ``rec`` as ``center``
-    data (the particles also carry ``x``)."""
-    file, group, arrays = rec["file"], rec["group"], rec["arrays"]
-    cell, nodes, conn_path, conn_shape = rec["topology"][topology]
-    grid = ET.SubElement(parent, "Grid", Name=name, GridType="Uniform")
-    ET.SubElement(grid, "Time", Value=repr(float(t)))
-    geo = ET.SubElement(grid, "Geometry", GeometryType="XYZ")
-    geo.append(_data_item(file, f"/{group}/{geometry}", arrays[geometry]))
-    top = ET.SubElement(grid, "Topology", TopologyType=cell, NumberOfElements=str(conn_shape[0]),
-                        NodesPerElement=str(nodes))
-    top.append(_data_item(file, conn_path, (conn_shape, "<i8")))
-    for key, spec in arrays.items():
-        if key == "domains" or (key == "x" and center == "Cell"):
-            continue
-        kind = _ATTRIBUTE_TYPES[1 if len(spec[0]) == 1 else spec[0][1]]
-        attr = ET.SubElement(grid, "Attribute", Name=key, AttributeType=kind, Center=center)
-        attr.append(_data_item(file, f"/{group}/{key}", spec))
-    return grid
-
 
 class SnapshotWriter:
     """Write particle snapshots to ``<out_dir>/<name>.xdmf`` (+ ``<name>.h5``).
@@ -355,7 +251,7 @@ class SnapshotWriter:
             if not wanted:
                 continue
             if self.parts is None:
-                added.append((collection, _uniform(collection, name, t, records[0], geometry,
+                added.append((collection, uniform_grid(collection, name, t, records[0], geometry,
                                                    topology, center)))
                 continue
             spatial = ET.SubElement(collection, "Grid", Name=name, GridType="Collection",
@@ -363,7 +259,7 @@ class SnapshotWriter:
             ET.SubElement(spatial, "Time", Value=repr(float(t)))
             for rec in records:
                 if rec["n"]:  # a part without particles: no grid (0 points upsets readers)
-                    _uniform(spatial, f"{name}_{rec['part']:05d}", t, rec, geometry, topology,
+                    uniform_grid(spatial, f"{name}_{rec['part']:05d}", t, rec, geometry, topology,
                              center)
             added.append((collection, spatial))
         return added
@@ -382,7 +278,7 @@ class SnapshotWriter:
             raise ValueError(f"{self.path} indexes parts: add their records")
         x = np.asarray(x, dtype=np.float64)
         n = x.shape[0]
-        points = _pad_columns(_rows(x), 3)
+        points = pad_columns(as_rows(x), 3)
         fields, shapes = {}, {}
         for key, value in (point_data or {}).items():
             padded = pad_point_data(key, value, n, self.dim)
@@ -395,7 +291,7 @@ class SnapshotWriter:
             c = xdmf_cells(domains)
             if c.shape != (n, nodes, self.dim):
                 raise ValueError(f"domains have shape {c.shape}, expected {(n, nodes, self.dim)}")
-            corners = _pad_columns(c.reshape(n * nodes, self.dim), 3)
+            corners = pad_columns(c.reshape(n * nodes, self.dim), 3)
         need = (points.nbytes + sum(a.nbytes for a in fields.values()) + self.OVERHEAD
                 + self._connectivity_bytes("Polyvertex", n, 1))
         if corners is not None:
@@ -409,7 +305,7 @@ class SnapshotWriter:
         rel = self.h5_path.relative_to(self.out_dir).as_posix()
         record = {"file": rel, "part": self.part or 0, "group": name, "n": n, "index": index,
                   "step": index if step is None else int(step), "time": float(t),
-                  "arrays": {"x": _spec(points), **{k: _spec(a) for k, a in fields.items()}},
+                  "arrays": {"x": array_spec(points), **{k: array_spec(a) for k, a in fields.items()}},
                   "topology": {}}
         grids = []
         try:
@@ -417,14 +313,14 @@ class SnapshotWriter:
             g.attrs["time"] = float(t)
             g.attrs["step"] = record["step"]
             g.attrs["index"] = index
-            self._dataset(g, "x", points, (_rows(x).shape[1],))
+            self._dataset(g, "x", points, (as_rows(x).shape[1],))
             for key, a in fields.items():
                 shape, base = shapes[key]
                 self._dataset(g, key, a, shape, base)
             record["topology"]["points"] = self._connectivity("Polyvertex", n, 1)
             if corners is not None:
                 self._dataset(g, "domains", corners, (nodes, self.dim))
-                record["arrays"]["domains"] = _spec(corners)
+                record["arrays"]["domains"] = array_spec(corners)
                 record["topology"]["domains"] = self._connectivity(cell, n, nodes)
             if self._xml is not None:
                 grids = self._index(t, [record])
@@ -530,8 +426,3 @@ class SnapshotWriter:
     def __exit__(self, *exc):
         self.close()
         return False
-
-
-def part_file(name: str, k: int) -> str:
-    """Part ``k``'s file, relative to the series' folder: ``<name>.parts/part_<k>.h5``."""
-    return f"{name}.parts/part_{int(k):05d}.h5"
