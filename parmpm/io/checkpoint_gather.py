@@ -205,8 +205,16 @@ def write_collective(comm, P, order, path, top, like, all_patches, first, index,
     """Every rank writes its rows into one file through h5py's MPI-IO driver (the schema of a
     one-writer checkpoint: rows in rank order, the index, segment digests), then rank 0 fsyncs
     and renames it. Only where h5py is built with MPI; ``driver=None`` on one rank runs the same
-    code serially (the tests' only way to run it with PyPI's h5py). No :class:`GuardedFile`
-    here (MPI-IO writes the file): the free space is checked first."""
+    code serially (the tests' only way to run it with PyPI's h5py; tests/test_parallel_hdf5.py
+    runs the driver itself where a parallel HDF5 is installed). No :class:`GuardedFile` here
+    (MPI-IO writes the file): the free space is checked first.
+
+    Parallel HDF5 wants every metadata call (creating datasets, writing attributes, closing)
+    made by every rank with the same values: the attributes are rank 0's (broadcast), and a
+    rank whose own (independent) row writes fail keeps the error until every rank has written,
+    so all ranks close the file together and raise the same line. A rank writes its rows in
+    blocks of whole segments of about :data:`BLOCK` rows (one copy of a block, never of a
+    field; no single MPI-IO request above 2 GiB)."""
     import h5py
 
     rank, size = comm.Get_rank(), comm.Get_size()
@@ -214,7 +222,7 @@ def write_collective(comm, P, order, path, top, like, all_patches, first, index,
     segs = [segments_of(np.asarray(c, np.int64)) for _, c in all_patches]
     seg_first = np.concatenate([[0], np.cumsum([s.size - 1 for s in segs])])
     bounds = np.concatenate([[0]] + [s[1:] + first[r] for r, s in enumerate(segs)]).astype(np.int64)
-    top = {**top, "part_files": 1, "ranks_per_file": size, "format": FORMAT}
+    top = comm.bcast({**top, "part_files": 1, "ranks_per_file": size, "format": FORMAT}, root=0)
     problem = None
     if rank == 0:
         try:
@@ -225,41 +233,45 @@ def write_collective(comm, P, order, path, top, like, all_patches, first, index,
         except OSError as exc:
             problem = os_problem(path, exc)
     agree(comm, problem)
-    lo, hi = int(first[rank]), int(first[rank + 1])
-    mine = {}  # this rank's segment digests
     try:
         kw = {"driver": driver, "comm": comm} if driver else {}
         with h5py.File(tmp, "w", libver=LIBVER, **kw) as f:
-            for name, a in like.items():
-                ds = f.create_dataset(f"particles/{name}", shape=(int(first[-1]),) + a.shape[1:],
-                                      dtype=DTYPES[name])
-                rows = np.ascontiguousarray(getattr(P, name)[order], dtype=DTYPES[name])
-                if hi > lo:
-                    ds[lo:hi] = rows
-                s = segs[rank]
-                mine[name] = b"".join(block_digest(name, int(seg_first[rank]) + k, rows[s[k]:s[k + 1]])
-                                      for k in range(s.size - 1))
-            tables = top_tables(index, np.array([0, int(first[-1])]), [(".", "")])
-            tables["segments"] = bounds
-            for name, parts in zip(like, zip(*comm.allgather([mine[k] for k in like]))):
-                tables[f"digests/{name}"] = np.frombuffer(b"".join(parts), np.uint8).reshape(-1, 32)
-            for where, t in tables.items():
-                ds = f.create_dataset(where, shape=t.shape, dtype=t.dtype)
-                if rank == 0:
-                    ds[...] = t
-            attrs = {**top, "version": 4, "block_rows": BLOCK_ROWS,
-                     "data_digest": arrays_digest(tables)}
-            attrs["digest"] = attrs_digest(attrs)
-            for k, v in attrs.items():
-                f.attrs[k] = v
+            ds = {name: f.create_dataset(f"particles/{name}", shape=(int(first[-1]),) + a.shape[1:],
+                                         dtype=DTYPES[name]) for name, a in like.items()}
+            try:
+                mine = _write_rows(P, order, ds, segs[rank], int(first[rank]), int(seg_first[rank]))
+            except ParmpmError as exc:
+                problem, mine = str(exc), {name: b"" for name in like}
+            except OSError as exc:
+                problem, mine = os_problem(path, exc), {name: b"" for name in like}
+            gathered = comm.allgather((problem, [mine[k] for k in like]))
+            problem = next((p for p, _ in gathered if p), None)
+            if problem is None:
+                tables = top_tables(index, np.array([0, int(first[-1])]), [(".", "")])
+                tables["segments"] = bounds
+                for name, parts in zip(like, zip(*(d for _, d in gathered))):
+                    tables[f"digests/{name}"] = np.frombuffer(b"".join(parts),
+                                                              np.uint8).reshape(-1, 32)
+                for where, t in tables.items():
+                    d = f.create_dataset(where, shape=t.shape, dtype=t.dtype)
+                    if rank == 0:
+                        d[...] = t
+                attrs = {**top, "version": 4, "block_rows": BLOCK_ROWS,
+                         "data_digest": arrays_digest(tables)}
+                attrs["digest"] = attrs_digest(attrs)
+                for k, v in attrs.items():
+                    f.attrs[k] = v
         comm.Barrier()
-        if rank == 0:
+        if rank == 0 and problem is None:
             fd = os.open(tmp, os.O_RDWR)
             try:
                 os.fsync(fd)
             finally:
                 os.close(fd)
             os.replace(tmp, path)
+            # a checkpoint of this step written in parts before (a run started again with
+            # --overwrite): its parts folder is no part of this one
+            shutil.rmtree(parts_folder(path), ignore_errors=True)
             fsync_folder(path.parent)
             prune(path.parent, keep, lineage=lineage)
     except ParmpmError as exc:
@@ -270,6 +282,25 @@ def write_collective(comm, P, order, path, top, like, all_patches, first, index,
         tmp.unlink(missing_ok=True)
     agree(comm, problem, root=None)
     return path
+
+
+def _write_rows(P, order, ds: dict, s: np.ndarray, lo: int, k_first: int) -> dict:
+    """This rank's rows (``order``) into ``ds`` from row ``lo``, in blocks of whole segments
+    (``s``: this rank's segment offsets, the first numbered ``k_first``); returns each field's
+    segment digests, concatenated."""
+    mine = {name: [] for name in ds}
+    k0, n_seg = 0, s.size - 1
+    while k0 < n_seg:
+        k1 = max(k0 + 1, int(np.searchsorted(s, s[k0] + BLOCK, side="right")) - 1)
+        a, b = int(s[k0]), int(s[k1])
+        idx = order[a:b]
+        for name, d in ds.items():
+            rows = np.ascontiguousarray(getattr(P, name)[idx], dtype=DTYPES[name])
+            d[lo + a:lo + b] = rows
+            mine[name] += [block_digest(name, k_first + k, rows[int(s[k]) - a:int(s[k + 1]) - a])
+                           for k in range(k0, k1)]
+        k0 = k1
+    return {name: b"".join(v) for name, v in mine.items()}
 
 
 # --- restart --------------------------------------------------------------------------------------
