@@ -26,7 +26,7 @@ hanging bar (900 particles, 40 steps, a checkpoint every 20):
    serial h5py, by default this Python), at both checkpoints; so does a 4-rank run where three
    ranks hold no particle (``grid.patch_size = 16``: one patch holds the bar);
 2. restarts 1→3, 3→2, 2→1 from step 20 end with the same particles and ``summary.json``
-   ``final`` as the run that never stopped;
+   ``final`` as the run that never stopped (and 3→1 with ``--reference-python``, if another);
 3. parmpm's reader opens each file and reads every field (every segment digest verified);
 4. a file with one flipped bit in ``particles/x`` stops a 2-rank restart with one line;
 5. a rank whose row writes fail (ENOSPC injected on rank 1) stops every rank with the same
@@ -231,6 +231,13 @@ def main() -> int:
         if final(work / out) != final(work / "p1"):
             fail(f"{out}/summary.json final differs from the run that never stopped")
         ok(f"restart {a}→{b} ranks: bit-identical to the run that never stopped")
+
+    if args.reference_python != sys.executable:
+        c.run(None, ["restart", str(work / "p3" / ckpt(STEPS[0])), "-q", "-o", "r3to1ref"],
+              python=args.reference_python)
+        same(work / "p1" / ckpt(STEPS[1]), work / "r3to1ref" / ckpt(STEPS[1]))
+        ok("restart 3→1 with --reference-python (its h5py) reads the collective file: "
+           "bit-identical")
 
     bad = work / "damaged.h5"
     shutil.copyfile(work / "p3" / ckpt(STEPS[0]), bad)

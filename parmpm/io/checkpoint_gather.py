@@ -10,7 +10,7 @@ into its part file ``checkpoint_<step>.parts/part_<k>.h5``; rank 0 then writes t
 file that binds the parts and holds the patch index. With one group the rows go into the
 top-level file itself. Where h5py is built with MPI (``h5py.get_config().mpi``; PyPI's wheels
 are not) every rank instead writes its own rows into one file, collectively
-(:func:`_write_collective`), same schema. Every step is collective and a problem found by one
+(:func:`write_collective`), same schema. Every step is collective and a problem found by one
 rank (a full disk at a lead) is raised on every rank with the same one-line message
 (:func:`parmpm.collective.agree`), so no rank is left waiting; on failure the parts are removed.
 
@@ -244,6 +244,10 @@ def write_collective(comm, P, order, path, top, like, all_patches, first, index,
                 problem, mine = str(exc), {name: b"" for name in like}
             except OSError as exc:
                 problem, mine = os_problem(path, exc), {name: b"" for name in like}
+            except Exception as exc:  # noqa: BLE001 - raised alone, it would hang the others
+                problem = (f"cannot write checkpoint '{path}': {type(exc).__name__}: "
+                           f"{(str(exc).splitlines() or ['error'])[0]}")
+                mine = {name: b"" for name in like}
             gathered = comm.allgather((problem, [mine[k] for k in like]))
             problem = next((p for p, _ in gathered if p), None)
             if problem is None:
