@@ -172,7 +172,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--steps", type=_positive(int), default=10,
                         help="time steps, the first excluded from timings (default 10)")
     parser.add_argument("--patch-size", type=_positive(int), default=None, metavar="CELLS",
-                        help="cells per patch per axis (default: the scene default, 64 in 1D/2D, 16 in 3D)")
+                        help="cells per patch per axis (default: what a run of the block would use, "
+                             "grid.patch_size = auto: 64 in 1D/2D, 16 in 3D, halved for blocks "
+                             "covering fewer than 16 such patches)")
     parser.add_argument("--speed", type=_positive(float), default=1.0,
                         help="scale of the block velocity (1, 0.5, 0.25) m/s (default 1)")
     parser.add_argument("--json", type=Path, default=None, metavar="FILE",
