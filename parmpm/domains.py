@@ -8,7 +8,8 @@ average over):
 * ``cpgimp``: the axis-aligned box of half-widths ``l0_k·|F_kk|`` (collapses when the material
   turns by 90°: ``F_kk = cos θ``);
 * ``ugimp``: the fixed box of half-widths ``l0_k``;
-* ``mpm``: a point; its *nominal* box of half-widths ``l0_k`` is returned, for drawing only.
+* ``mpm`` and ``bspline``: a point (weights of the centre alone); its *nominal* box of half-widths
+  ``l0_k`` is returned, for drawing only.
 
 Domain "size" is the length (1D), area (2D) or volume (3D): ``2^d |det R|`` or ``Π 2 l_k``.
 In 1D with USL the CPDI domains tile the bar (docs/verification.md §4), so the sizes sum to its length.

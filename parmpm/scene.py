@@ -44,7 +44,8 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   about the box centre in the x-y plane; default none): turns the box, its particle lattice and
   its CPDI domains (GIMP domains stay axis-aligned). Every body's (turned) bounding box lies
   inside the grid.
-* ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi", default "cpdi"), ``lcr``
+* ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi" | "bspline", default
+  "cpdi"), ``lcr``
   (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none", at most the largest
   cell count or 64 cells, whichever is more; default "2dx" for cpdi,
   "none" otherwise, and any other value is an error with another interpolator), ``update``

@@ -224,6 +224,7 @@ def _stretched_F(rng, d):
 def _ghost_cases():
     """(interpolator name, lcr as a multiple of min Δx or None, ppc)."""
     yield "mpm", None, 1
+    yield "bspline", None, 1
     for ppc in (1, 2, 3):
         yield "ugimp", None, ppc
     for lcr in (2.0, 1.8 / 3, 1.0, 1.5, 3.0):  # "2dx", "1.8dx/3", …

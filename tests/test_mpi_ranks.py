@@ -38,6 +38,9 @@ def _cases() -> dict:
                                                    "time.steps=40"]]
     # two patches only: on 3 and 4 ranks some ranks hold nothing; with snapshots and figure on
     cases["1d_cpdi_idle_ranks"] = ["hanging_bar_1d", ["grid.patch_size=16", "time.steps=30"]]
+    # the quadratic B-spline (generic kernels): one 2D case
+    cases["2d_bspline"] = ["hanging_bar", OFF + ["method.interpolator=bspline", "grid.patch_size=4",
+                                                 "time.steps=40"]]
     for m in ("cpdi", "mpm", "ugimp"):
         cases[f"crossing_{m}"] = [CROSSING, [f"method.interpolator={m}"]]
     # per-particle body force and slip regions (manufactured solution); a spinning body

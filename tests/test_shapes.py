@@ -22,13 +22,14 @@ import numpy as np
 import pytest
 from shape_harness import domain, entries
 
-from parmpm.shapes import CPDI, CPGIMP, MPM, UGIMP
+from parmpm.shapes import BSPLINE, CPDI, CPGIMP, MPM, UGIMP
 
 TOL = 1e-12
 CELLS = 12
 H = np.array([1.0, 0.7, 1.3])  # non-cubic cells
 METHODS = [pytest.param(MPM, id="mpm"), pytest.param(UGIMP, id="ugimp"),
-           pytest.param(CPGIMP, id="cpgimp"), pytest.param(CPDI, id="cpdi")]
+           pytest.param(CPGIMP, id="cpgimp"), pytest.param(CPDI, id="cpdi"),
+           pytest.param(BSPLINE, id="bspline")]
 DIMS = [pytest.param(d, id=f"{d}d") for d in (1, 2, 3)]
 # STYLE item 4: every assertion runs compiled and through .py_func (fewer samples, same checks)
 PATHS = [pytest.param(True, id="jit"), pytest.param(False, id="py")]

@@ -11,6 +11,8 @@ patch cell, so a support reaching ``r`` grid units from the centre touches nodes
 
 * ``mpm``: the particle's own cell, whose far node the local box already holds → 0;
 * ``ugimp``: half-width ``Δx/(2·ppc) ≤ Δx/2`` → 1;
+* ``bspline``: support half-width 3/2 cells, so the nodes ``c ± 1`` around the nearest node ``c``
+  of a centre in a patch cell lie at most one cell outside the patch → 1;
 * ``cpdi`` with domain scaling: corners within ``l_cr`` → ``⌈l_cr / min Δx⌉`` (2 for the default
   ``l_cr = 2·min Δx``: the seed's point);
 * ``cpgimp`` and unscaled ``cpdi``: unbounded (domains follow F), so 2 by default, a larger
@@ -27,7 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 #: the kernels' interpolator codes (:func:`parmpm.shapes.support.particle_support` switches on them)
-MPM, UGIMP, CPGIMP, CPDI = 0, 1, 2, 3
+MPM, UGIMP, CPGIMP, CPDI, BSPLINE = 0, 1, 2, 3, 4
 
 UNBOUNDED_DEFAULT_GHOST = 2
 
@@ -83,11 +85,16 @@ INTERPOLATORS = {i.name: i for i in (
     Interpolator("cpdi", CPDI, "CPDI1 (Sadeghirad et al. 2011), optional l_cr domain scaling",
                  "CPDI1: `φ = 2^-d Σ_α S_i(x_α)` over the 2^d corners of `R = F·R0`",
                  "up to 4^d", "`⌈l_cr/min Δx⌉`", True, _capped_at_lcr),
+    Interpolator("bspline", BSPLINE,
+                 "quadratic B-spline at the particle centre (Steffen, Kirby & Berzins 2008, "
+                 "IJNME 76:922-948)",
+                 "quadratic B-spline at the particle centre, C¹ (no cell-crossing jump)", "3^d", "1",
+                 True, _one_cell),
 )}
 
 
 def interpolator_names() -> str:
-    """``"mpm, ugimp, cpgimp, cpdi"``: the registered names, for help texts."""
+    """``"mpm, ugimp, cpgimp, cpdi, bspline"``: the registered names, for help texts."""
     return ", ".join(INTERPOLATORS)
 
 
@@ -98,5 +105,5 @@ def interpolator_table() -> str:
     return "\n".join(rows)
 
 
-__all__ = ["INTERPOLATORS", "Interpolator", "MPM", "UGIMP", "CPGIMP", "CPDI",
+__all__ = ["INTERPOLATORS", "Interpolator", "MPM", "UGIMP", "CPGIMP", "CPDI", "BSPLINE",
            "UNBOUNDED_DEFAULT_GHOST", "interpolator_names", "interpolator_table"]

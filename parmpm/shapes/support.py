@@ -2,7 +2,7 @@
 
 ``particle_support`` dispatches on the interpolator's integer code (numba cannot cache kernels
 that take functions as arguments, so the registry in :mod:`parmpm.shapes` maps names to codes and
-this is the single switch). Tensor-product interpolators (mpm, ugimp, cpgimp) fill per-axis rows
+this is the single switch). Tensor-product interpolators (mpm, ugimp, cpgimp, bspline) fill per-axis rows
 ``(jk, wk, dwk)`` and are assembled here; cpdi writes its corner entries directly.
 
 Entries: ``idx[e]`` flat local node index in the patch's ghost-inclusive box, ``w[e] = φ_ip``,
@@ -11,7 +11,8 @@ grid or beyond the patch's ghost layer.
 """
 from parmpm.jit import helper_kernel
 from parmpm.kernel_records import NO_SCALING
-from parmpm.shapes import CPDI, CPGIMP, MPM
+from parmpm.shapes import BSPLINE, CPDI, CPGIMP, MPM
+from parmpm.shapes.bspline import bspline_axis
 from parmpm.shapes.cpdi import cpdi_support
 from parmpm.shapes.gimp import gimp_axis
 from parmpm.shapes.hat import mpm_axis
@@ -73,6 +74,8 @@ def particle_support(method, d, xi, F, lh0, R, C, base, nloc, nglob, inv_h,
     for k in range(d):
         if method == MPM:
             nk[k] = mpm_axis(xi[k], base[k], nloc[k], nglob[k], inv_h[k], jk, wk, dwk, k)
+        elif method == BSPLINE:
+            nk[k] = bspline_axis(xi[k], base[k], nloc[k], nglob[k], inv_h[k], jk, wk, dwk, k)
         else:
             half = lh0[k] * inv_h[k]
             if method == CPGIMP:
