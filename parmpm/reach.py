@@ -9,13 +9,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from parmpm.shapes import CPDI, CPGIMP
+from parmpm.shapes import BSPLINE, CPDI, CPGIMP, MPM
 from parmpm.shapes.scaling import longest_corner
 from parmpm.shapes.support import domain_matrix
 
 if TYPE_CHECKING:
     from parmpm.discretisation import Discretisation
     from parmpm.stepper import Stepper
+
+
+#: the point methods' support half-width in cells: the hat's one cell, the quadratic B-spline's
+#: one and a half (a particle closer to the grid's face than that has a node off the grid)
+GRID_SUPPORT = {MPM: 1.0, BSPLINE: 1.5}
 
 
 def fmt_vec(v) -> str:
@@ -31,6 +36,8 @@ def support_reach(stepper: Stepper, i: int) -> tuple[float, bool]:
         reach = longest_corner(D.dim, R)
     elif D.method == CPGIMP:
         reach = float(np.max(P.lh0[i] * np.abs(np.diag(P.F[i]))))
+    elif D.method in GRID_SUPPORT:
+        reach = float(np.max(GRID_SUPPORT[D.method] * D.h[:D.dim]))
     else:
         reach = float(np.max(P.lh0[i]))
     x, half = P.x[i], support_half_widths(stepper, i)
@@ -41,7 +48,8 @@ def support_reach(stepper: Stepper, i: int) -> tuple[float, bool]:
 
 def support_half_widths(stepper: Stepper, i: int) -> np.ndarray:
     """Half-extent per axis of particle ``i``'s support about its centre: the GIMP half-widths,
-    or the bounding box of the CPDI corners ``x ± Σ_k |R_ak|`` (as interpolated, after scaling)."""
+    the bounding box of the CPDI corners ``x ± Σ_k |R_ak|`` (as interpolated, after scaling), or
+    the grid-sized support of the point methods (:data:`GRID_SUPPORT`)."""
     D, P = stepper.disc, stepper.P
     d = D.dim
     if D.method == CPDI:
@@ -50,6 +58,8 @@ def support_half_widths(stepper: Stepper, i: int) -> np.ndarray:
         return np.abs(R[:d, :d]).sum(axis=1)
     if D.method == CPGIMP:
         return P.lh0[i] * np.abs(np.diag(P.F[i]))
+    if D.method in GRID_SUPPORT:
+        return GRID_SUPPORT[D.method] * np.asarray(D.h[:d], float)
     return np.array(P.lh0[i], float)
 
 

@@ -128,3 +128,18 @@ def test_snapshots_and_figure_draw_the_nominal_domains(tmp_path, monkeypatch):
     r = parmpm.run("hanging_bar", ["method.interpolator=bspline", "time.steps=4"])
     assert r["steps"] == 4
     assert list(tmp_path.rglob("*.h5")) and list(tmp_path.rglob("hanging_bar.png"))
+
+
+def test_reach_message_uses_the_grid_sized_support():
+    """The one-line reach explanation measures a point method's support in cells (the hat one,
+    the B-spline one and a half), not the particle's nominal GIMP half-widths."""
+    from types import SimpleNamespace
+
+    from parmpm.reach import support_half_widths
+    from parmpm.shapes import MPM
+
+    P = SimpleNamespace(lh0=np.array([[0.01, 0.02]]))
+    for method, cells in ((MPM, 1.0), (BSPLINE, 1.5)):
+        D = SimpleNamespace(method=method, dim=2, h=np.array([0.1, 0.2, 1.0]))
+        half = support_half_widths(SimpleNamespace(disc=D, P=P), 0)
+        np.testing.assert_allclose(half, [cells * 0.1, cells * 0.2])
