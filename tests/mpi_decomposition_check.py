@@ -7,7 +7,6 @@
   all-ranks path and the neighbours-only path;
 * PatchSet: every rank derives the same patch set and owners after updates and re-balancing.
 """
-import sys
 
 import numpy as np
 
@@ -108,11 +107,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except BaseException:
-        import traceback
+    from mpi_script import run_or_abort
 
-        traceback.print_exc()
-        sys.stderr.flush()
-        world().Abort(1)
+    run_or_abort(main)

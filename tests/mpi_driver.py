@@ -32,11 +32,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except BaseException:  # one rank failing alone must not leave the others waiting
-        import traceback
+    from mpi_script import run_or_abort
 
-        traceback.print_exc()
-        sys.stderr.flush()
-        world().Abort(1)
+    run_or_abort(main)

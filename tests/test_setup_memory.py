@@ -139,13 +139,6 @@ def test_setup_memory_study_quick(tmp_path):
 
 
 if __name__ == "__main__":
-    try:
-        main()
-    except BaseException:  # one rank failing alone must not leave the others waiting
-        import traceback
+    from mpi_script import run_or_abort
 
-        from decomposition import world
-
-        traceback.print_exc()
-        sys.stderr.flush()
-        world().Abort(1)
+    run_or_abort(main)
