@@ -43,6 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
+from parmpm.affine import TRANSFERS
 from parmpm.bench_report import format_result, format_summary, summarise, write_csv
 from parmpm.errors import ParmpmError
 from parmpm.io.summary import to_jsonable
@@ -65,8 +66,9 @@ WARMUP_PARTICLES = {1: 200, 2: 2000, 3: 4000}
 
 def build_bench_scene(dim: int, method: str = "cpdi", particles: int = 1_000_000, ppc: int = 2,
                       steps: int = 10, patch_size: int | None = None, speed: float = 1.0,
-                      update: str = "auto") -> Scene:
-    """The benchmark block holding ``(n·ppc)^dim ≈ particles`` particles, n cells per axis."""
+                      update: str = "auto", transfer: str = "flip") -> Scene:
+    """The benchmark block holding ``(n·ppc)^dim ≈ particles`` particles, n cells per axis;
+    ``transfer``: "flip" or "apic" (bspline only)."""
     if dim not in (1, 2, 3):
         raise ParmpmError(f"bench: --dim must be 1, 2 or 3, got {dim}")
     if update not in UPDATES:
@@ -103,6 +105,7 @@ velocity = {vel}
 [method]
 interpolator = "{method}"
 update = "{update}"
+transfer = "{transfer}"
 [time]
 steps = {steps}
 cfl = {CFL}
@@ -166,6 +169,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="interpolator(s): a list such as mpm,cpdi, or all (default cpdi)")
     parser.add_argument("--update", choices=UPDATES, default="auto",
                         help="USL or MUSL (default auto: usl for cpdi, musl for the others)")
+    parser.add_argument("--transfer", choices=TRANSFERS, default="flip",
+                        help="FLIP/PIC or APIC (affine; --method bspline only) transfers "
+                             "(default flip)")
     parser.add_argument("--particles", type=_particle_count, default=1_000_000, metavar="N",
                         help="about how many particles (default 1e6)")
     parser.add_argument("--ppc", type=_positive(int), default=2, help="particles per cell per axis (default 2)")
@@ -229,9 +235,10 @@ def run_bench(args: argparse.Namespace, comm=None) -> dict:
                 raise ParmpmError(f"bench: run_bench takes one --{key}, got {value}; use run_benches")
             setattr(args, key, value[0])
     update = getattr(args, "update", "auto")
+    transfer = getattr(args, "transfer", "flip")
     scene = build_bench_scene(args.dim, args.method, args.particles, args.ppc, args.steps,
-                              args.patch_size, getattr(args, "speed", 1.0), update)
-    warmup = _warm_up(args.dim, args.method, update, comm)
+                              args.patch_size, getattr(args, "speed", 1.0), update, transfer)
+    warmup = _warm_up(args.dim, args.method, update, comm, transfer)
     tmp = tempfile.mkdtemp(prefix="parmpm-bench-") if args.out is None and rank == 0 else None
     out_dir = Path(tmp) if tmp else (args.out / scene.name if args.out is not None else None)
     try:
@@ -261,7 +268,7 @@ def run_bench(args: argparse.Namespace, comm=None) -> dict:
     return result
 
 
-def _warm_up(dim: int, method: str, update: str, comm) -> float:
+def _warm_up(dim: int, method: str, update: str, comm, transfer: str = "flip") -> float:
     """Wall time (slowest rank) of a tiny run of the same case: JIT compilation, or loading the
     compiled kernels from numba's cache, which the measured run then no longer pays."""
     from parmpm.simulation import Simulation
@@ -270,7 +277,8 @@ def _warm_up(dim: int, method: str, update: str, comm) -> float:
     try:
         comm.Barrier()
         t0 = time.perf_counter()
-        scene = build_bench_scene(dim, method, WARMUP_PARTICLES[dim], 2, 3, update=update)
+        scene = build_bench_scene(dim, method, WARMUP_PARTICLES[dim], 2, 3, update=update,
+                                  transfer=transfer)
         Simulation(scene, tmp, quiet=True, comm=comm).run()
         wall = time.perf_counter() - t0
     finally:

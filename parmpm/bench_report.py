@@ -31,6 +31,7 @@ def summarise(summary: dict, setup_seconds: float, migrated: int, peak_rss_mb: f
     return {
         "ranks": summary["ranks"], "dim": summary["dim"], "method": summary["method"],
         "lcr": summary["lcr"], "update": summary["update"],
+        "transfer": summary.get("transfer", "flip"),
         "particles": n, "steps": summary["steps"], "timed_steps": timed,
         "seconds_per_step": per_step,
         "particle_steps_per_second": rate,

@@ -142,11 +142,15 @@ def _vector_columns(dim: int) -> list[str]:
 
 
 @kernel
-def history_sums(d, start, mass, vol0, v, x, x0, F, mat, damage, rf, params, g, freezing):
+def history_sums(d, start, mass, vol0, v, x, x0, F, mat, damage, rf, params, g, freezing,
+                 affine, inertia):
     """Per patch, in one pass over its particles (in storage order): K, Ψ, Σ m g·(x − X),
-    momentum (d), angular momentum (1 in 2D, 3 in 3D), mass, damaged and frozen particles."""
+    momentum (d), angular momentum (1 in 2D, 3 in 3D; with APIC's affine part
+    ``m ε : (C D)ᵀ``, ``inertia = diag D``, zeros under FLIP: :mod:`parmpm.affine`), mass,
+    damaged and frozen particles."""
     spin = 1 if d == 2 else (3 if d == 3 else 0)
     k = 3 + d + spin + 3
+    apic = affine.shape[0] > 0  # FLIP runs carry no affine rows
     out = np.zeros((start.size - 1, k))
     for p in range(start.size - 1):
         o = out[p]
@@ -168,6 +172,14 @@ def history_sums(d, start, mass, vol0, v, x, x0, F, mat, damage, rf, params, g, 
                 o[6] += m * (x[i, 1] * v[i, 2] - x[i, 2] * v[i, 1])
                 o[7] += m * (x[i, 2] * v[i, 0] - x[i, 0] * v[i, 2])
                 o[8] += m * (x[i, 0] * v[i, 1] - x[i, 1] * v[i, 0])
+            if apic:  # the particle's own spin m ε:(C D)ᵀ
+                C, D = affine[i], inertia
+                if d == 2:
+                    o[3 + d] += m * (C[1, 0] * D[0] - C[0, 1] * D[1])
+                elif d == 3:
+                    o[6] += m * (C[2, 1] * D[1] - C[1, 2] * D[2])
+                    o[7] += m * (C[0, 2] * D[2] - C[2, 0] * D[0])
+                    o[8] += m * (C[1, 0] * D[0] - C[0, 1] * D[1])
             o[k - 3] += m
             if damage[i] > 0.0:
                 o[k - 2] += 1.0
@@ -196,7 +208,7 @@ class History:
         per_patch = history_sums(d, P.start, P.mass, P.vol0, P.v, P.x, P.x0, P.F, P.mat,
                                  P.damage, P.rf, s.params,
                                  np.ascontiguousarray(gravity[:d], dtype=np.float64),
-                                 s.stepper.freezing)
+                                 s.stepper.freezing, P.affine, s.stepper.inertia)
         total = ordered_sum(s.comm, s.patches.local_ids, per_patch)
         k, psi, minus_ug = total[0], total[1], total[2]
         ledger = s.energy.ledger

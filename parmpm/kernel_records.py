@@ -25,13 +25,15 @@ def kernel_lcr(lcr: float | None) -> float:
         raise ValueError(f"l_cr must be positive or None, got {lcr!r}")
     return lcr
 
-#: the interpolator code, the dimension and ``l_cr`` (:data:`NO_SCALING`: no domain scaling)
-Method = namedtuple("Method", ("code", "dim", "lcr"))
+#: the interpolator code, the dimension, ``l_cr`` (:data:`NO_SCALING`: no domain scaling) and
+#: whether transfers are affine (APIC, :mod:`parmpm.affine`) rather than FLIP/PIC
+Method = namedtuple("Method", ("code", "dim", "lcr", "apic"))
 #: a rank's patches in slot order: particle ranges ``start``, node-box origins ``base``, usable
 #: cells ``jlo..jhi``, box and grid node counts, grid origin and ``1/Δx`` (3-axis padded)
 Boxes = namedtuple("Boxes", ("start", "base", "jlo", "jhi", "nloc", "nglob", "origin", "inv_h"))
 #: the particle fields a transfer reads or writes
-Fields = namedtuple("Fields", ("x", "v", "F", "r0", "lh0", "mass", "vol0", "stress", "dx"))
+Fields = namedtuple("Fields", ("x", "v", "F", "r0", "lh0", "mass", "vol0", "stress", "dx",
+                               "affine"))
 #: the material state G2P updates: material row per particle, parameter table, damage
 Material = namedtuple("Material", ("mat", "params", "damage"))
 #: what the specialised G2P kernels need to find each particle's next patch (and write it)

@@ -63,7 +63,8 @@ def sample_metrics(s) -> int:
     pieces = components(s) if s.metrics.needs_components else 1
     t = s.clock.t
     sums, maxes = s.metrics.terms(P.gid, P.x, P.v, P.F, t=t, particles=P,
-                                  method=s.disc.method, lcr=s.disc.lcr)
+                                  method=s.disc.method, lcr=s.disc.lcr,
+                                  inertia=s.stepper.inertia)
     per_patch = patch_sums(P.start, np.ascontiguousarray(sums))
     total = ordered_sum(s.comm, s.patches.local_ids, per_patch)
     maxes = allreduce_max(s.comm, maxes) if maxes.size else maxes
@@ -143,7 +144,8 @@ def summary(s, out_dir, stopped: str | None, wall: float, loop: float, warm_step
     work = per_rank[:, [PHASES.index(k) for k in WORK_PHASES]].sum(axis=1)
     return {
         "scene": data["name"], "dim": s.dim, "method": s.interp.name,
-        "lcr": s.lcr, "update": s.update, "flip": data["method"]["flip"],
+        "lcr": s.lcr, "update": s.update, "flip": data["method"].get("flip"),
+        "transfer": data["method"]["transfer"],
         "ranks": s.size, "particles": s.n_total, "steps": s.clock.nstep, "time": s.clock.t,
         "stopped": stopped or "end",
         "output_dir": str(out_dir),

@@ -5,7 +5,8 @@ Fields use the literature's names: ``x`` position, ``v`` velocity, ``x0`` refere
 ``mass``, ``vol0`` initial volume, ``F`` deformation gradient, ``stress`` (Cauchy), ``r0`` initial
 CPDI domain vectors (columns, physical units), ``lh0`` initial GIMP half-widths, ``mat`` material
 row, ``damage`` (for damage models), ``rf`` a frozen CPDI domain in the material's unrotated
-frame (zeros: not frozen; :mod:`parmpm.shapes.freeze`), ``gid`` global id (never changes: it is
+frame (zeros: not frozen; :mod:`parmpm.shapes.freeze`), ``affine`` the APIC affine velocity
+matrix ``C_p = B_p D_p⁻¹`` (Jiang et al. 2015; zeros under FLIP: :mod:`parmpm.affine`), ``gid`` global id (never changes: it is
 how runs on different rank counts and restarts are compared), ``dx`` a scratch displacement for
 MUSL.
 """
@@ -17,16 +18,25 @@ from numba import literal_unroll, literally
 from parmpm.jit import DIMS, kernel, loop_kernel
 from parmpm.patch_index import patch_id1, patch_id2, patch_id3
 
-FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx", "rf")
+FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx", "rf",
+                "affine")
 INT_FIELDS = ("gid", "mat", "patch")
+#: fields only the runs that need them carry (elsewhere zero rows, never moved or stored):
+#: ``affine`` under APIC
+OPTIONAL_FIELDS = ("affine",)
 
 
 class Particles:
     """SoA particle arrays of one rank, grouped by local patch slot (``start``: CSR offsets) and
     sorted by global id inside a patch. ``patch`` is the global id of the particle's patch."""
 
-    def __init__(self, dim: int, n: int):
+    def __init__(self, dim: int, n: int, optional: tuple[str, ...] = ()):
+        unknown = sorted(set(optional) - set(OPTIONAL_FIELDS))
+        if unknown:
+            raise ValueError(f"not optional particle fields: {unknown} (known: {OPTIONAL_FIELDS})")
         self.dim = dim
+        #: the optional fields this store carries (:data:`OPTIONAL_FIELDS`)
+        self.optional = tuple(k for k in OPTIONAL_FIELDS if k in optional)
         d = dim
         self.gid = np.zeros(n, np.int64)
         self.mat = np.zeros(n, np.int64)
@@ -37,6 +47,7 @@ class Particles:
         self.stress = np.zeros((n, d, d))
         self.r0 = np.zeros((n, d, d))
         self.rf = np.zeros((n, d, d))
+        self.affine = np.zeros((n if "affine" in optional else 0, d, d))
         self.patch = np.zeros(n, np.int64)
         self.start = np.zeros(1, np.int64)
 
@@ -44,9 +55,23 @@ class Particles:
     def n(self) -> int:
         return self.gid.size
 
+    def names(self) -> tuple[str, ...]:
+        """The fields this store carries: every field but the optional ones it does not."""
+        return INT_FIELDS + tuple(k for k in FLOAT_FIELDS
+                                  if k not in OPTIONAL_FIELDS or k in self.optional)
+
+    def carry(self, optional: tuple[str, ...]) -> None:
+        """Carry exactly the optional fields ``optional`` (a new one starts at zero): a restart
+        from a checkpoint that lacks one (an older format) still runs."""
+        for k in OPTIONAL_FIELDS:
+            a = getattr(self, k)
+            rows = self.n if k in optional else 0
+            if a.shape[0] != rows:
+                setattr(self, k, np.zeros((rows,) + a.shape[1:]))
+        self.optional = tuple(k for k in OPTIONAL_FIELDS if k in optional)
+
     def fields(self) -> dict[str, np.ndarray]:
-        names = INT_FIELDS + FLOAT_FIELDS
-        return {k: getattr(self, k) for k in names}
+        return {k: getattr(self, k) for k in self.names()}
 
     def replace(self, fields: dict[str, np.ndarray]) -> None:
         """Take new arrays for every field (after migration); ``start`` must be rebuilt."""
@@ -56,7 +81,7 @@ class Particles:
     def permute(self, perm: np.ndarray) -> None:
         """Reorder (or select) every field by ``perm``, one field at a time (so at most one
         field's worth of extra memory is held: the old array goes as soon as it is replaced)."""
-        for name in INT_FIELDS + FLOAT_FIELDS:
+        for name in self.names():
             setattr(self, name, np.take(getattr(self, name), perm, axis=0))
 
     def merge(self, fields: dict[str, np.ndarray], keep: np.ndarray, received: dict | None,

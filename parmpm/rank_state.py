@@ -89,6 +89,12 @@ class RankState:
         return self.comm.Get_size()
 
 
+def carried_fields(data: dict) -> tuple[str, ...]:
+    """The optional particle fields (:data:`parmpm.particles.OPTIONAL_FIELDS`) a resolved scene
+    needs: ``affine`` under APIC."""
+    return ("affine",) if data["method"]["transfer"] == "apic" else ()
+
+
 def set_up(scene, comm, checkpoint=None) -> RankState:
     """This rank's state of ``scene`` (collective); ``checkpoint``: an open
     :class:`parmpm.io.checkpoint_parts.CheckpointReader` to continue from."""
@@ -108,11 +114,12 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     D = Discretisation.from_grid(d, interp.code, lcr, grid, int(ghost), exterior)
     params, names = material_table(data["materials"])
     P, patches, n_total, metrics = _particles(data, comm, D, params, names, checkpoint)
+    P.carry(carried_fields(data))  # a checkpoint of an older format may lack one: zeros
     m = data["method"]
     update = m["update"] if m["update"] != "auto" else ("usl" if interp.code == CPDI else "musl")
     bc, region_box, region_normal = _boundary(data, d)
-    stepper = Stepper(D, P, patches, params, bc, region_box, update, m["flip"],
-                      data["damping"]["coefficient"], n_total, region_normal)
+    stepper = Stepper(D, P, patches, params, bc, region_box, update, m.get("flip", 1.0),
+                      data["damping"]["coefficient"], n_total, region_normal, m["transfer"])
     if data.get("manufactured"):
         _manufactured(stepper, d, params, data["manufactured"]["amplitude"])
     limit = data["time"]["max_energy_growth"]
@@ -207,7 +214,8 @@ def _seeded(data, comm, D, params, names):
     patches = PatchSet(layout, comm, counts, threshold=dec["rebalance_threshold"],
                        cooldown=dec["rebalance_cooldown"])
     _warn_idle_ranks(comm, D, counts, seeds)
-    P = seeds.particles(params, seeds.members(D, patches.rank_of == comm.Get_rank()))
+    P = seeds.particles(params, seeds.members(D, patches.rank_of == comm.Get_rank()),
+                        carried_fields(data))
     if man:
         manufactured.initialise(P, man["amplitude"], params)
     locate_patches(d, P.x, D.origin3, D.inv_h3, layout.cells3, layout.psize3,

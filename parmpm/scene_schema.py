@@ -20,6 +20,7 @@ import math
 import re
 from typing import Any
 
+from parmpm.affine import APIC_INTERPOLATORS, TRANSFERS
 from parmpm.materials import MODELS, SOFTENING, lame
 from parmpm.metrics import metric_names, separation_kinds
 from parmpm.scene_bodies import (  # noqa: F401
@@ -47,7 +48,7 @@ GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost", "exterior")
 MAX_EXTERIOR = 64
 MATERIAL_KEYS = ("model", "density", "youngs_modulus", "poisson_ratio", "damage")
 DAMAGE_KEYS = ("criterion", "onset", "fracture", "softening", "freeze")
-METHOD_KEYS = ("interpolator", "lcr", "update", "flip")
+METHOD_KEYS = ("interpolator", "lcr", "update", "flip", "transfer")
 GRAVITY_KEYS = ("g", "ramp_time")
 DAMPING_KEYS = ("coefficient",)
 MANUFACTURED_KEYS = ("amplitude",)
@@ -247,13 +248,23 @@ def _method(c: _Checker, raw: Any, min_dx: float, max_cells: float = math.inf) -
                              f'interpolator "{interp}" (leave it out or set it to "none")')
     if not isinstance(lcr, str):
         lcr = float(lcr)
-    return {
+    transfer = c.choice("method.transfer", t.get("transfer", "flip"), TRANSFERS)
+    if transfer == "apic" and interp not in APIC_INTERPOLATORS:
+        c.fail("method.transfer", f'"apic" needs interpolator "bspline" (its D_p = Δx²/4 is a '
+                                  f'constant), got interpolator "{interp}"')
+    if transfer == "apic" and "flip" in t:
+        c.fail("method.flip", f'{show(t["flip"])} has no meaning with method.transfer = "apic" '
+                              '(APIC replaces the FLIP/PIC blend): leave it out')
+    out = {
         "interpolator": interp,
         "lcr": lcr,
         "update": c.choice("method.update", t.get("update", "auto"), UPDATES),
-        "flip": c.number("method.flip", t.get("flip", 1.0), "a number with 0 <= flip <= 1",
-                         lambda x: 0 <= x <= 1),
+        "transfer": transfer,
     }
+    if transfer == "flip":  # APIC has no blend: its resolved scene has no flip key
+        out["flip"] = c.number("method.flip", t.get("flip", 1.0), "a number with 0 <= flip <= 1",
+                               lambda x: 0 <= x <= 1)
+    return out
 
 
 def _gravity(c: _Checker, raw: Any, dim: int) -> dict:

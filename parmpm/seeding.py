@@ -194,6 +194,28 @@ def _initial_velocity(d: int, body: dict, pts: np.ndarray) -> np.ndarray:
     return vel
 
 
+def _initial_affine(d: int, body: dict, pts: np.ndarray) -> np.ndarray:
+    """APIC's ``C_p`` at the start: the gradient of :func:`_initial_velocity` at ``pts``, so the
+    particles carry the whole initial field (a spinning body its spin: ``C = ω×``)."""
+    C = np.zeros((len(pts), d, d))
+    if body.get("velocity_gradient") is not None:
+        C += np.asarray(body["velocity_gradient"], float)
+    omega = body.get("angular_velocity")
+    if omega is not None and d == 2:
+        C[:, 0, 1] -= float(omega)
+        C[:, 1, 0] += float(omega)
+    elif omega is not None:
+        w = np.asarray(omega, float)
+        C += np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    vib = body.get("vibration")
+    if vib:
+        ax = vib["axis"]
+        length = body["max"][ax] - body["min"][ax]
+        beta = (2 * vib["mode"] - 1) * math.pi / (2 * length)
+        C[:, ax, ax] += vib["amplitude"] * beta * np.cos(beta * (pts[:, ax] - body["min"][ax]))
+    return C
+
+
 class Seeds:
     """The particles every body seeds: per body (``chunks``) its points' description and the
     per-body constants. Every rank seeds the same (global ids = seeding order) but makes the
@@ -309,11 +331,13 @@ class Seeds:
         return np.concatenate([np.full(len(c[0]), params[c[3], 1] * np.prod(c[2]))
                                for c in self.chunks])
 
-    def particles(self, params: np.ndarray, keep: np.ndarray | None = None) -> Particles:
-        """The particles of global ids ``keep`` (increasing; default all), fields filled."""
+    def particles(self, params: np.ndarray, keep: np.ndarray | None = None,
+                  optional: tuple[str, ...] = ()) -> Particles:
+        """The particles of global ids ``keep`` (increasing; default all), fields filled;
+        ``optional``: the optional fields to carry (:data:`parmpm.particles.OPTIONAL_FIELDS`)."""
         keep = np.arange(self.n) if keep is None else np.asarray(keep, np.int64)
         WATCH.note(keep.size)
-        P = Particles(self.dim, keep.size)
+        P = Particles(self.dim, keep.size, optional)
         P.gid[:] = keep
         first = 0
         for src, body, spacing, row, turn in self.chunks:
@@ -323,6 +347,8 @@ class Seeds:
             P.x[s] = pts
             P.x0[s] = pts
             P.v[s] = _initial_velocity(self.dim, body, pts)
+            if "affine" in P.optional:
+                P.affine[s] = _initial_affine(self.dim, body, pts)
             P.vol0[s] = np.prod(spacing)
             P.mass[s] = params[row, 1] * np.prod(spacing)
             P.mat[s] = row

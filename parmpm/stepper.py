@@ -19,6 +19,7 @@ import time
 import numpy as np
 
 from decomposition import PatchSet, accumulate, allreduce_max, exchange, fill, is_parallel, migrate
+from parmpm.affine import inertia_diagonal
 from parmpm.collective import agree
 from parmpm.discretisation import Discretisation
 from parmpm.errors import SimulationError
@@ -47,12 +48,17 @@ class Stepper:
 
     def __init__(self, disc: Discretisation, particles: Particles, patches: PatchSet,
                  params: np.ndarray, bc: np.ndarray, regions: np.ndarray, update: str,
-                 flip: float, damping: float, n_total: int, region_normal: np.ndarray | None = None):
+                 flip: float, damping: float, n_total: int, region_normal: np.ndarray | None = None,
+                 transfer: str = "flip"):
         self.disc, self.P, self.patches = disc, particles, patches
         self.params, self.bc, self.regions = params, bc, regions
         self.region_normal = (np.full(regions.shape[0], -1, np.int64) if region_normal is None
                               else np.asarray(region_normal, np.int64))
         self.update, self.flip, self.damping = update, flip, damping
+        #: affine transfers (APIC, :mod:`parmpm.affine`) instead of FLIP/PIC
+        self.apic = transfer == "apic"
+        #: diag D_p of the affine transfers (zeros under FLIP): the affine angular momentum
+        self.inertia = inertia_diagonal(disc.method, disc.h, self.apic)
         self.region_ranges = region_node_ranges(regions, disc.origin3, disc.h3, disc.dim)
         self.comm = patches.comm
         self.n_total = n_total
@@ -86,6 +92,8 @@ class Stepper:
         have them (the default); ``"generic"``: the dimension-generic ones of
         :mod:`parmpm.transfer` (the reference the specialised ones are tested against)."""
         if kind == "specialised":
+            # APIC runs are bspline runs (the scene and inertia_diagonal refuse others), whose
+            # kernels see the affine field
             self.kernels = SPECIALISED.get(self.disc.dim, {}).get(self.disc.method)
         elif kind == "generic":
             self.kernels = None
@@ -114,8 +122,8 @@ class Stepper:
         particle arrays (rebuilt per call: migration replaces the arrays)."""
         D, P = self.disc, self.P
         boxes = Boxes(P.start, D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3, D.inv_h3)
-        fields = Fields(P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress, P.dx)
-        return Method(D.method, D.dim, D.lcr), boxes, fields
+        fields = Fields(P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress, P.dx, P.affine)
+        return Method(D.method, D.dim, D.lcr, self.apic), boxes, fields
 
     def _fail(self, i: int, message: str) -> None:
         """Note the first problem of this step (particle ``i``); :meth:`finish` raises it."""

@@ -12,6 +12,10 @@ so each patch's partial sums are a deterministic function of its own particles.
 * ``g2p``: FLIP/PIC velocity ``v_p ← α(v_p + Σ φ Δv_i) + (1−α) Σ φ v_i``, position
   ``x_p += Δt Σ φ v_i``, velocity gradient ``L_p = Σ v_i ⊗ ∇φ_ip``, ``F ← (I + Δt L) F`` and stress.
 
+Under APIC (``how.apic``, :mod:`parmpm.affine`) the momentum scattered is the particle's affine
+field at the node, ``m_p φ_ip (v_p + C_p (x_i − x_p))``, and G2P sets ``v_p = Σ φ v_i`` and
+``C_p = Σ φ v_i ⊗ (x_i − x_p) D_p⁻¹`` with the B-spline's ``D_p⁻¹ = diag(4/Δx_k²)``.
+
 A support that leaves the grid or the ghost layer sets ``err[0]`` (the first such particle) and
 that particle is skipped: the step still ends on every rank, and the caller stops the run.
 
@@ -38,7 +42,8 @@ from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 def _scratch(nloc, d):
     """Per-call scratch of the particle loops: ``R, C`` (CPDI domain and cofactor), ``xi`` (grid
     coordinates), the per-axis rows ``nk, jk, wk, dwk`` of :func:`particle_support`, its entries
-    ``idx, w, g``, and ``Lg, Fn`` (velocity gradient and new F in G2P)."""
+    ``idx, w, g``, ``Lg, Fn`` (velocity gradient and new F in G2P) and ``r`` (each entry's node
+    minus the particle, physical units: APIC)."""
     M = max(nloc[0], nloc[1], nloc[2], 4)
     K = 64
     prod = 1
@@ -48,7 +53,52 @@ def _scratch(nloc, d):
     return (np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3), np.zeros(3, np.int64),
             np.zeros((3, M), np.int64), np.zeros((3, M)), np.zeros((3, M)),
             np.zeros(K, np.int64), np.zeros(K), np.zeros((K, 3)),
-            np.zeros((3, 3)), np.zeros((3, 3)))
+            np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((K, 3)))
+
+
+@helper_kernel
+def _offsets(d, boxes, p, n, scratch):
+    """``r[e] = x_i − x_p`` (physical units) of the ``n`` entries of the particle whose grid
+    coordinates are in the scratch's ``xi`` (APIC's affine terms)."""
+    xi, idx, r = scratch[2], scratch[7], scratch[12]
+    base, nloc, inv_h = boxes.base, boxes.nloc, boxes.inv_h
+    for e in range(n):
+        loc = idx[e]
+        r[e, 0] = (base[p, 0] + loc % nloc[0] - xi[0]) / inv_h[0]
+        if d > 1:
+            r[e, 1] = (base[p, 1] + (loc // nloc[0]) % nloc[1] - xi[1]) / inv_h[1]
+        if d > 2:
+            r[e, 2] = (base[p, 2] + loc // (nloc[0] * nloc[1]) - xi[2]) / inv_h[2]
+
+
+@helper_kernel
+def _affine_scatter(d, n, m, vi, Ci, gmv, p, scratch):
+    """APIC P2G momentum: ``(m v)_i += m φ_ip (v_p + C_p r_e)`` over the ``n`` entries."""
+    idx, w, r = scratch[7], scratch[8], scratch[12]
+    for e in range(n):
+        mw = m * w[e]
+        for a in range(d):
+            s = vi[a]
+            for b in range(d):
+                s += Ci[a, b] * r[e, b]
+            gmv[p, idx[e], a] += mw * s
+
+
+@helper_kernel
+def _affine_gather(d, n, gvel, p, inv_h, vi, Ci, scratch):
+    """APIC G2P: ``v_p = Σ φ v_i``, ``C_p = Σ φ v_i ⊗ r · D⁻¹`` with the B-spline's
+    ``D⁻¹ = diag(4/Δx²)`` (:mod:`parmpm.affine`)."""
+    idx, w, r = scratch[7], scratch[8], scratch[12]
+    for a in range(d):
+        s = 0.0
+        for e in range(n):
+            s += w[e] * gvel[p, idx[e], a]
+        vi[a] = s
+        for b in range(d):
+            s = 0.0
+            for e in range(n):
+                s += w[e] * gvel[p, idx[e], a] * r[e, b]
+            Ci[a, b] = s * (4.0 * inv_h[b] * inv_h[b])
 
 
 @helper_kernel
@@ -56,7 +106,7 @@ def _entries(method, d, lcr, boxes, fields, i, p, err, scratch):
     """Particle ``i``'s (node, weight, gradient) entries in the scratch's ``idx, w, g`` for the
     node box of slot ``p``; their count, or -1 (noted in ``err``) when its support leaves the
     grid or the ghost layer."""
-    R, C, xi, nk, jk, wk, dwk, idx, w, g, _, _ = scratch
+    R, C, xi, nk, jk, wk, dwk, idx, w, g, _, _, _ = scratch
     x, F = fields.x, fields.F
     origin, inv_h = boxes.origin, boxes.inv_h
     for k in range(d):
@@ -84,9 +134,10 @@ def p2g(how, boxes, fields, bforce, out, err):
 def _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
-    method, lcr = how.code, how.lcr
+    method, lcr, apic = how.code, how.lcr, how.apic
     start = boxes.start
     v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
+    affine = fields.affine
     gm, gmv, gf = out
     idx, w, g = scratch[7], scratch[8], scratch[9]
     forced = bforce.shape[0] > 0
@@ -100,12 +151,16 @@ def _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch):
                 continue
             m = mass[i]
             V = det_d(d, F[i]) * vol0[i]
+            if apic:
+                _offsets(d, boxes, p, n, scratch)
+                _affine_scatter(d, n, m, v[i], affine[i], gmv, p, scratch)
             for e in range(n):
                 node = idx[e]
                 mw = m * w[e]
                 gm[p, node, 0] += mw
                 for a in range(d):
-                    gmv[p, node, a] += mw * v[i, a]
+                    if not apic:
+                        gmv[p, node, a] += mw * v[i, a]
                     s = 0.0
                     for b in range(d):
                         s += stress[i, a, b] * g[e, b]
@@ -128,7 +183,7 @@ def p2g_momentum(how, boxes, fields, gmv, err):
 def _p2g_momentum_loop(how, dim, boxes, fields, gmv, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
-    method, lcr = how.code, how.lcr
+    method, lcr, apic = how.code, how.lcr, how.apic
     start, v, mass = boxes.start, fields.v, fields.mass
     idx, w = scratch[7], scratch[8]
     gmv[:] = 0.0
@@ -136,6 +191,10 @@ def _p2g_momentum_loop(how, dim, boxes, fields, gmv, err, scratch):
         for i in range(start[p], start[p + 1]):
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
+                continue
+            if apic:
+                _offsets(d, boxes, p, n, scratch)
+                _affine_scatter(d, n, mass[i], v[i], fields.affine[i], gmv, p, scratch)
                 continue
             for e in range(n):
                 mw = mass[i] * w[e]
@@ -161,9 +220,10 @@ def g2p(mode, how, boxes, dt, flip, fields, material, grid, err):
 def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
-    method, lcr = how.code, how.lcr
+    method, lcr, apic = how.code, how.lcr, how.apic
     start = boxes.start
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
+    affine = fields.affine
     mat, params, damage = material
     gvel, gdv = grid
     idx, w, g, Lg, Fn = scratch[7], scratch[8], scratch[9], scratch[10], scratch[11]
@@ -174,7 +234,15 @@ def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scra
             if n < 0:
                 continue
             Fi = F[i]
-            if mode != G2P_MUSL_DEFORM:
+            if apic and mode != G2P_MUSL_DEFORM:
+                _offsets(d, boxes, p, n, scratch)
+                _affine_gather(d, n, gvel, p, boxes.inv_h, v[i], affine[i], scratch)
+                for a in range(d):
+                    if mode == G2P_USL:
+                        x[i, a] += dt * v[i, a]
+                    else:
+                        dx[i, a] = dt * v[i, a]
+            elif mode != G2P_MUSL_DEFORM:
                 for a in range(d):
                     vi = 0.0
                     dvi = 0.0
@@ -231,7 +299,7 @@ def support_nodes(how, boxes, fields, nodes, count, err):
 
 @loop_kernel
 def _support_nodes_loop(how, boxes, fields, nodes, count, err, scratch):
-    method, d, lcr = how
+    method, d, lcr = how.code, how.dim, how.lcr
     start, base, nloc, nglob = boxes.start, boxes.base, boxes.nloc, boxes.nglob
     idx, w = scratch[7], scratch[8]
     for p in range(start.size - 1):

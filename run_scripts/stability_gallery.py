@@ -125,11 +125,14 @@ class Method:
     label: str          # file and CSV name
     interpolator: str
     lcr: str            # method.lcr spec; "none" = no domain scaling
+    transfer: str = "flip"  # method.transfer
 
     @property
     def title(self) -> str:
         if self.interpolator != "cpdi":
-            return {"mpm": "MPM", "ugimp": "uGIMP", "cpgimp": "cpGIMP"}[self.interpolator]
+            name = {"mpm": "MPM", "ugimp": "uGIMP", "cpgimp": "cpGIMP",
+                    "bspline": "B-spline"}[self.interpolator]
+            return name + (" + APIC" if self.transfer == "apic" else "")
         if self.lcr == "none":
             return "CPDI, unscaled"
         return f"CPDI, l_cr = {self.lcr.replace('dx', '·Δx')}"
@@ -144,6 +147,8 @@ METHODS = (
     Method("cpdi_lcr1.8dx3", "cpdi", "1.8dx/3"),
     Method("cpdi_lcr1.2dx3", "cpdi", "1.2dx/3"),
     Method("cpdi_lcr2dx", "cpdi", "2dx"),
+    Method("bspline", "bspline", "none"),
+    Method("bspline_apic", "bspline", "none", "apic"),
 )
 BY_LABEL = {m.label: m for m in METHODS}
 
@@ -190,6 +195,7 @@ class Case:
         if any(abs(n * self.cell - m * h0) > 1e-9 for n, m in zip(cells, base["cells"])):
             raise ValueError(f"{self.id}: cell {self.cell} does not divide the scene's grid")
         over = [f"method.interpolator={self.method.interpolator}", f"method.lcr={self.method.lcr}",
+                f"method.transfer={self.method.transfer}",
                 f"bodies.0.ppc={self.ppc}", f"grid.cell_size={self.cell}",
                 f"grid.cells=[{', '.join(map(str, cells))}]", f"time.end={self.end}",
                 "metrics.stop_on_separation=true", f"output.every={FRAME_EVERY}"]

@@ -5,8 +5,11 @@ whole step: patches, ghost layers, sorting, boundary conditions, the CFL reducti
 yardstick ``shared/bench/ref_step.py --method cpdi|hat --n N`` (one plain numba USL step, no
 patches, no MPI; not part of parmpm, run from where it lies) alternately, ``--repeat`` times each,
 keeping each one's fastest. Cases: 2D cpdi (USL, its default), 2D mpm with USL (the yardstick's
-algorithm) and 2D mpm with MUSL (parmpm's default for mpm: a second P2G/G2P pass, so ~1.5× the
-work). The ratio ``parmpm / yardstick`` of particle-steps per second is what the performance
+algorithm), 2D mpm with MUSL (parmpm's default for mpm: a second P2G/G2P pass, so ~1.5× the
+work), and 2D bspline with APIC (USL) against ``ref_step.c``'s ``mls`` case, a quadratic B-spline
+MLS-MPM step in C (compiled here with ``gcc -O3 -march=native``; skipped without gcc). The C case
+fuses the stress into the affine matrix and uses ``C_p`` as the velocity gradient (MLS-MPM), so
+it skips the force field and the gradient weights parmpm's APIC keeps. The ratio ``parmpm / yardstick`` of particle-steps per second is what the performance
 issue asks about (≥ 0.7, goal 1.0); the figure stacks parmpm's phases in ns per particle-step
 beside the yardstick's total.
 
@@ -24,6 +27,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import re
 import subprocess
 import sys
@@ -32,27 +36,49 @@ from pathlib import Path
 
 import study
 
-CASES = (("cpdi", "usl", "cpdi"), ("mpm", "usl", "hat"), ("mpm", "musl", "hat"))
+#: (method, update, yardstick method, transfer); "mls" is the C yardstick's quadratic B-spline
+#: APIC/MLS case (``ref_step.c``, compiled here with gcc when it is found)
+CASES = (("cpdi", "usl", "cpdi", "flip"), ("mpm", "usl", "hat", "flip"),
+         ("mpm", "musl", "hat", "flip"), ("bspline", "usl", "mls", "apic"))
 PHASE_ORDER = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "sort", "reduce")
 DEFAULT_YARDSTICK = study.ROOT.parent / "shared" / "bench" / "ref_step.py"
 
 
-def parmpm_bench(method: str, update: str, particles: float, steps: int) -> dict:
+def parmpm_bench(method: str, update: str, particles: float, steps: int,
+                 transfer: str = "flip") -> dict:
     """One ``parmpm bench`` run in a fresh process; its JSON result."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "bench.json"
         cmd = [sys.executable, "-m", "parmpm", "bench", "--quiet", "--dim", "2", "--method", method,
                "--update", update, "--particles", f"{particles:g}", "--steps", str(steps),
-               "--json", str(out)]
+               "--transfer", transfer, "--json", str(out)]
         proc = subprocess.run(cmd, cwd=study.ROOT, capture_output=True, text=True, timeout=1800)
         if proc.returncode != 0:
             raise SystemExit(f"throughput: parmpm bench failed:\n{proc.stderr}")
         return json.loads(out.read_text(encoding="utf-8"))
 
 
-def yardstick(path: Path, method: str, particles: float) -> float:
-    """Median particle-steps per second of one yardstick run (its ``RESULT`` line)."""
+def compile_c(path: Path) -> Path | None:
+    """``ref_step.c`` beside the numba yardstick, built with ``gcc -O3 -march=native`` into a
+    temporary folder (None without gcc or the source)."""
+    src = path.with_suffix(".c")
+    gcc = shutil.which("gcc")
+    if gcc is None or not src.is_file():
+        return None
+    exe = Path(tempfile.mkdtemp(prefix="ref_step_")) / "ref_step"
+    proc = subprocess.run([gcc, "-O3", "-march=native", "-o", str(exe), str(src), "-lm"],
+                          capture_output=True, text=True)
+    return exe if proc.returncode == 0 else None
+
+
+def yardstick(path: Path, method: str, particles: float, c_exe: Path | None = None) -> float:
+    """Median particle-steps per second of one yardstick run (its ``RESULT`` line); the C one
+    (``c_exe``) for ``mls``."""
     cmd = [sys.executable, str(path), "--method", method, "--n", f"{particles:g}"]
+    if method == "mls":
+        if c_exe is None:
+            return math.nan
+        cmd = [str(c_exe), "mls", str(int(particles)), "10", "5"]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=1800)
     found = re.search(r"^RESULT .*median=(\S+)", proc.stdout, re.M)
     if proc.returncode != 0 or not found:
@@ -62,17 +88,19 @@ def yardstick(path: Path, method: str, particles: float) -> float:
 
 def measure(args) -> list[dict]:
     rows = []
-    for method, update, ymethod in CASES:
+    c_exe = compile_c(args.yardstick) if args.yardstick else None
+    for method, update, ymethod, transfer in CASES:
         best, ybest = None, math.nan
         for _ in range(args.repeat):
-            r = parmpm_bench(method, update, args.particles, args.steps)
+            r = parmpm_bench(method, update, args.particles, args.steps, transfer)
             if best is None or r["particle_steps_per_second"] > best["particle_steps_per_second"]:
                 best = r
             if args.yardstick:
-                ybest = max(yardstick(args.yardstick, ymethod, args.particles), ybest
-                            if math.isfinite(ybest) else 0.0)
+                y = yardstick(args.yardstick, ymethod, args.particles, c_exe)
+                ybest = max(y, ybest if math.isfinite(ybest) else 0.0) if math.isfinite(y) else ybest
         n = best["particles"]
-        row = {"method": method, "update": update, "particles": n,
+        row = {"method": method, "update": update, "transfer": transfer,
+               "yardstick": "C (gcc)" if ymethod == "mls" else "numba", "particles": n,
                "parmpm_particle_steps_per_second": best["particle_steps_per_second"],
                "yardstick_particle_steps_per_second": ybest,
                "ratio": best["particle_steps_per_second"] / ybest if math.isfinite(ybest) else math.nan,
@@ -84,7 +112,7 @@ def measure(args) -> list[dict]:
             row[f"{k}_ns"] = 1e9 * best["phase_seconds_per_step"].get(k, 0.0) / n
         row["stress_in_g2p_ns"] = 1e9 * best["stress_in_g2p_seconds_per_step"] / n
         rows.append(row)
-        print(f"{method:>4} {update:<4} parmpm {row['parmpm_particle_steps_per_second']:.3e} p-steps/s, "
+        print(f"{method:>7} {update:<4} {transfer:<4} parmpm {row['parmpm_particle_steps_per_second']:.3e} p-steps/s, "
               f"yardstick {ybest:.3e}, ratio {row['ratio']:.2f}", flush=True)
     return rows
 
@@ -108,7 +136,8 @@ def plot(rows: list[dict], path: Path) -> Path:
         if math.isfinite(y):
             ax.bar(2 * i + 0.9, y, color="0.6", width=0.8, label="yardstick" if i == 0 else None)
             ax.text(2 * i + 0.9, y, f"{y:.0f}\n×{r['ratio']:.2f}", ha="center", va="bottom", fontsize=8)
-        labels.append(f"{r['method']} {r['update'].upper()}")
+        labels.append(f"{r['method']} {r['update'].upper()}"
+                      + (" APIC\n(vs C mls)" if r["transfer"] == "apic" else ""))
     ax.set_xticks([2 * i + 0.45 for i in range(len(rows))], labels)
     ax.set_ylabel("ns per particle-step (one core)")
     ax.set_title(f"2D, {rows[0]['particles']:,} particles: parmpm phases vs the numba yardstick",

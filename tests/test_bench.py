@@ -110,6 +110,21 @@ def test_sweep_writes_csv_and_json(tmp_path, capsys):
     assert "B/particle" in capsys.readouterr().out
 
 
+def test_bench_apic_runs_and_apic_elsewhere_is_one_line(tmp_path, capsys):
+    """``--transfer apic`` times bspline's APIC kernels; with another method it is the scene's
+    one-line refusal."""
+    import parmpm.__main__ as cli
+
+    r = run_bench(bench_args("--method", "bspline", "--transfer", "apic", "--particles", "2000",
+                             "--steps", "3"), None)
+    assert r["method"] == "bspline" and r["transfer"] == "apic" and r["steps"] == 3
+    capsys.readouterr()
+    assert cli.main(["bench", "--method", "cpdi", "--transfer", "apic", "--steps", "2",
+                     "--particles", "500", "--quiet"]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and 'needs interpolator "bspline"' in err[0]
+
+
 def test_cli_bench_error_is_one_line(capsys):
     import parmpm.__main__ as cli
 
@@ -131,8 +146,11 @@ def test_throughput_study_quick(tmp_path):
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     rows = list(csv.DictReader((tmp_path / "throughput.csv").open()))
-    assert [(r["method"], r["update"]) for r in rows] == [("cpdi", "usl"), ("mpm", "usl"), ("mpm", "musl")]
-    for r in rows:
+    assert [(r["method"], r["update"], r["transfer"]) for r in rows] == [
+        ("cpdi", "usl", "flip"), ("mpm", "usl", "flip"), ("mpm", "musl", "flip"),
+        ("bspline", "usl", "apic")]
+    assert rows[3]["yardstick_particle_steps_per_second"] == "nan"  # no ref_step.c beside it
+    for r in rows[:3]:
         rate = float(r["parmpm_particle_steps_per_second"])
         assert float(r["yardstick_particle_steps_per_second"]) == 1.0e7
         assert float(r["ratio"]) == pytest.approx(rate / 1.0e7)

@@ -30,7 +30,8 @@ from parmpm.io.checkpoint_parts import CheckpointReader, top_tables
 
 DIM = 2
 TAIL = {"x": (DIM,), "v": (DIM,), "x0": (DIM,), "lh0": (DIM,),
-        "F": (DIM, DIM), "stress": (DIM, DIM), "r0": (DIM, DIM), "rf": (DIM, DIM)}
+        "F": (DIM, DIM), "stress": (DIM, DIM), "r0": (DIM, DIM), "rf": (DIM, DIM),
+        "affine": (DIM, DIM)}
 
 
 def _fields(n, seed=0):
@@ -189,6 +190,7 @@ def test_lineage_is_covered_by_the_attribute_digest(tmp_path):
 def _write_old(path, version, n=50, seed=0):
     """A version 1 or 2 file as those versions wrote them (no digests; v1 without rf)."""
     data = _fields(n, seed)
+    del data["affine"]  # before version 5
     if version == 1:
         del data["rf"]
     attrs = _attrs(n, v4=False)
@@ -247,12 +249,13 @@ def test_older_versions_still_read_with_a_warning(tmp_path, caplog, version):
 def test_version_3_still_reads_and_checks_its_digests(tmp_path, caplog):
     path = tmp_path / "checkpoint_00000007.h5"
     data = _fields(333)
+    del data["affine"]  # before version 5
     write_v3(path, data, _attrs(333, lineage="old", v4=False), block_rows=64)
     with caplog.at_level(logging.WARNING, logger="parmpm.io.checkpoint"):
         r = CheckpointReader(path)
     assert caplog.text == "" and r.version == 3 and r.attrs["lineage"] == "old"
-    assert r.patch_rows is None and r.patch_counts() is None
-    for k in FIELDS:
+    assert r.patch_rows is None and r.patch_counts() is None and not r.has("affine")
+    for k in data:
         for lo, hi in ((0, None), (5, 300), (63, 65), (333, 333)):
             np.testing.assert_array_equal(r.read(k, lo, hi), data[k][lo:hi], err_msg=k)
     r.close()
@@ -270,7 +273,7 @@ def test_round_trip_with_unaligned_blocks(tmp_path):
     path = tmp_path / "checkpoint_00000007.h5"
     data = _write(path, n=333, block_rows=64, step=100)
     r = CheckpointReader(path)
-    assert r.version == ck.VERSION == 4 and r.attrs.get("lineage") is None
+    assert r.version == ck.VERSION == 5 and r.attrs.get("lineage") is None
     for k in FIELDS:
         for lo, hi in ((0, None), (0, 64), (5, 300), (320, 333), (63, 65), (333, 333)):
             np.testing.assert_array_equal(r.read(k, lo, hi), data[k][lo:hi], err_msg=k)
@@ -310,7 +313,7 @@ def test_disk_full_before_writing_is_one_line(tmp_path, monkeypatch):
     data = _fields(5000)
     with pytest.raises(ParmpmError) as e:
         CheckpointWriter(path, 5000, {k: v[:0] for k, v in data.items()}, _attrs(5000))
-    assert str(e.value) == f"disk full writing '{path}': 1.4 MB needed, 0.1 MB free"
+    assert str(e.value) == f"disk full writing '{path}': 1.6 MB needed, 0.1 MB free"
     assert list(tmp_path.iterdir()) == []
 
 
@@ -325,7 +328,7 @@ def test_disk_filling_while_writing_removes_the_tmp(tmp_path, monkeypatch):
                          block_rows=512)
     w.write(0, {k: v[:1024] for k, v in data.items()})
     free[0] = 50_000
-    with pytest.raises(ParmpmError, match=f"^disk full writing '{path}': 0.7 MB needed, 0.1 MB free$"):
+    with pytest.raises(ParmpmError, match=f"^disk full writing '{path}': 0.8 MB needed, 0.1 MB free$"):
         w.write(1024, {k: v[1024:2048] for k, v in data.items()})
     w.abort()  # what the driver does after any failure: harmless now
     assert list(tmp_path.iterdir()) == []

@@ -49,6 +49,10 @@ def _cases() -> dict:
                                                               "time.steps=40"]]
     cases["2d_spinning_cpdi"] = ["spinning_disk", OFF + ["grid.patch_size=6", "time.steps=60",
                                                          "metrics.every_steps=5"]]
+    # APIC: the affine field migrates with its particles (the disk crosses patches)
+    cases["2d_spinning_bspline_apic"] = ["spinning_disk", OFF + [
+        "method.interpolator=bspline", "method.transfer=apic", "grid.patch_size=6",
+        "time.steps=60", "metrics.every_steps=5"]]
     # a damaging material (stretch-driven damage degrading the stress), specialised 2D kernels
     # and the generic 1D ones
     damage = "materials.bar.damage={onset=1.05, fracture=1.6}"

@@ -80,7 +80,8 @@ def test_hanging_bar_resolved():
     assert d["materials"]["bar"]["model"] == "neo_hookean"
     assert d["bodies"][0]["ppc"] == [3, 3]
     assert d["bodies"][0]["vibration"] is None
-    assert d["method"] == {"interpolator": "cpdi", "lcr": "2dx", "update": "auto", "flip": 1.0}
+    assert d["method"] == {"interpolator": "cpdi", "lcr": "2dx", "update": "auto", "transfer": "flip",
+                           "flip": 1.0}
     assert d["gravity"] == {"g": [0.0, -1000.0], "ramp_time": 0.0}
     assert d["time"] == {"end": 0.3, "steps": None, "cfl": 0.4, "dt_max": None,
                          "max_energy_growth": 1.0}

@@ -21,7 +21,7 @@ from parmpm.kernels3d.cells import cells_of8
 from parmpm.kernels3d.material import stress_pass as stress_pass_3d
 from parmpm.materials import MODELS
 from parmpm.particles import locate_patches
-from parmpm.shapes import CPDI, INTERPOLATORS
+from parmpm.shapes import BSPLINE, CPDI, INTERPOLATORS
 from parmpm.simulation import Simulation
 from parmpm.stepper import SPECIALISED
 from parmpm.transfer import stress_pass as generic_stress_pass
@@ -36,11 +36,13 @@ MODES = [G2P_USL, G2P_MUSL_MOTION, G2P_MUSL_DEFORM]
 
 
 def _cases():
-    """(dim, interpolator name, l_cr) for every registered specialised kernel."""
+    """(dim, interpolator name, l_cr) for every registered specialised kernel; for bspline the
+    "l_cr" ``"apic"`` means APIC transfers (its kernels read the affine field)."""
     out = []
     for dim, kernels in sorted(SPECIALISED.items()):
         for code in sorted(kernels):
-            lcrs = ["none", LCR[dim]] if code == CPDI else ["none"]
+            lcrs = (["none", LCR[dim]] if code == CPDI else
+                    ["none", "apic"] if code == BSPLINE else ["none"])
             out += [pytest.param(dim, NAME[code], lcr, id=f"{dim}d-{NAME[code]}-lcr={lcr}")
                     for lcr in lcrs]
     return out
@@ -80,18 +82,21 @@ def deformed_stepper(dim, method, lcr, model="neo_hookean", seed=1, tmp=None):
                     f'materials.bar.model="{model}"']
     if method == "cpdi":
         over.append(f"method.lcr={lcr}")
+    if lcr == "apic":
+        over.append("method.transfer=apic")
     sim = Simulation(parmpm.load_scene(SCENE[dim], over), tmp, quiet=True)
     st, P = sim.stepper, sim.stepper.P
     rng = np.random.default_rng(seed)
     P.F[:] = _deformation(rng, P.n, dim)
     P.v[:] = rng.normal(0.0, 1.0, (P.n, dim))
+    P.affine[:] = rng.normal(0.0, 10.0, P.affine.shape)  # no rows under FLIP
     S = rng.normal(0.0, 1e4, (P.n, dim, dim))
     P.stress[:] = S + S.transpose(0, 2, 1)
     return sim, st, P
 
 
 def snapshot(P):
-    return {k: getattr(P, k).copy() for k in ("x", "v", "F", "stress", "dx")}
+    return {k: getattr(P, k).copy() for k in ("x", "v", "F", "stress", "dx", "affine")}
 
 
 def restore(P, snap):
@@ -100,7 +105,7 @@ def restore(P, snap):
 
 
 def close(a, b, rtol=1e-12):
-    scale = max(1.0, float(np.max(np.abs(b))))
+    scale = max(1.0, float(np.max(np.abs(b), initial=0.0)))
     np.testing.assert_allclose(a, b, rtol=0, atol=rtol * scale)
 
 

@@ -40,13 +40,15 @@ Schema of a data file (a part, format ``parmpm-checkpoint-part``, or a one-write
     /particles/x, v, x0, lh0        (n, dim) float64
     /particles/mass, vol0, damage   (n,) float64
     /particles/F, stress, r0, rf    (n, dim, dim) float64 (rf: frozen CPDI domain, 0 = none)
+    /particles/affine               (n, dim, dim) float64 (APIC's C_p; 0 under FLIP)
     /segments                       (K+1,) int64 offsets of the digest segments
     /digests/<field>                (K, 32) uint8: SHA-256 of each segment
     part attrs: format, version, part, parts, first_row, rows, step, lineage, block_rows,
                 data_digest, digest
 
 Versions 1–3 (one file in global-id order, fixed blocks, Fletcher-32 chunks) still read;
-versions 1 (no ``rf``, read as 0) and 2 without digests (a warning says so).
+versions 1 (no ``rf``, read as 0) and 2 without digests (a warning says so); before version 5
+there is no ``affine`` (read as 0: those runs were FLIP runs).
 """
 from __future__ import annotations
 
@@ -64,12 +66,24 @@ from parmpm.io.guarded_file import GuardedFile, space_message  # noqa: F401 (re-
 
 FORMAT = "parmpm-checkpoint"
 PART_FORMAT = "parmpm-checkpoint-part"
-#: 4: rows in rank order with a patch index, parts bound by virtual datasets, digests per
-#: segment; 3: per-block SHA-256 of the data; 2: adds particles/rf; 1: rf read as 0
-VERSION = 4
+#: 5: adds particles/affine; 4: rows in rank order with a patch index, parts bound by virtual
+#: datasets, digests per segment; 3: per-block SHA-256 of the data; 2: adds particles/rf;
+#: 1: rf read as 0
+VERSION = 5
 #: stored particle fields (``dx`` is MUSL scratch, ``patch`` is derived from ``x``)
 FIELDS = ("gid", "mat", "x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage",
-          "rf")
+          "rf", "affine")
+
+
+#: fields a checkpoint holds only when the run carries them (:data:`parmpm.particles.OPTIONAL_FIELDS`)
+OPTIONAL = ("affine",)
+
+
+def required_fields(version: int) -> tuple[str, ...]:
+    """The particle fields every checkpoint of format ``version`` holds (an optional field is
+    there when the run carried it; a missing one reads as 0)."""
+    base = tuple(k for k in FIELDS if k not in OPTIONAL)
+    return base if version >= 2 else tuple(k for k in base if k != "rf")
 #: the stored type of every field (little-endian, as hashed)
 DTYPES = {name: np.dtype("<i8") if name in ("gid", "mat") else np.dtype("<f8") for name in FIELDS}
 ATTRS = ("scene", "step", "time", "dt", "vmax", "method", "lcr", "ranks", "particles", "dim", "state")

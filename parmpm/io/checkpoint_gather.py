@@ -33,10 +33,10 @@ from parmpm.io.checkpoint import (BLOCK_ROWS, DTYPES, FIELDS, FORMAT, LIBVER, PA
                                   CheckpointWriter, arrays_digest, attrs_digest, block_digest,
                                   estimate_bytes, fsync_folder, os_problem, part_name,
                                   parts_folder, prune, remove_checkpoint, segments_of,
-                                  space_message)
+                                  space_message, VERSION)
 from parmpm.io.checkpoint_parts import (layout_record, rank_rows, ranks_per_file, top_tables,
                                         write_top)
-from parmpm.particles import Particles
+from parmpm.particles import OPTIONAL_FIELDS, Particles
 
 #: rows per message from a member to its lead: bounds the lead's extra memory
 BLOCK = 1 << 18
@@ -73,7 +73,7 @@ def write_checkpoint(comm, P: Particles, path: Path, n_total: int, attrs: dict, 
     pids, pcounts = np.unique(P.patch[order], return_counts=True)
     all_patches = comm.allgather((pids, pcounts))
     first, index = rank_rows(all_patches, disc.layout.n_patches)
-    like = {k: getattr(P, k)[:0] for k in FIELDS}
+    like = {k: getattr(P, k)[:0] for k in stored(P)}
     top = {**attrs, "layout": layout_record(disc)}
     if lineage is not None:
         top["lineage"] = lineage
@@ -174,7 +174,7 @@ def _stream(comm, P: Particles, order: np.ndarray, writer, members, first, probl
     if rank != lead:
         for a in range(0, P.n, BLOCK):
             idx = order[a:a + BLOCK]
-            for k in FIELDS:
+            for k in stored(P):
                 comm.Send(np.ascontiguousarray(getattr(P, k)[idx], dtype=DTYPES[k]), dest=lead,
                           tag=_TAG)
         return problem
@@ -185,10 +185,10 @@ def _stream(comm, P: Particles, order: np.ndarray, writer, members, first, probl
             m = min(BLOCK, n_r - a)
             if r == rank:
                 idx = order[a:a + m]
-                block = {k: getattr(P, k)[idx] for k in FIELDS}
+                block = {k: getattr(P, k)[idx] for k in stored(P)}
             else:
                 block = {}
-                for k in FIELDS:
+                for k in stored(P):
                     block[k] = np.empty((m,) + getattr(P, k).shape[1:], DTYPES[k])
                     comm.Recv(block[k], source=r, tag=_TAG)
             if problem is None:
@@ -260,7 +260,7 @@ def write_collective(comm, P, order, path, top, like, all_patches, first, index,
                     d = f.create_dataset(where, shape=t.shape, dtype=t.dtype)
                     if rank == 0:
                         d[...] = t
-                attrs = {**top, "version": 4, "block_rows": BLOCK_ROWS,
+                attrs = {**top, "version": VERSION, "block_rows": BLOCK_ROWS,
                          "data_digest": arrays_digest(tables)}
                 attrs["digest"] = attrs_digest(attrs)
                 for k, v in attrs.items():
@@ -317,6 +317,16 @@ def _check_loaded(reader, P: Particles, n_materials: int) -> None:
                           "materials cannot be added or removed on restart")
 
 
+def stored(P: Particles) -> list[str]:
+    """The fields a checkpoint of ``P`` holds: :data:`FIELDS` but the optional fields ``P``
+    does not carry (the same on every rank: the scene decides)."""
+    return [k for k in FIELDS if k not in OPTIONAL_FIELDS or k in P.optional]
+
+
+def _optional(reader) -> tuple[str, ...]:
+    return tuple(k for k in OPTIONAL_FIELDS if reader.has(k))
+
+
 def load_patches(comm, reader, dim: int, n_materials: int, patch_ids: np.ndarray) -> Particles:
     """Version 4: exactly the rows of ``patch_ids`` (by the index), with ``patch`` set, in the
     file's order (each patch's rows by id; the stepper groups them by patch anyway), collective:
@@ -327,9 +337,11 @@ def load_patches(comm, reader, dim: int, n_materials: int, patch_ids: np.ndarray
     ids, ranges = ids[ranges[:, 1] > 0], ranges[ranges[:, 1] > 0]
     o = np.argsort(ranges[:, 0], kind="stable")
     ids, ranges = ids[o], ranges[o]
-    P = Particles(dim, int(ranges[:, 1].sum()))
+    P = Particles(dim, int(ranges[:, 1].sum()), _optional(reader))
     try:
         for name in FIELDS:  # the arrays read become the fields (no copy)
+            if not reader.has(name):  # an older format: the field keeps its initial value
+                continue
             setattr(P, name, reader.read_ranges(name, ranges).astype(DTYPES[name].newbyteorder("="),
                                                                      copy=False))
         P.patch = np.repeat(ids, ranges[:, 1])
@@ -347,7 +359,7 @@ def load_rows(comm, reader, dim: int, n_materials: int, rows: np.ndarray,
     consecutive rows."""
     problem = None
     rows = np.asarray(rows, np.int64)
-    P = Particles(dim, rows.size)
+    P = Particles(dim, rows.size, _optional(reader))
     if patch is not None:
         P.patch = np.asarray(patch, np.int64).copy()
     try:
@@ -357,7 +369,8 @@ def load_rows(comm, reader, dim: int, n_materials: int, rows: np.ndarray,
             counts = np.diff(np.r_[0, cut, rows.size]) if rows.size else rows
             ranges = np.stack([starts, counts], axis=1)
             for name in FIELDS:
-                getattr(P, name)[:] = reader.read_ranges(name, ranges)
+                if reader.has(name):  # an older format: the field keeps its initial value
+                    getattr(P, name)[:] = reader.read_ranges(name, ranges)
         else:
             for name in FIELDS:
                 if not reader.has(name):  # an older format: the field keeps its initial value

@@ -31,9 +31,9 @@ from pathlib import Path
 import numpy as np
 
 from parmpm.errors import ParmpmError
-from parmpm.io.checkpoint import (ATTRS, DTYPES, FIELDS, FORMAT, PART_FORMAT, VERSION,
+from parmpm.io.checkpoint import (ATTRS, DTYPES, FORMAT, OPTIONAL, PART_FORMAT, VERSION,
                                   CheckpointWriter, arrays_digest, attrs_digest, block_digest,
-                                  tables_digest)
+                                  required_fields, tables_digest)
 
 logger = logging.getLogger("parmpm.io.checkpoint")
 
@@ -158,15 +158,16 @@ def _open_h5(path: Path, where: str):
                           f"{type(exc).__name__}") from None
 
 
-def _check_fields(f, where: str, n: int, d: int, with_rf: bool) -> dict:
-    """``particles/<field>`` of ``f``: every field there, of shape (n, ...) and its type."""
+def _check_fields(f, where: str, n: int, d: int, names) -> dict:
+    """``particles/<field>`` of ``f``: every field of ``names`` there, and the optional ones
+    it holds, of shape (n, ...) and its type."""
     tails = {"x": (d,), "v": (d,), "x0": (d,), "lh0": (d,), "F": (d, d), "stress": (d, d),
-             "r0": (d, d), "rf": (d, d)}
+             "r0": (d, d), "rf": (d, d), "affine": (d, d)}
     g = f.get("particles")
     if g is None:
         raise ParmpmError(f"{where}: damaged: missing particles group")
     found = {name: g[name] for name in g}
-    for name in FIELDS if with_rf else FIELDS[:-1]:
+    for name in tuple(names) + tuple(k for k in OPTIONAL if k in found):
         ds, shape = found.get(name), (n,) + tails.get(name, ())
         if ds is None or ds.shape != shape:
             got = "nothing" if ds is None else ds.shape
@@ -249,7 +250,7 @@ class CheckpointReader:
     # --- versions 1-3: one file in global-id order ----------------------------------------------
     def _open_v3(self, where: str, warn: bool) -> None:
         self._datasets = _check_fields(self.f, where, self.n, self.dim,
-                                       self.version >= 2 or self.digested)
+                                       required_fields(max(self.version, 2 if self.digested else 1)))
         self.patch_rows, self.layout = None, None
         bounds = digests = None
         if self.digested:
@@ -281,7 +282,8 @@ class CheckpointReader:
                          {"index/patch_rows": ((n_patches, 2), i64), "parts/rows": ((k, 2), i64)})
         names = [bytes(s).decode() for s in tables["parts/file"]]
         inline = names == ["."]
-        self._datasets = _check_fields(self.f, where, self.n, self.dim, True)
+        self._datasets = _check_fields(self.f, where, self.n, self.dim,
+                                       required_fields(self.version))
         if inline:
             bounds, digests = _segment_tables(self.f, where, self.n, self._datasets)
             tables.update(digests, segments=bounds)
@@ -327,8 +329,8 @@ class CheckpointReader:
         try:
             a = dict(f.attrs)
             first, rows = (int(v) for v in self._part_rows[p])
-            if a.get("format") != PART_FORMAT or int(a.get("version", -1)) != VERSION:
-                raise ParmpmError(f"{where}: not a part of a version-{VERSION} checkpoint")
+            if a.get("format") != PART_FORMAT or int(a.get("version", -1)) != self.version:
+                raise ParmpmError(f"{where}: not a part of a version-{self.version} checkpoint")
             if ("digest" not in a or a["digest"] != self._part_digests[p]
                     or attrs_digest({k: v for k, v in a.items() if k != "digest"}) != a["digest"]):
                 raise ParmpmError(f"{where}: damaged, or a part of another checkpoint (its "
@@ -336,7 +338,7 @@ class CheckpointReader:
             if (int(a.get("part", -1)), int(a.get("first_row", -1)), int(a.get("rows", -1))) != \
                     (p, first, rows):
                 raise ParmpmError(f"{where}: damaged: not part {p} of this checkpoint")
-            datasets = _check_fields(f, where, rows, self.dim, True)
+            datasets = _check_fields(f, where, rows, self.dim, required_fields(self.version))
             bounds, digests = _segment_tables(f, where, rows, datasets)
             if arrays_digest({**digests, "segments": bounds}) != a.get("data_digest"):
                 raise ParmpmError(f"{where}: damaged: its digests fail their checksum")
@@ -354,7 +356,8 @@ class CheckpointReader:
         return json.loads(str(self.attrs["state"]))
 
     def has(self, name: str) -> bool:
-        """Whether the file holds ``particles/name`` (version 1 files have no ``rf``)."""
+        """Whether the file holds ``particles/name`` (version 1 files have no ``rf``, versions
+        before 5 no ``affine``)."""
         return name in self._datasets
 
     def read(self, name: str, lo: int = 0, hi: int | None = None) -> np.ndarray:

@@ -14,14 +14,16 @@ line, and no two fields sit at the same offset modulo 4 KiB):
 ``gsum[s, node, :] = (m, mv_x, mv_y, f_x, f_y)`` (P2G output) and
 ``gnew[s, node, :] = (v_x, v_y, Δv_x, Δv_y)`` (grid update output, G2P input).
 """
+from parmpm.kernels2d.bspline import g2p_bspline, p2g_bspline, p2g_momentum_bspline
 from parmpm.kernels2d.cpdi import g2p_cpdi, p2g_cpdi, p2g_momentum_cpdi
 from parmpm.kernels2d.hat import g2p_hat, p2g_hat, p2g_momentum_hat
-from parmpm.shapes import CPDI, MPM
+from parmpm.shapes import BSPLINE, CPDI, MPM
 
 #: interpolator code → (p2g, p2g_momentum, g2p) specialised for 2D
 KERNELS_2D = {
     CPDI: (p2g_cpdi, p2g_momentum_cpdi, g2p_cpdi),
     MPM: (p2g_hat, p2g_momentum_hat, g2p_hat),
+    BSPLINE: (p2g_bspline, p2g_momentum_bspline, g2p_bspline),  # FLIP and APIC
 }
 
 __all__ = ["KERNELS_2D"]

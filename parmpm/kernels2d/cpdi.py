@@ -14,6 +14,8 @@ corners are opposite, two stress products serve all four.
 Every corner's cell is located (and checked against the patch's box) before anything is
 scattered, so a particle that reaches past the ghost layer contributes nothing and sets ``err``.
 """
+import numpy as np
+
 from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernel_records import NO_SCALING
 from parmpm.kernels2d.cells import cells_of4, frame_2d, note_patch, slot_2d
@@ -136,7 +138,7 @@ def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             r1x, r1y, r2x, r2y = domain(lcr, f00, f01, f10, f11,
                                         r0[i, 0, 0], r0[i, 0, 1], r0[i, 1, 0], r0[i, 1, 1])
@@ -172,7 +174,7 @@ def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
             r1x, r1y, r2x, r2y = domain(lcr, F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1],
                                         r0[i, 0, 0], r0[i, 0, 1], r0[i, 1, 0], r0[i, 1, 1])
             (jx0, jx1, jx2, jx3, jy0, jy1, jy2, jy3, fx0, fx1, fx2, fx3, fy0, fy1, fy2, fy3,
@@ -207,7 +209,7 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
         g = gnew[p]
         sp = slot_patch[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             r1x, r1y, r2x, r2y = domain(lcr, f00, f01, f10, f11,
                                         r0[i, 0, 0], r0[i, 0, 1], r0[i, 1, 0], r0[i, 1, 1])
@@ -241,7 +243,7 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
                 x[i, 1] = xy + dx[i, 1]
             # where it goes next
             pid = patch_id2(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, loc, inv_ps)
-            moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
+            moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
             # L = (1/V) Σ v(x_α) ⊗ g_α with g = −ga, gb, −gb, ga for corners 0..3
             gax, gay, gbx, gby, det = corner_gradients(r1x, r1y, r2x, r2y)
             wax, way = u3x - u0x, u3y - u0y

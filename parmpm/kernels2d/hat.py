@@ -6,6 +6,8 @@ get ``φ = S_x S_y`` (``S = 1 − f`` or ``f``) and ``∇φ = (S'_x S_y, S_x S'_
 gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇φ``
 (:mod:`parmpm.transfer` has the full step).
 """
+import numpy as np
+
 from parmpm.jit import loop_kernel
 from parmpm.kernels2d.cells import frame_2d, hat_cell_of, note_patch, slot_2d
 from parmpm.kernels2d.material import update_F_stress
@@ -27,7 +29,7 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if jx < 0 or jy < 0:
@@ -66,7 +68,7 @@ def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if jx < 0 or jy < 0:
@@ -98,7 +100,7 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
         g = gnew[p]
         sp = slot_patch[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
             xx, xy = x[i, 0], x[i, 1]
             jx, fx = hat_cell_of((xx - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((xy - oy) * ihy, by, jly, jhy)
@@ -138,7 +140,7 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
                 x[i, 1] = xy + dx[i, 1]
             # where it goes next
             pid = patch_id2(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, loc, inv_ps)
-            moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
+            moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             l00, l01, l10, l11 = dt * l00, dt * l01, dt * l10, dt * l11
             vmax = update_F_stress(vmax, i, (l00, l01, l10, l11), (f00, f01, f10, f11), v, F,

@@ -36,8 +36,9 @@ class RotationMetrics(History):
         if self.dim != 2:
             raise SceneError('metrics.kind = "rotation" is for 2D scenes')
         body = scene_data["bodies"][0]
-        if body.get("angular_velocity") is None:
-            raise SceneError('metrics.kind = "rotation" needs bodies.0.angular_velocity')
+        if not body.get("angular_velocity"):  # none, or 0: nothing spins to measure against
+            raise SceneError('metrics.kind = "rotation" needs a nonzero bodies.0.angular_velocity'
+                             f' (got {body.get("angular_velocity")!r}; or set metrics.kind = "none")')
         self.omega = float(body["angular_velocity"])
         self.centre = (np.asarray(body["center"], float) if body["shape"] != "box" else
                        0.5 * (np.asarray(body["min"], float) + np.asarray(body["max"], float)))
@@ -54,17 +55,22 @@ class RotationMetrics(History):
         self.energy: list[float] = []
         self.momentum: list[float] = []
 
-    def terms(self, gid, x, v, F, particles=None, method=0, lcr=None, **context):
-        """Per particle: domain size now and at rest, kinetic energy, angular momentum; local
-        maxima of the stress norm and of ``−(size / size at rest)``."""
+    def terms(self, gid, x, v, F, particles=None, method=0, lcr=None, inertia=None, **context):
+        """Per particle: domain size now and at rest, kinetic energy, angular momentum (with
+        APIC's affine part, ``inertia = diag D_p``: :mod:`parmpm.affine`); local maxima of the
+        stress norm and of ``−(size / size at rest)``."""
         n = np.shape(gid)[0]
         x, v = as_points(x, n, 2), as_points(v, n, 2)
         _, m = self.reference(gid, particles)
         size = domain_sizes(2, method, lcr, F, particles.r0, particles.lh0)
         size0 = np.prod(2.0 * particles.lh0, axis=1)
         r = x - self.centre
+        spin = 0.0
+        if particles.affine.shape[0] == n and inertia is not None and np.any(inertia):
+            C, D = particles.affine, inertia
+            spin = m * (C[:, 1, 0] * D[0] - C[:, 0, 1] * D[1])
         sums = np.stack([size, size0, 0.5 * m * np.sum(v * v, axis=1),
-                         m * (r[:, 0] * v[:, 1] - r[:, 1] * v[:, 0])], axis=1)
+                         m * (r[:, 0] * v[:, 1] - r[:, 1] * v[:, 0]) + spin], axis=1)
         stress = np.sqrt(np.sum(particles.stress.reshape(n, 4) ** 2, axis=1))  # n = 0: idle rank
         return sums, np.array([stress.max(initial=-np.inf), (-size / size0).max(initial=-np.inf)])
 

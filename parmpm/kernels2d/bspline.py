@@ -1,0 +1,234 @@
+"""2D quadratic B-spline transfers, FLIP or APIC: the 3×3 nodes around the particle's nearest node.
+
+Per axis, with the nearest node ``c`` and ``t = ξ − c ∈ [−1/2, 1/2)`` (:mod:`parmpm.shapes.bspline`
+has the weights and the rounding rule; this module repeats them as scalars), the nodes
+``c − 1, c, c + 1`` get ``N = (½(½ − t)², ¾ − t², ½(½ + t)²)`` and ``N' = (t − ½, −2t, t + ½)/Δx``.
+P2G scatters ``φ m_p``, the momentum ``φ m_p v_p`` (APIC: ``φ m_p (v_p + C_p r)`` with
+``r = x_i − x_p = (k − 1 − t)Δx`` per axis) and ``−V_p σ_p ∇φ (+ φ m_p b_p)``; G2P gathers
+``v_p`` (FLIP/PIC blend, or APIC's ``Σ φ v_i`` and ``C_p = Σ φ v_i ⊗ r · 4/Δx²``) and
+``L_p = Σ v_i ⊗ ∇φ`` (:mod:`parmpm.transfer` and :mod:`parmpm.affine` have the equations).
+
+APIC is on when the particles carry the affine field (``fields.affine`` has rows): the kernels
+need no extra argument and FLIP runs pay one branch per particle.
+"""
+import math
+
+from parmpm.jit import inline_kernel, loop_kernel
+from parmpm.kernels2d.cells import frame_2d, note_patch, slot_2d
+from parmpm.kernels2d.material import update_F_stress
+from parmpm.kinematics import det_2d, flip_pic
+from parmpm.patch_index import patch_id2
+from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
+
+
+@inline_kernel
+def spline_of(xi, base, jlo, jhi):
+    """(local index of node ``c − 1``, ``t``) along one axis, or ``(-1, 0)`` when the three nodes
+    leave the grid or the patch's box (usable cells ``jlo..jhi`` as for the hat: nodes
+    ``jlo..jhi + 1``)."""
+    fl = math.floor(xi)
+    f = xi - fl
+    c = int(fl)
+    t = f
+    if f >= 0.5:
+        c += 1
+        t = f - 1.0  # exact (Sterbenz)
+    lo = c - 1
+    if lo < jlo or lo + 2 > jhi + 1:
+        return -1, 0.0
+    return lo - base, t
+
+
+@inline_kernel
+def weights(t, ih):
+    """The three weights and gradients (physical units) of one axis."""
+    m = 0.5 - t
+    p = 0.5 + t
+    return 0.5 * (m * m), 0.75 - t * t, 0.5 * (p * p), -m * ih, -2.0 * t * ih, p * ih
+
+
+@loop_kernel
+def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
+    """Mass, momentum (FLIP or APIC) and force of every patch slot from its particles (``lcr``
+    unused: the signature is the CPDI kernel's)."""
+    start = boxes.start
+    x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
+                                   fields.stress)
+    C = fields.affine
+    apic = C.shape[0] > 0
+    forced = bforce.shape[0] > 0
+    gsum[:] = 0.0
+    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
+    hx, hy = 1.0 / ihx, 1.0 / ihy
+    for p in range(start.size - 1):
+        g = gsum[p]
+        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
+        for i in range(start[p], start[p + 1]):
+            kx, tx = spline_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
+            ky, ty = spline_of((x[i, 1] - oy) * ihy, by, jly, jhy)
+            if kx < 0 or ky < 0:
+                if err[0] < 0:
+                    err[0] = i
+                continue
+            wx0, wx1, wx2, dx0, dx1, dx2 = weights(tx, ihx)
+            wy0, wy1, wy2, dy0, dy1, dy2 = weights(ty, ihy)
+            V = det_2d(F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]) * vol0[i]
+            t00, t01 = V * stress[i, 0, 0], V * stress[i, 0, 1]
+            t10, t11 = V * stress[i, 1, 0], V * stress[i, 1, 1]
+            m = mass[i]
+            vx, vy = v[i, 0], v[i, 1]
+            c00 = c01 = c10 = c11 = 0.0
+            if apic:
+                c00, c01, c10, c11 = C[i, 0, 0], C[i, 0, 1], C[i, 1, 0], C[i, 1, 1]
+            bfx = m * bforce[i, 0] if forced else 0.0
+            bfy = m * bforce[i, 1] if forced else 0.0
+            for b in range(3):
+                wy = wy0 if b == 0 else (wy1 if b == 1 else wy2)
+                dy = dy0 if b == 0 else (dy1 if b == 1 else dy2)
+                ry = (b - 1 - ty) * hy
+                row = kx + L0 * (ky + b)
+                for a in range(3):
+                    wx = wx0 if a == 0 else (wx1 if a == 1 else wx2)
+                    dx = dx0 if a == 0 else (dx1 if a == 1 else dx2)
+                    S = wx * wy
+                    gx, gy = dx * wy, wx * dy
+                    mS = m * S
+                    ux, uy = vx, vy
+                    if apic:
+                        rx = (a - 1 - tx) * hx
+                        ux = vx + c00 * rx + c01 * ry
+                        uy = vy + c10 * rx + c11 * ry
+                    node = row + a
+                    g[0, node] += mS
+                    g[1, node] += mS * ux
+                    g[2, node] += mS * uy
+                    g[3, node] += bfx * S - (t00 * gx + t01 * gy)
+                    g[4, node] += bfy * S - (t10 * gx + t11 * gy)
+
+
+@loop_kernel
+def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
+    """The MUSL re-map: momentum only (FLIP or APIC), into ``gsum[..., 1:3]``."""
+    start = boxes.start
+    x, v, mass = fields.x, fields.v, fields.mass
+    C = fields.affine
+    apic = C.shape[0] > 0
+    gsum[:, 1:3, :] = 0.0
+    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
+    hx, hy = 1.0 / ihx, 1.0 / ihy
+    for p in range(start.size - 1):
+        g = gsum[p]
+        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
+        for i in range(start[p], start[p + 1]):
+            kx, tx = spline_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
+            ky, ty = spline_of((x[i, 1] - oy) * ihy, by, jly, jhy)
+            if kx < 0 or ky < 0:
+                if err[0] < 0:
+                    err[0] = i
+                continue
+            wx0, wx1, wx2, _, _, _ = weights(tx, ihx)
+            wy0, wy1, wy2, _, _, _ = weights(ty, ihy)
+            m = mass[i]
+            vx, vy = v[i, 0], v[i, 1]
+            c00 = c01 = c10 = c11 = 0.0
+            if apic:
+                c00, c01, c10, c11 = C[i, 0, 0], C[i, 0, 1], C[i, 1, 0], C[i, 1, 1]
+            for b in range(3):
+                wy = wy0 if b == 0 else (wy1 if b == 1 else wy2)
+                ry = (b - 1 - ty) * hy
+                row = kx + L0 * (ky + b)
+                for a in range(3):
+                    wx = wx0 if a == 0 else (wx1 if a == 1 else wx2)
+                    mS = m * (wx * wy)
+                    ux, uy = vx, vy
+                    if apic:
+                        rx = (a - 1 - tx) * hx
+                        ux = vx + c00 * rx + c01 * ry
+                        uy = vy + c10 * rx + c11 * ry
+                    g[1, row + a] += mS * ux
+                    g[2, row + a] += mS * uy
+
+
+@loop_kernel
+def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
+    """G2P in one of the three modes (FLIP/PIC blend or APIC); returns the largest
+    ``c_p + |v_p|`` when the stress is updated, the particles that changed patch and the first
+    that left the grid."""
+    start = boxes.start
+    x, v, F, stress, dxs = fields.x, fields.v, fields.F, fields.stress, fields.dx
+    C = fields.affine
+    apic = C.shape[0] > 0
+    mat, params, damage = material
+    loc, inv_ps, slot_patch, new_patch = locate
+    vmax = 0.0
+    moved = 0
+    first_out = -1
+    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
+    for p in range(start.size - 1):
+        g = gnew[p]
+        sp = slot_patch[p]
+        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
+        for i in range(start[p], start[p + 1]):
+            xx, xy = x[i, 0], x[i, 1]
+            kx, tx = spline_of((xx - ox) * ihx, bx, jlx, jhx)
+            ky, ty = spline_of((xy - oy) * ihy, by, jly, jhy)
+            if kx < 0 or ky < 0:
+                if err[0] < 0:
+                    err[0] = i
+                new_patch[i] = sp
+                continue
+            wx0, wx1, wx2, dx0, dx1, dx2 = weights(tx, ihx)
+            wy0, wy1, wy2, dy0, dy1, dy2 = weights(ty, ihy)
+            vx = vy = dvx = dvy = 0.0
+            l00 = l01 = l10 = l11 = 0.0
+            bx0 = bx1 = by0 = by1 = 0.0  # APIC: Σ φ v_i (k − 1 − t) per axis (grid units)
+            for b in range(3):
+                wy = wy0 if b == 0 else (wy1 if b == 1 else wy2)
+                dy = dy0 if b == 0 else (dy1 if b == 1 else dy2)
+                ry = b - 1 - ty
+                row = kx + L0 * (ky + b)
+                for a in range(3):
+                    wx = wx0 if a == 0 else (wx1 if a == 1 else wx2)
+                    dx = dx0 if a == 0 else (dx1 if a == 1 else dx2)
+                    node = row + a
+                    ux, uy = g[0, node], g[1, node]
+                    S = wx * wy
+                    gx, gy = dx * wy, wx * dy
+                    vx += S * ux
+                    vy += S * uy
+                    dvx += S * g[2, node]
+                    dvy += S * g[3, node]
+                    l00 += ux * gx
+                    l01 += ux * gy
+                    l10 += uy * gx
+                    l11 += uy * gy
+                    if apic:
+                        rx = a - 1 - tx
+                        bx0 += S * ux * rx
+                        bx1 += S * ux * ry
+                        by0 += S * uy * rx
+                        by1 += S * uy * ry
+            if mode != G2P_MUSL_DEFORM:
+                if apic:
+                    v[i, 0], v[i, 1] = vx, vy
+                    C[i, 0, 0], C[i, 0, 1] = 4.0 * ihx * bx0, 4.0 * ihy * bx1
+                    C[i, 1, 0], C[i, 1, 1] = 4.0 * ihx * by0, 4.0 * ihy * by1
+                else:
+                    v[i, 0] = flip_pic(flip, v[i, 0], dvx, vx)
+                    v[i, 1] = flip_pic(flip, v[i, 1], dvy, vy)
+                if mode == G2P_USL:
+                    x[i, 0] = xx + dt * vx
+                    x[i, 1] = xy + dt * vy
+                else:
+                    dxs[i, 0] = dt * vx
+                    dxs[i, 1] = dt * vy
+                    continue
+            else:
+                x[i, 0] = xx + dxs[i, 0]
+                x[i, 1] = xy + dxs[i, 1]
+            pid = patch_id2(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, loc, inv_ps)
+            moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
+            f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
+            vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l10, dt * l11),
+                                   (f00, f01, f10, f11), v, F, stress, mat, params, damage)
+    return vmax, moved, first_out
