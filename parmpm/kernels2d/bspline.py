@@ -13,6 +13,8 @@ need no extra argument and FLIP runs pay one branch per particle.
 """
 import math
 
+import numpy as np
+
 from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import frame_2d, note_patch, slot_2d
 from parmpm.kernels2d.material import update_F_stress
@@ -63,7 +65,7 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
             kx, tx = spline_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             ky, ty = spline_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if kx < 0 or ky < 0:
@@ -119,7 +121,7 @@ def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
             kx, tx = spline_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             ky, ty = spline_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if kx < 0 or ky < 0:
@@ -168,7 +170,7 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
         g = gnew[p]
         sp = slot_patch[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
             xx, xy = x[i, 0], x[i, 1]
             kx, tx = spline_of((xx - ox) * ihx, bx, jlx, jhx)
             ky, ty = spline_of((xy - oy) * ihy, by, jly, jhy)
@@ -196,8 +198,9 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
                     gx, gy = dx * wy, wx * dy
                     vx += S * ux
                     vy += S * uy
-                    dvx += S * g[2, node]
-                    dvy += S * g[3, node]
+                    if not apic:  # APIC needs no increment: v_p = Σ φ v_i
+                        dvx += S * g[2, node]
+                        dvy += S * g[3, node]
                     l00 += ux * gx
                     l01 += ux * gy
                     l10 += uy * gx
@@ -227,7 +230,7 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
                 x[i, 0] = xx + dxs[i, 0]
                 x[i, 1] = xy + dxs[i, 1]
             pid = patch_id2(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, loc, inv_ps)
-            moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
+            moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l10, dt * l11),
                                    (f00, f01, f10, f11), v, F, stress, mat, params, damage)

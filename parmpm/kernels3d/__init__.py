@@ -14,14 +14,16 @@ Grid fields come as two row blocks per patch slot (:func:`parmpm.grid.grid_block
 ``gnew[s, :, node] = (v_x, v_y, v_z, Δv_x, Δv_y, Δv_z)`` (grid update output, G2P input), with
 ``node = i0 + L0 (i1 + L1 i2)`` in the patch's ghost-inclusive box.
 """
+from parmpm.kernels3d.bspline import g2p_bspline, p2g_bspline, p2g_momentum_bspline
 from parmpm.kernels3d.cpdi import g2p_cpdi, p2g_cpdi, p2g_momentum_cpdi
 from parmpm.kernels3d.hat import g2p_hat, p2g_hat, p2g_momentum_hat
-from parmpm.shapes import CPDI, MPM
+from parmpm.shapes import BSPLINE, CPDI, MPM
 
 #: interpolator code → (p2g, p2g_momentum, g2p) specialised for 3D
 KERNELS_3D = {
     CPDI: (p2g_cpdi, p2g_momentum_cpdi, g2p_cpdi),
     MPM: (p2g_hat, p2g_momentum_hat, g2p_hat),
+    BSPLINE: (p2g_bspline, p2g_momentum_bspline, g2p_bspline),  # FLIP and APIC
 }
 
 __all__ = ["KERNELS_3D"]
