@@ -181,36 +181,34 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
                 continue
             wx0, wx1, wx2, dx0, dx1, dx2 = weights(tx, ihx)
             wy0, wy1, wy2, dy0, dy1, dy2 = weights(ty, ihy)
+            # the 3×3 sums factor by rows: Σ_ab wy_b wx_a u = Σ_b wy_b (Σ_a wx_a u_ab)
+            wr0, wr1, wr2 = wx0 * (-1.0 - tx), wx1 * (-tx), wx2 * (1.0 - tx)
             vx = vy = dvx = dvy = 0.0
             l00 = l01 = l10 = l11 = 0.0
-            bx0 = bx1 = by0 = by1 = 0.0  # APIC: Σ φ v_i (k − 1 − t) per axis (grid units)
+            bx0 = bx1 = by0 = by1 = 0.0
             for b in range(3):
                 wy = wy0 if b == 0 else (wy1 if b == 1 else wy2)
                 dy = dy0 if b == 0 else (dy1 if b == 1 else dy2)
-                ry = b - 1 - ty
-                row = kx + L0 * (ky + b)
-                for a in range(3):
-                    wx = wx0 if a == 0 else (wx1 if a == 1 else wx2)
-                    dx = dx0 if a == 0 else (dx1 if a == 1 else dx2)
-                    node = row + a
-                    ux, uy = g[0, node], g[1, node]
-                    S = wx * wy
-                    gx, gy = dx * wy, wx * dy
-                    vx += S * ux
-                    vy += S * uy
-                    if not apic:  # APIC needs no increment: v_p = Σ φ v_i
-                        dvx += S * g[2, node]
-                        dvy += S * g[3, node]
-                    l00 += ux * gx
-                    l01 += ux * gy
-                    l10 += uy * gx
-                    l11 += uy * gy
-                    if apic:
-                        rx = a - 1 - tx
-                        bx0 += S * ux * rx
-                        bx1 += S * ux * ry
-                        by0 += S * uy * rx
-                        by1 += S * uy * ry
+                n = kx + L0 * (ky + b)
+                u0, u1, u2 = g[0, n], g[0, n + 1], g[0, n + 2]
+                w0, w1, w2 = g[1, n], g[1, n + 1], g[1, n + 2]
+                sx = wx0 * u0 + wx1 * u1 + wx2 * u2
+                sy = wx0 * w0 + wx1 * w1 + wx2 * w2
+                vx += wy * sx
+                vy += wy * sy
+                l00 += wy * (dx0 * u0 + dx1 * u1 + dx2 * u2)
+                l10 += wy * (dx0 * w0 + dx1 * w1 + dx2 * w2)
+                l01 += dy * sx
+                l11 += dy * sy
+                if apic:
+                    ry = wy * (b - 1 - ty)
+                    bx0 += wy * (wr0 * u0 + wr1 * u1 + wr2 * u2)
+                    by0 += wy * (wr0 * w0 + wr1 * w1 + wr2 * w2)
+                    bx1 += ry * sx
+                    by1 += ry * sy
+                else:
+                    dvx += wy * (wx0 * g[2, n] + wx1 * g[2, n + 1] + wx2 * g[2, n + 2])
+                    dvy += wy * (wx0 * g[3, n] + wx1 * g[3, n + 1] + wx2 * g[3, n + 2])
             if mode != G2P_MUSL_DEFORM:
                 if apic:
                     v[i, 0], v[i, 1] = vx, vy

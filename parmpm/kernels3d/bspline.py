@@ -173,6 +173,8 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
             wx0, wx1, wx2, dx0, dx1, dx2 = weights(tx, ihx)
             wy0, wy1, wy2, dy0, dy1, dy2 = weights(ty, ihy)
             wz0, wz1, wz2, dz0, dz1, dz2 = weights(tz, ihz)
+            # the sums factor by rows of three x-nodes: Σ_abc w_c w_b w_a u = Σ_bc w_c w_b (Σ_a w_a u)
+            wr0, wr1, wr2 = wx0 * (-1.0 - tx), wx1 * (-tx), wx2 * (1.0 - tx)
             vx = vy = vz = dvx = dvy = dvz = 0.0
             l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
             # APIC: Σ φ v_i ⊗ (k − 1 − t) (grid units), row by row
@@ -184,40 +186,40 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
                     wy, dy = pick(b, wy0, wy1, wy2), pick(b, dy0, dy1, dy2)
                     ry = b - 1 - ty
                     wyz, dyz, wdz = wy * wz, dy * wz, wy * dz
-                    row = kx + L0 * (ky + b) + L01 * (kz + c)
-                    for a in range(3):
-                        wx, dx = pick(a, wx0, wx1, wx2), pick(a, dx0, dx1, dx2)
-                        node = row + a
-                        ux, uy, uz = g[0, node], g[1, node], g[2, node]
-                        S = wx * wyz
-                        gx, gy, gz = dx * wyz, wx * dyz, wx * wdz
-                        vx += S * ux
-                        vy += S * uy
-                        vz += S * uz
-                        if not apic:
-                            dvx += S * g[3, node]
-                            dvy += S * g[4, node]
-                            dvz += S * g[5, node]
-                        l00 += ux * gx
-                        l01 += ux * gy
-                        l02 += ux * gz
-                        l10 += uy * gx
-                        l11 += uy * gy
-                        l12 += uy * gz
-                        l20 += uz * gx
-                        l21 += uz * gy
-                        l22 += uz * gz
-                        if apic:
-                            rx = a - 1 - tx
-                            b00 += S * ux * rx
-                            b01 += S * ux * ry
-                            b02 += S * ux * rz
-                            b10 += S * uy * rx
-                            b11 += S * uy * ry
-                            b12 += S * uy * rz
-                            b20 += S * uz * rx
-                            b21 += S * uz * ry
-                            b22 += S * uz * rz
+                    n = kx + L0 * (ky + b) + L01 * (kz + c)
+                    u0, u1, u2 = g[0, n], g[0, n + 1], g[0, n + 2]
+                    s0, s1, s2 = g[1, n], g[1, n + 1], g[1, n + 2]
+                    q0, q1, q2 = g[2, n], g[2, n + 1], g[2, n + 2]
+                    sx = wx0 * u0 + wx1 * u1 + wx2 * u2
+                    sy = wx0 * s0 + wx1 * s1 + wx2 * s2
+                    sz = wx0 * q0 + wx1 * q1 + wx2 * q2
+                    vx += wyz * sx
+                    vy += wyz * sy
+                    vz += wyz * sz
+                    l00 += wyz * (dx0 * u0 + dx1 * u1 + dx2 * u2)
+                    l10 += wyz * (dx0 * s0 + dx1 * s1 + dx2 * s2)
+                    l20 += wyz * (dx0 * q0 + dx1 * q1 + dx2 * q2)
+                    l01 += dyz * sx
+                    l11 += dyz * sy
+                    l21 += dyz * sz
+                    l02 += wdz * sx
+                    l12 += wdz * sy
+                    l22 += wdz * sz
+                    if apic:
+                        wry, wrz = wyz * ry, wyz * rz
+                        b00 += wyz * (wr0 * u0 + wr1 * u1 + wr2 * u2)
+                        b10 += wyz * (wr0 * s0 + wr1 * s1 + wr2 * s2)
+                        b20 += wyz * (wr0 * q0 + wr1 * q1 + wr2 * q2)
+                        b01 += wry * sx
+                        b11 += wry * sy
+                        b21 += wry * sz
+                        b02 += wrz * sx
+                        b12 += wrz * sy
+                        b22 += wrz * sz
+                    else:
+                        dvx += wyz * (wx0 * g[3, n] + wx1 * g[3, n + 1] + wx2 * g[3, n + 2])
+                        dvy += wyz * (wx0 * g[4, n] + wx1 * g[4, n + 1] + wx2 * g[4, n + 2])
+                        dvz += wyz * (wx0 * g[5, n] + wx1 * g[5, n + 1] + wx2 * g[5, n + 2])
             xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
             if mode != G2P_MUSL_DEFORM:
                 if apic:
