@@ -8,9 +8,10 @@ Physics. Three problems with exact solutions (``docs/verification.md``):
   (A = 0.05, stretches 0.84–1.16) the exact motion; symmetry planes on the faces, 2 particles
   per cell per axis, CFL 0.2, one period. The error is the RMS over particles of
   ``|x_p − φ(X_p, t)|``, maximised over 41 equally spaced times in [0, T] (the built-in
-  ``manufactured`` metric, sampled at those times). Every method at its default update
-  (``auto``: USL for cpdi, MUSL for the others), and cpdi/cpGIMP also at the other update;
-  1D at 16→128 cells, 2D at 8→64, 3D at 4, 8, 12, 16. CPDI runs unscaled (``lcr = "none"``):
+  ``manufactured`` metric, sampled at those times). Every method of ``study.METHODS`` (mpm,
+  uGIMP, cpGIMP, CPDI, quadratic B-splines with FLIP and with APIC transfers) at its default
+  update (``auto``: USL for cpdi, MUSL for the others), and cpdi/cpGIMP also at the other
+  update; 1D at 16→128 cells, 2D at 8→64, 3D at 4, 8, 12, 16. CPDI runs unscaled (``lcr = "none"``):
   the motion is smooth and no domain ever reaches a cap.
 * **Axially vibrating bar** (Sulsky et al. 1995; Bardenhagen 2002; §1): built-in
   ``vibrating_bar`` (1D, E = 100, ρ = 1, L = 25, first mode, v0 = 0.1, 4 periods, ppc 2, CFL 0.4);
@@ -37,9 +38,21 @@ Expected (the literature) and found (full study, RMS error / relative error; ord
   cross cells (its fixed-size domains do not follow the ±16 % stretch): 2D orders 1.80, 1.48,
   1.08, and in 1D the error grows again at 128 cells; mpm does not converge at all (its
   cell-crossing error grows as h shrinks).
+  Quadratic B-splines (``bspline``): C¹ weights with no cell-crossing error, so on this smooth
+  solution one would hope for second order in displacement. But the symmetry planes are nodal
+  conditions, and a B-spline particle within half a cell of a face also weighs the node beyond
+  it (held at zero, not at the mirrored value): the likely cause (not isolated here) of what is
+  found, the clamp weakness the vibrating bar shows (README). Found: first order in 1D, 2D and
+  3D, FLIP and APIC alike, 2–48× cpdi's error (the gap widening under refinement; FLIP is even
+  above mpm at 2D 8 cells and 3D 16 cells): FLIP 1D 1.08e-2 → 1.08e-3 (orders 1.13, 1.08,
+  1.10), 2D 2.91e-2 → 2.71e-3 (1.14, 1.13, 1.16), 3D 7.1e-2 → 1.36e-2 (1.20, 1.21, 1.16); APIC
+  1D 9.7e-3 → 1.19e-3 (1.05, 1.02, 0.96), 2D 2.27e-2 → 2.80e-3 (0.97, 1.03, 1.02), 3D 5.1e-2 →
+  1.22e-2 (1.00, 1.05, 1.05). In 1D (32, 64 cells) the error is largest mid-body, not at the
+  faces; in 2D and 3D the maximum over the period is reached at its end.
 * vibrating bar: a few per cent at 16 cells, converging (Bardenhagen 2002). Found: 1.5–2.2 % at
-  16 cells for every method, USL and MUSL alike; cpdi 7.9 % → 0.17 % at 8 → 64 cells (orders
-  1.9, 1.8, 1.8; the lumped-mass phase error accumulating over 4 periods).
+  16 cells for every method but the B-splines, USL and MUSL alike (bspline 31 %, APIC 29 %: the
+  clamp); cpdi 7.9 % → 0.17 % at 8 → 64 cells (orders 1.9, 1.8, 1.8; the lumped-mass phase
+  error accumulating over 4 periods).
 * hanging bar, static (large deformation, top stretch 2.5): cpdi with USL converges at second
   order, 2.7e-4 → 4.2e-6 of the tip displacement at 10 → 80 cells. cpGIMP with USL reaches
   1.7e-3 → 2.2e-4, then stalls (2.4e-4 at 80 cells) and separates at 160 cells: its box
@@ -53,11 +66,14 @@ Expected (the literature) and found (full study, RMS error / relative error; ord
   near the support once the stretch passes ~1.8) and the bar separates during the ramp
   (cpdi: at 0.17 s at CFL 0.4; 0.37 s at CFL 0.1 — a smaller step delays it, it does not
   cure it). mpm and uGIMP separate (MUSL) or end far from
-  the static state (uGIMP USL: tip 0.94 m against 0.686 m). These rows carry a ``note``.
+  the static state (uGIMP USL: tip 0.94 m against 0.686 m). bspline (MUSL, 20 cells) separates
+  at 0.146 s (stretch 1.97), with APIC at 0.193 s (2.55). These rows carry a ``note``.
 * hanging bar, dynamic (small strain): the tip history follows d'Alembert's two-parabola
   solution, peak twice the static tip displacement (1.050e-3 m, matched to 0.1 %); the L2 error
   of the history is 1.5–1.7 % at 10 cells for every method and converges at first order (the
-  strain has a travelling jump: 1.5e-3 at 80 cells); mpm is slower (2.8e-3 at 80 cells).
+  strain has a travelling jump: 1.5e-3 at 80 cells); mpm is slower (2.8e-3 at 80 cells), the
+  B-splines ten times worse at 10 cells and first order too (FLIP 1.33e-1 → 1.53e-2, APIC
+  1.18e-1 → 1.50e-2 at 10 → 80 cells; peak 6 % high at 10 cells: the clamp).
 
 Outputs: ``convergence.csv`` (manufactured; one row per run: problem, dim, method, update,
 cells, h, ppc, error, order against the previous resolution of its series, error at t = T,
@@ -67,15 +83,17 @@ passes ``--figures docs/figures``): ``convergence_manufactured.png`` (error agai
 per dimension) and ``verification_bars.png`` (the bars against their exact solutions, and their
 errors against h).
 
-Runtime, one core: full ~5 min (2D at 64 cells ~1.5 min, 3D ~2 min); ``--quick``
-(1D cpdi/cpGIMP at 16, 32, 64 cells, 2D at 8, 16, 32, the vibrating bar USL/MUSL with cpdi at
-16 cells, the hanging bar at 10 and 20 cells) ~10 s. Results are identical on any number of
+Runtime, one core: full ~5 min (2D at 64 cells ~1.5 min, 3D ~2 min; the two B-spline methods
+alone, ``--methods bspline,bspline_apic``, 30 s); ``--quick`` (1D cpdi/cpGIMP/bspline at 16,
+32, 64 cells, 2D at 8, 16, 32, the vibrating bar USL/MUSL with cpdi at 16 cells, the hanging
+bar at 10 and 20 cells) ~10 s. Results are identical on any number of
 ranks (only ``wall_seconds`` differs)::
 
     python run_scripts/convergence.py                 # full study, figures beside the CSV
     python run_scripts/convergence.py --quick         # the smoke test's mode
     mpirun -n 2 python run_scripts/convergence.py --quick
     python run_scripts/convergence.py --only manufactured-2d,vibrating-bar --out /tmp/c
+    python run_scripts/convergence.py --methods bspline,bspline_apic --out /tmp/c
 """
 from __future__ import annotations
 
@@ -84,16 +102,18 @@ import time
 from pathlib import Path
 
 import numpy as np
-from study import (figure, folders, is_root, main_guard, manufactured_scene, observed_orders,
-                   parser, run_case, save, scene_with, scratch_folder, world, write_csv, wrote)
+from study import (METHOD_KEYS, METHODS as REGISTRY, figure, folders, is_root, main_guard,
+                   manufactured_scene, method_keys, observed_orders, parser, run_case, save,
+                   scene_with, scratch_folder, world, write_csv, wrote)
 
 GROUPS = ("manufactured-1d", "manufactured-2d", "manufactured-3d", "vibrating-bar",
           "hanging-static", "hanging-dynamic")
-METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
-DEFAULT_UPDATE = {"mpm": "musl", "ugimp": "musl", "cpgimp": "musl", "cpdi": "usl"}  # "auto"
+METHODS = METHOD_KEYS  # every registered method (study.METHODS); ``--methods`` picks a subset
+DEFAULT_UPDATE = {m: REGISTRY[m].update for m in METHODS}  # what "auto" resolves to
 OTHER = {"usl": "musl", "musl": "usl"}
-LABEL = {"mpm": "MPM", "ugimp": "uGIMP", "cpgimp": "cpGIMP", "cpdi": "CPDI"}
-COLOUR = {"mpm": "C3", "ugimp": "C2", "cpgimp": "C1", "cpdi": "C0"}
+LABEL = {m: REGISTRY[m].label for m in METHODS}
+COLOUR = {m: REGISTRY[m].colour for m in METHODS}
+QUICK_METHODS = ("cpgimp", "cpdi", "bspline")  # manufactured 1D/2D in --quick
 
 PERIOD = 0.02       # s, manufactured solution: T = 2/c, c = sqrt(1e4 / 1)
 SAMPLES = 40        # error samples per period (the built-in metric at these times)
@@ -109,7 +129,11 @@ VIB_CELLS = (8, 16, 32, 64)
 
 
 def lcr(method: str) -> list[str]:
-    return ["method.lcr=none"] if method == "cpdi" else []
+    return ["method.lcr=none"] if REGISTRY[method].interpolator == "cpdi" else []
+
+
+def chosen(method: str, methods) -> bool:
+    return methods is None or method in methods
 
 
 class KeepMetrics:
@@ -147,16 +171,16 @@ def series_orders(rows: list[dict], keys: tuple[str, ...]) -> None:
 
 
 # --- manufactured solution ---------------------------------------------------------------------
-def manufactured_runs(dim: int, quick: bool) -> list[tuple[str, str, int]]:
-    """(method, update, cells) of one dimension's study."""
+def manufactured_runs(dim: int, quick: bool, methods=None) -> list[tuple[str, str, int]]:
+    """(method, update, cells) of one dimension's study (``methods``: a subset of keys)."""
     if quick:  # no 3D
-        series = [(m, DEFAULT_UPDATE[m]) for m in ("cpgimp", "cpdi")]
+        series = [(m, DEFAULT_UPDATE[m]) for m in QUICK_METHODS]
         cells = QUICK_CELLS.get(dim, ())
     else:
         series = [(m, DEFAULT_UPDATE[m]) for m in METHODS]
         series += [(m, OTHER[DEFAULT_UPDATE[m]]) for m in ("cpgimp", "cpdi")]
         cells = MANUFACTURED_CELLS[dim]
-    return [(m, u, n) for m, u in series for n in cells]
+    return [(m, u, n) for m, u in series for n in cells if chosen(m, methods)]
 
 
 def manufactured_case(dim: int, method: str, update: str, cells: int, comm, scratch: Path) -> dict:
@@ -174,16 +198,18 @@ def manufactured_case(dim: int, method: str, update: str, cells: int, comm, scra
 
 
 # --- vibrating bar -----------------------------------------------------------------------------
-def vibrating_runs(quick: bool) -> list[tuple[str, str, int]]:
+def vibrating_runs(quick: bool, methods=None) -> list[tuple[str, str, int]]:
     if quick:
-        return [("cpdi", u, 16) for u in ("usl", "musl")]
-    runs = [(m, u, 16) for m in METHODS for u in ("usl", "musl") if m != "cpdi"]
-    return runs + [("cpdi", u, n) for u in ("usl", "musl") for n in VIB_CELLS]
+        runs = [("cpdi", u, 16) for u in ("usl", "musl")]
+    else:
+        runs = [(m, u, 16) for m in METHODS for u in ("usl", "musl") if m != "cpdi"]
+        runs += [("cpdi", u, n) for u in ("usl", "musl") for n in VIB_CELLS]
+    return [r for r in runs if chosen(r[0], methods)]
 
 
 def vibrating_case(method, update, cells, comm, scratch: Path):
     h = VIB_L / cells
-    ov = [f"method.interpolator={method}", f"method.update={update}", f"grid.cell_size={h!r}",
+    ov = [*REGISTRY[method].overrides(), f"method.update={update}", f"grid.cell_size={h!r}",
           f"grid.origin={-2 * h!r}", f"grid.cells={cells + 6}",
           "boundary.fixed_regions=[{min = [-100.0], max = [0.0]}]"] + lcr(method)
     keep = KeepMetrics()
@@ -207,21 +233,24 @@ def bar_grid(cells: int) -> list[str]:
     return [f"grid.cell_size={h!r}", f"grid.cells={n}", f"grid.patch_size={max(8, n // 2)}"]
 
 
-def static_runs(quick: bool) -> list[tuple[str, str, int, float]]:
+def static_runs(quick: bool, methods=None) -> list[tuple[str, str, int, float]]:
     """(method, update, cells, cfl): the USL refinement series, then single runs that document
     the MUSL time-step sensitivity and the non-CP methods (``note`` says what happened)."""
     if quick:
-        return [("cpdi", "usl", n, 0.4) for n in BAR_CELLS[:2]]
+        return [("cpdi", "usl", n, 0.4) for n in BAR_CELLS[:2] if chosen("cpdi", methods)]
     runs = [(m, "usl", n, 0.4) for m in ("cpdi", "cpgimp") for n in BAR_CELLS]
     runs += [("cpgimp", "usl", 2 * BAR_CELLS[-1], 0.4)]  # cpGIMP's domains drift apart: it separates
     runs += [("cpdi", "musl", 20, 0.4), ("cpdi", "musl", 20, 0.1), ("cpdi", "musl", 10, 0.1),
              ("cpgimp", "musl", 20, 0.4), ("cpgimp", "musl", 20, 0.1),
              ("ugimp", "usl", 20, 0.4), ("ugimp", "musl", 20, 0.4), ("mpm", "musl", 20, 0.4)]
-    return runs
+    # the methods without domains beyond these (bspline, ...): one run each at their default update
+    runs += [(m, DEFAULT_UPDATE[m], 20, 0.4) for m in METHODS
+             if m not in ("cpdi", "cpgimp", "ugimp", "mpm")]
+    return [r for r in runs if chosen(r[0], methods)]
 
 
 def static_case(method, update, cells, cfl, comm, scratch: Path, profile: bool):
-    ov = [f"method.interpolator={method}", f"method.update={update}", f"time.cfl={cfl}",
+    ov = [*REGISTRY[method].overrides(), f"method.update={update}", f"time.cfl={cfl}",
           "output.every=0.05", *STATIC, *bar_grid(cells)] + lcr(method)
     keep = KeepMetrics(profile)
     summary, wall = run_case("hanging_bar_1d", ov, comm, [keep],
@@ -239,11 +268,12 @@ def static_case(method, update, cells, cfl, comm, scratch: Path, profile: bool):
     return row, keep.state
 
 
-def dynamic_runs(quick: bool) -> list[tuple[str, str, int]]:
+def dynamic_runs(quick: bool, methods=None) -> list[tuple[str, str, int]]:
     if quick:
-        return [("cpdi", "usl", n) for n in BAR_CELLS[:2]]
+        series = [("cpdi", "usl")]
+        return [(m, u, n) for m, u in series for n in BAR_CELLS[:2] if chosen(m, methods)]
     series = [(m, DEFAULT_UPDATE[m]) for m in METHODS] + [("cpdi", "musl"), ("cpgimp", "usl")]
-    return [(m, u, n) for m, u in series for n in BAR_CELLS]
+    return [(m, u, n) for m, u in series for n in BAR_CELLS if chosen(m, methods)]
 
 
 def dynamic_case(method, update, cells, comm, scratch: Path):
@@ -251,7 +281,7 @@ def dynamic_case(method, update, cells, comm, scratch: Path):
 
     c = math.sqrt(BAR_E / BAR_RHO)
     end = 8.0 * BAR_L / c  # two periods
-    ov = [f"method.interpolator={method}", f"method.update={update}", f"gravity.g=[{-SMALL_G}]",
+    ov = [*REGISTRY[method].overrides(), f"method.update={update}", f"gravity.g=[{-SMALL_G}]",
           f"time.end={end!r}", f"output.every={end / 4!r}", "metrics.stop_on_separation=false",
           *bar_grid(cells)] + lcr(method)
     keep = KeepMetrics()
@@ -379,7 +409,7 @@ def bars_figure(vib: dict, dyn: dict, profile, vrows, srows, drows, path: Path) 
     curves = []
     shown = (("vibrating bar", vrows, "o", VIB_L, (("cpdi", "usl"), ("cpdi", "musl"))),
              ("static bar", srows, "s", BAR_L, (("cpdi", "usl"), ("cpgimp", "usl"))),
-             ("dynamic bar", drows, "^", BAR_L, (("cpdi", "usl"), ("mpm", "musl"))))
+             ("dynamic bar", drows, "^", BAR_L, (("cpdi", "usl"), ("mpm", "musl"), ("bspline", "musl"))))
     for name, rows, marker, L, pairs in shown:
         for m, u in pairs:
             rs = sorted((r for r in rows if (r["method"], r["update"]) == (m, u) and r["cfl"] == 0.4
@@ -416,7 +446,10 @@ def main() -> int:
     ap = parser(__doc__)
     ap.add_argument("--only", default=None,
                     help="comma-separated groups to run: " + ", ".join(GROUPS))
+    ap.add_argument("--methods", default=None,
+                    help="comma-separated subset of " + ", ".join(METHODS) + " (default: all)")
     args = ap.parse_args()
+    methods = method_keys(args.methods, METHODS) if args.methods else None
     groups = GROUPS if not args.only else tuple(g.strip() for g in args.only.split(",") if g.strip())
     bad = [g for g in groups if g not in GROUPS]
     if bad:
@@ -433,41 +466,41 @@ def main() -> int:
             if f"manufactured-{d}d" not in groups:
                 continue
             t0 = time.perf_counter()
-            for m, u, n in manufactured_runs(d, args.quick):
+            for m, u, n in manufactured_runs(d, args.quick, methods):
                 r = manufactured_case(d, m, u, n, comm, scratch)
                 mrows.append(r)
-                say(f"manufactured {d}D {m:6s} {r['update']:4s} {n:4d} cells: error {r['error']:.3e} "
+                say(f"manufactured {d}D {m:12s} {r['update']:4s} {n:4d} cells: error {r['error']:.3e} "
                     f"(at T {r['error_end']:.3e}), {r['steps']} steps, {r['wall_seconds']:.1f} s")
             if any(r["dim"] == d for r in mrows):
                 seconds[f"manufactured-{d}d"] = time.perf_counter() - t0
         if "vibrating-bar" in groups:
             t0 = time.perf_counter()
-            for m, u, n in vibrating_runs(args.quick):
+            for m, u, n in vibrating_runs(args.quick, methods):
                 r, hist = vibrating_case(m, u, n, comm, scratch)
                 vrows.append(r)
                 if n == 16 and m == "cpdi":
                     vib[(m, u)] = hist
-                say(f"vibrating bar {m:6s} {u:4s} {n:3d} cells: com velocity error {r['error']:.3e}")
+                say(f"vibrating bar {m:12s} {u:4s} {n:3d} cells: com velocity error {r['error']:.3e}")
             seconds["vibrating-bar"] = time.perf_counter() - t0
         if "hanging-static" in groups:
             t0 = time.perf_counter()
-            for m, u, n, cfl in static_runs(args.quick):
+            for m, u, n, cfl in static_runs(args.quick, methods):
                 want = m == "cpdi" and u == "usl" and n == BAR_CELLS[0]
                 r, state = static_case(m, u, n, cfl, comm, scratch, want)
                 srows.append(r)
                 if want and state is not None:
                     profile = ((m, n), state)
-                say(f"hanging bar static {m:6s} {u:4s} {n:3d} cells, CFL {cfl}: tip {r['numerical']:.5f} "
+                say(f"hanging bar static {m:12s} {u:4s} {n:3d} cells, CFL {cfl}: tip {r['numerical']:.5f} "
                     f"m (exact {r['exact']:.5f}), error {r['error']:.3e} {r['note']}")
             seconds["hanging-static"] = time.perf_counter() - t0
         if "hanging-dynamic" in groups:
             t0 = time.perf_counter()
-            for m, u, n in dynamic_runs(args.quick):
+            for m, u, n in dynamic_runs(args.quick, methods):
                 r, hist = dynamic_case(m, u, n, comm, scratch)
                 drows.append(r)
                 if n == BAR_CELLS[0] and u == DEFAULT_UPDATE[m] and m in ("cpdi", "mpm"):
                     dyn[(m, u, n)] = hist
-                say(f"hanging bar dynamic {m:6s} {u:4s} {n:3d} cells: tip history error {r['error']:.3e}, "
+                say(f"hanging bar dynamic {m:12s} {u:4s} {n:3d} cells: tip history error {r['error']:.3e}, "
                     f"peak {r['numerical']:.4e} m (exact {r['exact']:.4e})")
             seconds["hanging-dynamic"] = time.perf_counter() - t0
     total = time.perf_counter() - t_start
@@ -486,7 +519,7 @@ def main() -> int:
             for key in sorted({(r["dim"], r["method"], r["update"]) for r in mrows}):
                 s = sorted((r for r in mrows if (r["dim"], r["method"], r["update"]) == key),
                            key=lambda r: -r["h"])
-                say(f"  {key[0]}D {key[1]:6s} {key[2]:4s}: "
+                say(f"  {key[0]}D {key[1]:12s} {key[2]:4s}: "
                     + "  ".join(f"{r['cells']}:{r['error']:.3e}" for r in s) + "  orders "
                     + ", ".join(f"{r['order']:.2f}" for r in s if r["order"] is not None))
         if vbs:

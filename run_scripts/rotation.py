@@ -1,4 +1,4 @@
-"""Large rotation: a freely spinning disk with mpm, uGIMP, cpGIMP and CPDI (domains, stress, energy).
+"""Large rotation: a freely spinning disk with every method of the studies (domains, stress, energy).
 
 Physics. The built-in ``spinning_disk``: a neo-Hookean disk (R = 0.4 m, E = 1 MPa, ν = 0.3,
 ρ0 = 1000 kg/m³, plane strain; 2 particles per cell per axis, Δx = 0.05 m) spins freely (no
@@ -13,9 +13,12 @@ a rotation θ: its domains collapse as ``cos² θ`` towards 90° and 270° — t
 grow back. CPDI's domains ``R = F·R0`` rotate with the material and keep their area. uGIMP's
 boxes never change, and mpm's nominal box is drawn for reference only (a point has no domain):
 their area ratio is 1 by construction, but they do not rotate either, and their stress is as
-noisy as cpGIMP's. Each method with its default update (USL for cpdi, MUSL for the others);
-CPDI with the scene's ``l_cr = 2·Δx``, which a rotation never reaches (the cap bounds stretch,
-not turn).
+noisy as cpGIMP's. Quadratic B-splines (``bspline``) are point methods like mpm (nominal box,
+area ratio 1), with FLIP or with APIC transfers (``bspline_apic``): APIC's transfers and grid
+update conserve the angular momentum ``Σ m (x × v + ε:(C D)ᵀ)`` exactly (the rotation metric's
+``momentum_ratio`` includes the affine part), FLIP's do not. Each method with its default
+update (USL for cpdi, MUSL for the others); CPDI with the scene's ``l_cr = 2·Δx``, which a
+rotation never reaches (the cap bounds stretch, not turn). The methods are ``study.METHODS``.
 
 Cases: each method at ω = 2π, Δx = 0.05 m (the scene); the full study adds ω = 4π (one
 revolution in 0.5 s: twice the speed, the same centrifugal stress *ratio* expected) and
@@ -30,6 +33,8 @@ Expected and found (full run; the lead's earlier numbers for the first block rep
     cpGIMP                0.0002  0.0002      6.25    2.39    3.34      0.966      0.973
     uGIMP                 1 (fixed box)       6.53    2.04    3.23      0.969      0.974
     mpm                   1 (nominal box)     6.31    2.74    5.88      0.956      0.968
+    B-spline (FLIP)       1 (nominal box)     5.35    2.08    2.89      0.968      0.974
+    B-spline APIC         1 (nominal box)     1.30    1.27    1.29      0.998      1 ± 2.7e-15
     (* the disk's own breathing: CPDI's total area stays within 0.32 % of 1 at ω = 2π, 1.3 %
     at ω = 4π where the centrifugal stretch is 4× larger; smallest single domain 0.997)
 
@@ -43,7 +48,12 @@ Expected and found (full run; the lead's earlier numbers for the first block rep
   3.3) but not mpm's (5.9); at ω = 4π every ratio is smaller because the scale ρ0ω²R² is 4×
   larger while the noise is not.
 * Kinetic energy dips periodically (the disk, started unstressed, breathes: exact) and drifts
-  down by 3–4 % (Δx = 0.05 m; 0.6–2 % at 0.025 m) for every method; mpm loses the most.
+  down by 3–4 % (Δx = 0.05 m; 0.6–2 % at 0.025 m) for every FLIP method; mpm loses the most.
+* B-splines with APIC: the angular momentum stays at 1 within 2.7e-15 over the revolution at
+  Δx = 0.05 m (1.1e-15 at ω = 4π, 6.2e-14 at Δx = 0.025 m, 3963 steps), the kinetic energy
+  within 0.4 % (end 0.998; 0.993 at ω = 4π, 1.000 at Δx = 0.025 m), and the largest stress
+  ratio at 1.27–1.30 in all three cases, as low as CPDI's; with FLIP the same weights lose
+  2.6 % of the angular momentum and their stress grows like mpm's (5.35).
 
 Outputs: ``rotation.csv`` (one row per case: the summary figures plus the area ratio near 90°, 180°
 and 270°) and ``rotation_history.csv`` (every metrics sample: angle, area ratio, smallest
@@ -55,8 +65,8 @@ its smallest single domain), the largest stress over ρ0ω²R², kinetic energy 
 over their initial values; and a bar chart of the largest stress ratio of every case; a colour per
 method.
 
-Runtime, one core: full (12 runs) ~75 s (the Δx = 0.025 m runs ~15 s each); ``--quick`` (4 runs)
-~3 s. Results are identical on any number of ranks (only ``wall_seconds`` differs)::
+Runtime, one core: full (18 runs) ~30–75 s (the Δx = 0.025 m runs 2–15 s each); ``--quick``
+(6 runs) ~3 s. Results are identical on any number of ranks (only ``wall_seconds`` differs)::
 
     python run_scripts/rotation.py                   # full study, figure beside the CSV
     python run_scripts/rotation.py --quick           # the smoke test's mode
@@ -71,12 +81,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from study import (compact_png, figure, folders, is_root, main_guard, parser, run_case, save,
-                   scratch_folder, world, write_csv, wrote)
+from study import (METHOD_KEYS, METHODS as REGISTRY, compact_png, figure, folders, is_root,
+                   main_guard, method_keys, parser, run_case, save, scratch_folder, world,
+                   write_csv, wrote)
 
-METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
-TITLES = {"mpm": "MPM (nominal box)", "ugimp": "uGIMP", "cpgimp": "cpGIMP", "cpdi": "CPDI"}
-COLOURS = {"mpm": "tab:gray", "ugimp": "tab:green", "cpgimp": "tab:orange", "cpdi": "tab:blue"}
+METHODS = METHOD_KEYS  # every registered method (study.METHODS); ``--methods`` picks a subset
+TITLES = {m: REGISTRY[m].label for m in METHODS} | {"mpm": "MPM (nominal box)"}
+COLOURS = {m: REGISTRY[m].colour for m in METHODS}
 OMEGA = 2.0 * math.pi   # rad/s: one revolution per second (the scene)
 DX = 0.05               # m, the scene's cell
 EXTENT = 1.2            # m: the scene's grid, [-0.6, 0.6]², kept for every cell size
@@ -103,7 +114,7 @@ class Case:
     def overrides(self) -> list[str]:
         n = round(EXTENT / self.dx)
         end = 2.0 * math.pi / self.omega  # one revolution
-        return [f"method.interpolator={self.method}", f"bodies.0.angular_velocity={self.omega!r}",
+        return [*REGISTRY[self.method].overrides(), f"bodies.0.angular_velocity={self.omega!r}",
                 f"grid.cell_size={self.dx!r}", f"grid.cells={n}", f"grid.patch_size={max(8, n // 2)}",
                 f"time.end={end!r}", f"output.every={end / 8!r}"]
 
@@ -182,7 +193,7 @@ def chart(rows: list[dict], hist: list[dict], path: Path) -> Path:
         ax_s.plot(*series(r, "stress_ratio"), "-", color=c, lw=1.0)
         ax_e.plot(*series(r, "energy_ratio"), "-", color=c, lw=1.1)
         ax_e.plot(*series(r, "momentum_ratio"), "--", color=c, lw=0.9)
-    ax_a.text(0.5, 0.45, "uGIMP: fixed boxes;\nMPM: nominal box (drawn only):\n"
+    ax_a.text(0.5, 0.45, "uGIMP: fixed boxes;\nMPM, B-spline: nominal box (drawn only):\n"
               "area ratio 1 by construction", transform=ax_a.transAxes,
               ha="center", va="center", fontsize=6.5, color="0.3")
     ax_a.set_yscale("log")
@@ -242,10 +253,7 @@ def main() -> int:
     ap.add_argument("--methods", default=",".join(METHODS),
                     help="comma-separated subset of " + ", ".join(METHODS))
     args = ap.parse_args()
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    bad = [m for m in methods if m not in METHODS]
-    if bad or not methods:
-        raise SystemExit(f"--methods: unknown {bad}; choose from {', '.join(METHODS)}")
+    methods = method_keys(args.methods, METHODS)
     comm = world()
     root = is_root(comm)
     out, figs = folders(args, "rotation")
@@ -257,10 +265,10 @@ def main() -> int:
             rows.append(row)
             hist += h
             if root:
-                print(f"{case.id:24s} area min {row['area_ratio_min']:.3g} at "
+                print(f"{case.id:30s} area min {row['area_ratio_min']:.3g} at "
                       f"{row['angle_at_area_min']:.0f}°, near 90° {row['area_ratio_near_90']:.3g}; "
                       f"stress max {row['stress_ratio_max']:.3g}; energy "
-                      f"{row['energy_ratio_final']:.3f}, momentum {row['momentum_ratio_final']:.3f}; "
+                      f"{row['energy_ratio_final']:.3f}, momentum {row['momentum_ratio_final']:.6g}; "
                       f"{row['particles']} particles, {row['steps']} steps, {row['wall_seconds']:.1f} s",
                       flush=True)
     write_csv(out / "rotation.csv", rows, comm)

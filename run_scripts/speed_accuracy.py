@@ -1,4 +1,4 @@
-"""Speed against accuracy: mpm, uGIMP, cpGIMP and CPDI on two problems with exact solutions.
+"""Speed against accuracy: every method of the studies on two problems with exact solutions.
 
 Physics. Two verification problems (docs/verification.md):
 
@@ -6,7 +6,8 @@ Physics. Two verification problems (docs/verification.md):
   Kamojjala et al. 2015; :func:`study.manufactured_scene`): a neo-Hookean unit square (E = 1e4,
   ν = 0.3, ρ0 = 1) driven by the body force that makes ``U = A sin(πX) sin(cπt)``,
   ``V = A sin(πY) sin(cπt + 2π/3)`` (A = 0.05) exact, one period (0.02 s), CFL 0.2, symmetry
-  planes, each method with its default update (USL for cpdi, MUSL for the others), CPDI
+  planes, each method of ``study.METHODS`` (mpm, uGIMP, cpGIMP, CPDI, quadratic B-splines with
+  FLIP and with APIC) with its default update (USL for cpdi, MUSL for the others), CPDI
   unscaled. **Error**: the largest over 41 equally spaced times of the RMS over particles of
   ``|x_p − φ(X_p, t)|`` (metres; :class:`study.ManufacturedError` — within 0.2 % of the
   every-step maximum ``rms_error_max``, at a fraction of the cost). Cells per axis 8, 16, 32, 64
@@ -48,6 +49,18 @@ Found (a run of every case but the 64-cell ones, one core, shared machine):
   cells (ppc ≥ 2) but loses accuracy at 40 cells (0.06–0.1) and separates at 80; uGIMP and mpm
   are worse and separate earlier (every non-CPDI ppc 1 run separates, except uGIMP's and
   cpGIMP's at 10 cells). Below an error of 4e-4 the front is CPDI's alone.
+* Quadratic B-splines (issue 18's run: every case but the 64-cell ones, the other core busy
+  with another study): first order on both problems and never on a front but once.
+  Manufactured, ppc 2: FLIP 2.9e-2, 1.3e-2, 6.0e-3 m at 8, 16, 32 cells (orders 1.14, 1.13),
+  APIC 2.3e-2, 1.2e-2, 5.7e-3 (0.97, 1.03): 15–16× CPDI's error at 32 cells for the same
+  particle-steps. At ppc 1 bspline *is* uGIMP (a quadratic B-spline is the hat averaged over a
+  cell-wide box): the same errors to 1e-14 relative; APIC at ppc 1 is the front's cheapest point
+  (8 cells, 7.1e-3 m) and reaches 1.2e-3 at 32 cells. Hanging bar: FLIP does not converge
+  (ppc 2: 0.080, 0.041, 0.25, 4.6 at 10 → 80 cells; ppc 1 separates from 20 cells), APIC
+  converges at first order (ppc 2: 0.087, 0.044, 0.022, 0.011; ppc 3 0.065 → 0.0082; ppc 1
+  0.21 at 10 cells, then separates). Step cost on the 2D manufactured solution (specialised
+  kernels): 0.22 µs (FLIP) and 0.23 µs (APIC) per particle-step at 32 cells ppc 2, against
+  0.18 for CPDI in the same run.
 * Step cost, 2D, 16–32 cells: ~1.0–1.5 µs per particle-step for all four methods alike (MUSL's
   second transfer included), within the noise of this shared 2-core machine (single runs
   up to 2–3 µs when it was busy); particle_steps is not noisy.
@@ -59,15 +72,17 @@ against step_seconds (left) and against particle-steps (right), log-log, one row
 colour and marker per method, marker size by ppc, thin lines along refinement, the Pareto front as a
 black staircase with ringed points.
 
-Runtime, one core: full (96 cases, 2D up to 36 864 particles × 864 steps) ~6 min (all but the
-64-cell cases: 70 s); ``--quick`` (manufactured 8 and 16 cells × ppc 1, 2; bar 10 and 20 cells
-× ppc 1, 2) ~10 s.
+Runtime, one core: full (144 cases, 2D up to 36 864 particles × 864 steps) ~6–9 min (all but
+the 64-cell cases: 70 s for the first four methods, 2 min for all six on a busy machine);
+``--quick`` (mpm, uGIMP, cpGIMP, CPDI only: manufactured 8 and 16 cells × ppc 1, 2; bar 10 and
+20 cells × ppc 1, 2) ~10 s.
 Errors and particle-steps are identical on any number of ranks::
 
     python run_scripts/speed_accuracy.py                      # full study (the lead's run)
     python run_scripts/speed_accuracy.py --quick              # the smoke test's mode
     mpirun -n 2 python run_scripts/speed_accuracy.py --quick
     python run_scripts/speed_accuracy.py --cases 'manufactured_cp*' --repeat 2 --out /tmp/sa
+    python run_scripts/speed_accuracy.py --cases '*_n8_*,*_n16_*,*_n32_*,hanging_bar_*'  # no 64
 """
 from __future__ import annotations
 
@@ -77,15 +92,16 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from study import (ManufacturedError, compact_png, figure, folders, is_root, main_guard,
-                   manufactured_sampling, manufactured_scene, observed_orders, pareto_front, parser,
-                   run_case, save, scene_with, scratch_folder, select_cases, world, write_csv,
-                   wrote)
+from study import (METHOD_KEYS, METHODS as REGISTRY, ManufacturedError, compact_png, figure,
+                   folders, is_root, main_guard, manufactured_sampling, manufactured_scene,
+                   observed_orders, pareto_front, parser, run_case, save, scene_with,
+                   scratch_folder, select_cases, world, write_csv, wrote)
 
-METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
-TITLES = {"mpm": "MPM", "ugimp": "uGIMP", "cpgimp": "cpGIMP", "cpdi": "CPDI"}
-COLOURS = {"mpm": "tab:gray", "ugimp": "tab:green", "cpgimp": "tab:orange", "cpdi": "tab:blue"}
-MARKERS = {"mpm": "s", "ugimp": "^", "cpgimp": "D", "cpdi": "o"}
+METHODS = METHOD_KEYS  # every registered method (study.METHODS); ``--cases`` picks a subset
+QUICK_METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")  # --quick: the smoke test's methods
+TITLES = {m: REGISTRY[m].label for m in METHODS}
+COLOURS = {m: REGISTRY[m].colour for m in METHODS}
+MARKERS = {m: REGISTRY[m].marker for m in METHODS}
 PROBLEMS = ("manufactured", "hanging_bar")
 MEASURES = {"manufactured": "max over t of RMS |x - phi(X,t)| (m)",
             "hanging_bar": "max over particles |u - u*(X)| / u*(L) (static)"}
@@ -114,7 +130,7 @@ class Case:
                                manufactured_sampling(SAMPLES))
             return scene, [], [obs]
         n = round(3.2 * self.cells)  # the built-in grid's 3.2 m (origin −3 m), Δx = 1/cells
-        over = BAR + [f"method.interpolator={self.method}", f"bodies.0.ppc={self.ppc}",
+        over = BAR + [*REGISTRY[self.method].overrides(), f"bodies.0.ppc={self.ppc}",
                       f"grid.cell_size={1.0 / self.cells!r}", f"grid.cells={n}",
                       f"grid.patch_size={max(8, n // 4)}"]
         return "hanging_bar_1d", over, [StaticBarError()]
@@ -157,8 +173,8 @@ def full_cases() -> list[Case]:
 
 
 def quick_cases() -> list[Case]:
-    cases = [Case("manufactured", m, n, p) for m in METHODS for n in (8, 16) for p in (1, 2)]
-    cases += [Case("hanging_bar", m, n, p) for m in METHODS for n in (10, 20) for p in (1, 2)]
+    cases = [Case("manufactured", m, n, p) for m in QUICK_METHODS for n in (8, 16) for p in (1, 2)]
+    cases += [Case("hanging_bar", m, n, p) for m in QUICK_METHODS for n in (10, 20) for p in (1, 2)]
     return cases
 
 
@@ -274,7 +290,8 @@ def chart(rows: list[dict], path: Path) -> Path:
             ax.yaxis.set_minor_formatter(NullFormatter())
             ax.grid(True, which="major", lw=0.3, alpha=0.5)
     handles = [Line2D([], [], ls="", marker=MARKERS[m], color=COLOURS[m], markeredgecolor="k",
-                      markeredgewidth=0.3, label=TITLES[m]) for m in METHODS]
+                      markeredgewidth=0.3, label=TITLES[m])
+               for m in METHODS if any(r["method"] == m for r in rows)]
     handles += [Line2D([], [], ls="", marker="o", color="0.6", markersize=ms, label=f"ppc {p}")
                 for p, ms in ((1, 4.5), (2, 6.5), (3, 8.5))]
     handles += [Line2D([], [], color="k", marker="o", markerfacecolor="none", markersize=9,
@@ -296,7 +313,7 @@ def report(rows: list[dict]) -> None:
                 errs = [r["error"] for r in line]
                 orders = (observed_orders([1.0 / r["cells"] for r in line], errs)
                           if all(math.isfinite(e) and e > 0 for e in errs) else [])
-                print(f"  {problem:12s} {m:6s} ppc {p}: errors "
+                print(f"  {problem:12s} {m:12s} ppc {p}: errors "
                       + " ".join("separated" if not math.isfinite(e) else f"{e:.3g}" for e in errs)
                       + ("; orders " + " ".join(f"{o:.2f}" for o in orders) if orders else ""))
 
@@ -320,7 +337,7 @@ def main() -> int:
             rows.append(r)
             if root:
                 err = "separated" if r["separated"] else f"{r['error']:.4g}"
-                print(f"{case.id:34s} error {err:>10s}  {r['particles']:6d} particles × "
+                print(f"{case.id:40s} error {err:>10s}  {r['particles']:6d} particles × "
                       f"{r['steps']:5d} steps  step {r['step_seconds']:.3g} s, "
                       f"run {r['run_seconds']:.3g} s", flush=True)
     mark_fronts(rows)

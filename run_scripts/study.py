@@ -10,6 +10,10 @@ Outputs: ``--out`` (default ``run_scripts/out/<study>``) gets the CSV and the fi
 ``--figures DIR`` puts the figures elsewhere. Only ``make figures`` (run_scripts/make_figures.py,
 which passes ``--figures docs/figures``) writes the README's committed figures: a study run by
 hand, or by the tests, never overwrites them.
+
+Methods: :data:`METHODS` names every method the studies compare (an interpolator with a
+transfer, e.g. ``bspline_apic`` = quadratic B-splines with APIC), with its scene overrides and
+its colour and marker on every chart; adding a method there adds it to every study's full run.
 """
 from __future__ import annotations
 
@@ -22,6 +26,7 @@ import sys
 import tempfile
 import time
 import traceback
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +34,47 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 #: the README's figures: written only when asked (``--figures``; ``make figures`` asks)
 FIGURES = ROOT / "docs" / "figures"
+
+
+@dataclass(frozen=True)
+class Method:
+    """One method a study compares: an interpolator and a particle–grid transfer, the update
+    order ``method.update = "auto"`` gives it, and how the charts draw it."""
+    key: str            # the study's name for it: CSV ``method`` column, case ids, ``--methods``
+    interpolator: str   # ``method.interpolator``
+    transfer: str       # ``method.transfer``: "flip" | "apic"
+    update: str         # what ``method.update = "auto"`` resolves to (parmpm.simulation)
+    label: str
+    colour: str
+    marker: str
+
+    def overrides(self) -> list[str]:
+        """Scene overrides selecting this method (``method.transfer`` only when not the default)."""
+        out = [f"method.interpolator={self.interpolator}"]
+        return out + ([f"method.transfer={self.transfer}"] if self.transfer != "flip" else [])
+
+
+#: Every method the studies know, in chart order. A study runs all of them unless it says
+#: otherwise (``METHOD_KEYS``), so a new method is one line here.
+METHODS = {m.key: m for m in (
+    Method("mpm", "mpm", "flip", "musl", "MPM", "tab:gray", "s"),
+    Method("ugimp", "ugimp", "flip", "musl", "uGIMP", "tab:green", "^"),
+    Method("cpgimp", "cpgimp", "flip", "musl", "cpGIMP", "tab:orange", "D"),
+    Method("cpdi", "cpdi", "flip", "usl", "CPDI", "tab:blue", "o"),
+    Method("bspline", "bspline", "flip", "musl", "B-spline", "tab:purple", "v"),
+    Method("bspline_apic", "bspline", "apic", "musl", "B-spline APIC", "tab:red", "P"),
+)}
+METHOD_KEYS = tuple(METHODS)
+
+
+def method_keys(text: str | None, allowed=METHOD_KEYS) -> tuple[str, ...]:
+    """The comma-separated method keys of a ``--methods`` argument (all of ``allowed`` when
+    None or empty); an unknown key is an error."""
+    keys = tuple(k.strip() for k in (text or "").split(",") if k.strip()) or tuple(allowed)
+    bad = [k for k in keys if k not in allowed]
+    if bad:
+        raise SystemExit(f"--methods: unknown {', '.join(bad)} (choose from {', '.join(allowed)})")
+    return keys
 
 
 def world():
@@ -197,10 +243,17 @@ def main_guard(main) -> None:
 
 def manufactured_scene(dim: int, cells: int, interpolator: str = "cpdi", update: str = "auto",
                        ppc: int = 2, amplitude: float = 0.05, cfl: float = 0.2,
-                       periods: float = 1.0, lcr: str = "none", patch_size: int | None = None):
+                       periods: float = 1.0, lcr: str = "none", patch_size: int | None = None,
+                       transfer: str = "flip"):
     """The axis-aligned manufactured solution (the built-in ``manufactured`` scene, any
     dimension): unit cube of ``cells`` cells per axis plus two cells of room on each side,
-    symmetry planes on its faces, Uintah's parameters (E = 1e4, ν = 0.3, ρ0 = 1: period 0.02 s)."""
+    symmetry planes on its faces, Uintah's parameters (E = 1e4, ν = 0.3, ρ0 = 1: period 0.02 s).
+    ``interpolator`` may also be a key of :data:`METHODS` (e.g. ``"bspline_apic"``), which sets
+    ``transfer`` too: the transfer has to be in the scene from the start, because a resolved
+    FLIP scene carries ``method.flip``, which an APIC override would contradict."""
+    if interpolator in METHODS:
+        transfer = METHODS[interpolator].transfer
+        interpolator = METHODS[interpolator].interpolator
     from parmpm.scene import scene_from_toml
 
     h = 1.0 / cells
@@ -245,6 +298,7 @@ amplitude = {amplitude!r}
 [method]
 interpolator = "{interpolator}"
 update = "{update}"
+transfer = "{transfer}"
 {lcr_line}[boundary]
 slip_regions = [{", ".join(planes)}]
 [time]

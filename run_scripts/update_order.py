@@ -5,8 +5,9 @@ equation and maps back. *Update stress last* (USL) updates F and the stress with
 gradient of that grid solution; *modified USL* (MUSL; Sulsky et al. 1995) first updates the
 particle velocities and positions, maps the new particle momentum to the grid again and takes the
 velocity gradient from that second grid field. parmpm's default (``method.update = "auto"``,
-:mod:`parmpm.simulation`) is USL for cpdi and MUSL for mpm, uGIMP and cpGIMP. Four checks, each
-method with both updates (CPDI unscaled, ``method.lcr = none``):
+:mod:`parmpm.simulation`) is USL for cpdi and MUSL for mpm, uGIMP, cpGIMP and bspline (FLIP or
+APIC). Four checks, each method of ``study.METHODS`` with both updates (CPDI unscaled,
+``method.lcr = none``):
 
 1. **Accuracy.** (a) The 2D axis-aligned manufactured solution (:func:`study.manufactured_scene`,
    Uintah's parameters, one period, CFL 0.2, ppc 2, 8 → 64 cells); error: the largest over 41
@@ -63,6 +64,18 @@ Found (full run, one core):
   but runs away — stretch 5.9 at 0.12 s, 8.0 at 0.26 s, when a particle reaches the grid's
   bottom 2 m below the bar. uGIMP and cpGIMP separate with either update, MUSL 17–23 % sooner;
   mpm separates with MUSL (0.038 s) and blows up with USL (0.049 s).
+* Quadratic B-splines (FLIP ``bspline``, APIC ``bspline_apic``; default MUSL): USL and MUSL
+  equally accurate again (within 7 %; manufactured 8 → 64 cells first order only, FLIP 2.9e-2
+  → 2.7e-3 MUSL, 2.9e-3 USL; APIC 2.3e-2 → 2.8e-3 both; vibrating bar 16 → 64 cells 0.31 →
+  0.072 FLIP, 0.29 → 0.071 APIC: the clamp, first order). CFL: FLIP with USL is bounded to 0.9
+  on the vibrating bar and blows up from 0.95; FLIP MUSL and APIC with either update are
+  bounded and accurate to 0.99 on both problems (APIC's largest KE growth 1.0004). The seed's
+  2D bar separates with every B-spline run: FLIP 0.049 s (USL) / 0.079 s (MUSL), APIC
+  0.052 / 0.081 s, at stretch 3.3–3.8 — MUSL later, unlike uGIMP and cpGIMP.
+  In the run that measured these (issue 18, parmpm/ under concurrent change), two older rows
+  differ from the text above: mpm USL on the seed's 2D bar separated at 0.039 s instead of blowing up, and
+  CPDI MUSL separated at 0.215 s (stretch 5.1) instead of running
+  off the grid.
 * Defaults: the evidence supports the current ones. MUSL for mpm, uGIMP, cpGIMP: as accurate,
   and stable to CFL 0.99 where USL needs ≤ 0.6–0.75. USL for CPDI: the exact 1D tiling, and the
   seed's bar holding, depend on it; MUSL would lift CPDI's CFL limit from 0.8 to 0.99 but lets
@@ -77,9 +90,11 @@ in ``--out`` too (``make figures`` passes ``--figures docs/figures``): accuracy 
 the CFL limits, tiling residuals and 2D-bar outcomes; solid lines USL, dashed MUSL, a colour per
 method.
 
-Runtime, one core: full ~3 min (accuracy up to 64 cells, 2 × 88 CFL runs, 4 tiling runs, 8
-2D bars); ``--quick`` (manufactured 8, 16 cells; bar 16, 32 cells; CFL scans of 6 values, the
-manufactured one at 8 cells; tiling; the 2D bar with cpGIMP and CPDI) ~15 s. Results are
+Runtime, one core: full ~3 min (accuracy up to 64 cells, 2 × 132 CFL runs, 4 tiling runs, 12
+2D bars; with the B-splines 95 s, 2 min 47 s with the other core busy); ``--quick`` (mpm, uGIMP, cpGIMP,
+CPDI only: manufactured 8, 16 cells; bar 16, 32 cells; CFL scans of 6 values, the
+manufactured one at 8 cells; tiling; the 2D bar with cpGIMP and CPDI) ~15 s;
+``--methods bspline,bspline_apic`` runs those alone (no tiling cases). Results are
 identical on any number of ranks (only ``wall_seconds`` differs)::
 
     python run_scripts/update_order.py                   # full study, figure beside the CSV
@@ -94,16 +109,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from study import (ManufacturedError, compact_png, figure, folders, is_root, main_guard,
-                   manufactured_sampling, manufactured_scene, parser, run_case, save, scene_with,
-                   scratch_folder, world, write_csv, wrote)
+from study import (METHOD_KEYS, METHODS as REGISTRY, ManufacturedError, compact_png, figure,
+                   folders, is_root, main_guard, manufactured_sampling, manufactured_scene,
+                   method_keys, parser, run_case, save, scene_with, scratch_folder, world,
+                   write_csv, wrote)
 
-METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
+METHODS = METHOD_KEYS  # every registered method (study.METHODS); ``--methods`` picks a subset
+QUICK_METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")  # --quick: the smoke test's methods
 UPDATES = ("usl", "musl")
-TITLES = {"mpm": "MPM", "ugimp": "uGIMP", "cpgimp": "cpGIMP", "cpdi": "CPDI"}
-COLOURS = {"mpm": "tab:gray", "ugimp": "tab:green", "cpgimp": "tab:orange", "cpdi": "tab:blue"}
+TITLES = {m: REGISTRY[m].label for m in METHODS}
+COLOURS = {m: REGISTRY[m].colour for m in METHODS}
 STYLE = {"usl": "-", "musl": "--"}
-DEFAULT = {"cpdi": "usl", "cpgimp": "musl", "ugimp": "musl", "mpm": "musl"}
+DEFAULT = {m: REGISTRY[m].update for m in METHODS}  # what method.update = "auto" gives
 CFL_FULL = (0.3, 0.4, 0.5, 0.6, 0.7, 0.75, 0.8, 0.85, 0.9, 0.95, 0.99)
 CFL_QUICK = (0.3, 0.5, 0.7, 0.8, 0.9, 0.99)
 ACCURATE = 2.0   # accurate: error <= ACCURATE x the error at the scan's smallest CFL
@@ -139,17 +156,18 @@ class Case:
 
     def scene_and_observers(self):
         """(scene or built-in name, overrides for run_case, observers)."""
-        common = [f"method.interpolator={self.method}", f"method.update={self.update}",
+        common = [*REGISTRY[self.method].overrides(), f"method.update={self.update}",
                   "method.lcr=none"]
         if self.cfl is not None:
             common.append(f"time.cfl={self.cfl!r}")
+        chosen = len(REGISTRY[self.method].overrides())  # the scene below has the method already
         observers = [Tiling(self.problem)] if self.study == "tiling" else []
         if self.problem == "vibrating_bar":
             observers.append(Energy())
         if self.problem == "manufactured":
             observers.append(ManufacturedError())
             base = manufactured_scene(2, self.cells, self.method, ppc=self.ppc)
-            return scene_with(base, common[1:] + manufactured_sampling(40)), [], observers
+            return scene_with(base, common[chosen:] + manufactured_sampling(40)), [], observers
         if self.problem == "vibrating_bar":
             h = BAR_LEN / self.cells
             over = common + [f"bodies.0.ppc={self.ppc}", f"grid.cell_size={h!r}",
@@ -242,23 +260,26 @@ class Tiling:
         self.vs_exact.append(out[2])
 
 
-def cases(quick: bool) -> list[Case]:
+def cases(quick: bool, methods=None) -> list[Case]:
+    """Every case of the study (``methods``: a subset of method keys; the CPDI tiling cases run
+    when cpdi is among them)."""
+    methods = methods or (QUICK_METHODS if quick else METHODS)
     out = []
     man_cells = (8, 16) if quick else (8, 16, 32, 64)
     bar_cells = (16, 32) if quick else (16, 32, 64)
-    for m in METHODS:
+    for m in methods:
         for u in UPDATES:
             out += [Case("accuracy", "manufactured", m, u, n) for n in man_cells]
             out += [Case("accuracy", "vibrating_bar", m, u, n) for n in bar_cells]
     cfls = CFL_QUICK if quick else CFL_FULL
-    for m in METHODS:
+    for m in methods:
         for u in UPDATES:
             out += [Case("cfl", "vibrating_bar", m, u, 16, cfl=c) for c in cfls]
             out += [Case("cfl", "manufactured", m, u, 8 if quick else 16, cfl=c) for c in cfls]
-    for u in UPDATES:
+    for u in UPDATES if "cpdi" in methods else ():
         out.append(Case("tiling", "vibrating_bar", "cpdi", u, 16))
         out.append(Case("tiling", "hanging_bar", "cpdi", u, 10, ppc=3))
-    for m in (("cpgimp", "cpdi") if quick else METHODS):
+    for m in (tuple(m for m in methods if m in ("cpgimp", "cpdi")) if quick else methods):
         out += [Case("seed_bar", "hanging_bar_2d", m, u, 10, ppc=3) for u in UPDATES]
     return out
 
@@ -414,7 +435,7 @@ def chart(rows: list[dict], histories: dict, path: Path) -> Path:
     ax = axes[0, 2]
     tiny = 1e-17  # log axis: exact zeros drawn at this floor
     for (problem, u), tl in sorted(histories.items()):
-        colour = "tab:blue" if problem == "vibrating_bar" else "tab:purple"
+        colour = "tab:blue" if problem == "vibrating_bar" else "tab:brown"
         t = np.asarray(tl.t) / tl.end
         ax.plot(t, np.maximum(tl.sum_rel, tiny), STYLE[u], color=colour, lw=1.2)
         ax.plot(t, np.maximum(tl.gap, tiny), STYLE[u], color=colour, lw=0.6, alpha=0.6)
@@ -425,20 +446,22 @@ def chart(rows: list[dict], histories: dict, path: Path) -> Path:
     ax.grid(True, which="major", lw=0.3, alpha=0.5)
     ax.tick_params(labelsize=7)
     ax.legend(handles=[Line2D([], [], color="tab:blue", label="vibrating bar (16 cells)"),
-                       Line2D([], [], color="tab:purple",
+                       Line2D([], [], color="tab:brown",
                               label="hanging bar, g = 1000 (10 cells, ppc 3)"),
                        Line2D([], [], color="k", ls="-", label="USL"),
                        Line2D([], [], color="k", ls="--", label="MUSL")], fontsize=7, loc="center right")
     # table of limits
     ax = axes[1, 2]
     ax.axis("off")
+    shown = [m for m in METHODS if any(r["method"] == m for r in rows)]
+    w = max(len(TITLES[m]) for m in shown)
     lims = [r for r in rows if r["study"] == "cfl_limit"]
     text = ["largest CFL bounded / accurate (* = default;",
             " 0.99 = top of the scan; bounded: no blow-up and bar",
             " KE ≤ 1.05 KE(0); accurate: also error ≤ 2× at 0.3)"]
     for problem in ("vibrating_bar", "manufactured"):
         text.append("vibrating bar:" if problem == "vibrating_bar" else "manufactured 2D:")
-        for m in METHODS:
+        for m in shown:
             cells = []
             for u in UPDATES:
                 r = next((x for x in lims
@@ -450,7 +473,7 @@ def chart(rows: list[dict], histories: dict, path: Path) -> Path:
                 star = "*" if DEFAULT[m] == u else " "
                 cells.append(f"{u.upper():4s}{star} {f(r['cfl_bounded_limit']):>5s}/"
                              f"{f(r['cfl_accurate_limit']):<5s}")
-            text.append(f"  {TITLES[m]:7s} " + "   ".join(cells))
+            text.append(f"  {TITLES[m]:{w}s} " + "   ".join(cells))
     tiles = [r for r in rows if r["study"] == "tiling" and r["status"] == "ok"]
     text.append("1D CPDI tiling, max_t |Σ2a − L|/L (max gap):")
     for r in tiles:
@@ -469,11 +492,11 @@ def chart(rows: list[dict], histories: dict, path: Path) -> Path:
                 what = f"blew up {r['end_time']:.3f} s"
             else:
                 what = f"off grid {r['end_time']:.3f} s"
-            text.append(f"  {TITLES[r['method']]:7s}{r['update'].upper():5s}{what:19s} "
+            text.append(f"  {TITLES[r['method']]:{w}s} {r['update'].upper():5s}{what:19s} "
                         f"stretch {r['max_stretch']:.2g}")
-    ax.text(-0.05, 1.02, "\n".join(text), va="top", ha="left", family="monospace", fontsize=6.8,
-            transform=ax.transAxes)
-    handles = [Line2D([], [], color=COLOURS[m], marker="o", ms=3.5, label=TITLES[m]) for m in METHODS]
+    ax.text(-0.05, 1.02, "\n".join(text), va="top", ha="left", family="monospace",
+            fontsize=6.8 if len(text) <= 30 else 6.8 * 30 / len(text), transform=ax.transAxes)
+    handles = [Line2D([], [], color=COLOURS[m], marker="o", ms=3.5, label=TITLES[m]) for m in shown]
     handles += [Line2D([], [], color="k", ls=STYLE[u], label=u.upper()) for u in UPDATES]
     axes[0, 0].legend(handles=handles, fontsize=7, loc="lower left", ncol=2)
     return compact_png(save(fig, path))
@@ -481,14 +504,17 @@ def chart(rows: list[dict], histories: dict, path: Path) -> Path:
 
 def main() -> int:
     ap = parser(__doc__)
+    ap.add_argument("--methods", default=None, help="comma-separated subset of "
+                    + ", ".join(METHODS) + " (default: all; --quick: " + ", ".join(QUICK_METHODS) + ")")
     args = ap.parse_args()
+    methods = method_keys(args.methods, METHODS) if args.methods else None
     comm = world()
     root = is_root(comm)
     out, figs = folders(args, "update_order")
     rows, histories = [], {}
     t0 = time.perf_counter()
     with scratch_folder(comm, "parmpm-update-") as scratch:
-        for case in cases(args.quick):
+        for case in cases(args.quick, methods):
             r = run_one(case, comm, scratch)
             hist = r.pop("_history", None)
             if hist is not None:
@@ -512,7 +538,7 @@ def main() -> int:
         for r in rows:
             if r["study"] == "cfl_limit":
                 star = "*" if r["update"] == r["default_update"] else " "
-                print(f"  {r['problem']:13s} {r['method']:6s} {r['update']:4s}{star} "
+                print(f"  {r['problem']:13s} {r['method']:12s} {r['update']:4s}{star} "
                       f"{r['cfl_bounded_limit']} / {r['cfl_accurate_limit']}")
         path = chart(rows, histories, figs / "update_order.png")
         print(f"{len(rows)} rows in {time.perf_counter() - t0:.0f} s on {comm.Get_size()} rank(s)")

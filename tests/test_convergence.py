@@ -6,6 +6,9 @@ What is asserted is what the script's docstring and docs/verification.md expect:
 * the axis-aligned manufactured solution converges at second order with cpdi (USL) and cpGIMP
   (MUSL) in 1D (16, 32, 64 cells) and 2D (8, 16, 32): every observed order ≥ 1.8, the finest
   pair included;
+* quadratic B-splines (bspline, FLIP) converge there too, but at first order (measured 1.08–1.14
+  in 1D and 2D; the nodal symmetry planes are the likely limit, see the script's docstring): every
+  order within [0.9, 1.5], and a larger error than cpdi's at every resolution;
 * the vibrating bar's centre-of-mass velocity stays within 2.5 % (relative L2 over 4 periods)
   with cpdi at 16 cells, USL and MUSL;
 * the 1D hanging bar: the ramped, damped bar reaches the exact large-deformation static state
@@ -61,6 +64,17 @@ def test_manufactured_second_order(quick, dim, method):
     assert errors == sorted(errors, reverse=True) and errors[-1] < 4e-4
 
 
+@pytest.mark.parametrize("dim", [1, 2])
+def test_manufactured_bspline_first_order(quick, dim):
+    rows = _read(quick / "convergence.csv")
+    s = _series(rows, dim, "bspline")
+    assert len(s) == 3 and all(r["update"] == "musl" for r in s), s
+    orders = [float(r["order"]) for r in s[1:]]
+    assert all(0.9 <= p <= 1.5 for p in orders), (dim, orders)
+    for r, ref in zip(s, _series(rows, dim, "cpdi")):
+        assert r["cells"] == ref["cells"] and float(r["error"]) > float(ref["error"])
+
+
 @pytest.mark.parametrize("update", ["usl", "musl"])
 def test_vibrating_bar_com_velocity(quick, update):
     rows = [r for r in _read(quick / "verification.csv")
@@ -95,7 +109,7 @@ def test_two_ranks_give_the_same_csv(quick, tmp_path, mpirun):
     for name, keep in (("convergence.csv", lambda r: r["dim"] == "2"), ("verification.csv", None)):
         serial = [r for r in _read(quick / name) if keep is None or keep(r)]
         rows = _read(out / name)
-        assert len(rows) == len(serial) == 6, name
+        assert len(rows) == len(serial) == (9 if name == "convergence.csv" else 6), name
         for r, ref in zip(rows, serial):
             r, ref = dict(r), dict(ref)
             r.pop("wall_seconds"), ref.pop("wall_seconds")
