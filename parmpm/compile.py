@@ -119,7 +119,7 @@ def tiny_scene_toml(dim: int, method: str, update: str) -> str:
     velocity = [200.0] + [0.0] * (dim - 1)
     g = [0.0] * (dim - 1) + [-10.0]
     faces = "x_min = \"fixed\"\n" + ("y_min = \"slip\"\n" if dim > 1 else "x_max = \"slip\"\n")
-    lcr = "" if method == "cpdi" else 'lcr = "none"\n'
+    lcr = "" if method in ("cpdi", "cpdi2") else 'lcr = "none"\n'
     return f"""\
 name = "compile_{dim}d_{method}_{update}"
 dim = {dim}

@@ -31,9 +31,10 @@ Method = namedtuple("Method", ("code", "dim", "lcr", "apic"))
 #: a rank's patches in slot order: particle ranges ``start``, node-box origins ``base``, usable
 #: cells ``jlo..jhi``, box and grid node counts, grid origin and ``1/Δx`` (3-axis padded)
 Boxes = namedtuple("Boxes", ("start", "base", "jlo", "jhi", "nloc", "nglob", "origin", "inv_h"))
-#: the particle fields a transfer reads or writes
+#: the particle fields a transfer reads or writes (``affine``, ``corners``: optional fields, empty
+#: unless carried; ``rf``: which domains are frozen)
 Fields = namedtuple("Fields", ("x", "v", "F", "r0", "lh0", "mass", "vol0", "stress", "dx",
-                               "affine"))
+                               "affine", "corners", "rf"))
 #: the material state G2P updates: material row per particle, parameter table, damage
 Material = namedtuple("Material", ("mat", "params", "damage"))
 #: what the specialised G2P kernels need to find each particle's next patch (and write it)

@@ -16,7 +16,8 @@ from parmpm.collective import agree
 from parmpm.connectivity import compact_nodes, global_components, local_components, shared_pairs
 from parmpm.errors import SimulationError
 from parmpm.metrics.sums import patch_sums
-from parmpm.reach import reach_message, support_reach
+from parmpm.reach import inverted_message, reach_message, support_reach
+from parmpm.shapes.cpdi2 import INVERTED
 from parmpm.stepper import PHASES, WORK_PHASES
 from parmpm.transfer import support_nodes
 
@@ -31,7 +32,7 @@ def components(s) -> int:
     K = min(int(np.prod(D.nloc[:s.dim])), max(4 ** s.dim, (2 * g + 2) ** s.dim))
     nodes = np.zeros((P.n, K), np.int64)
     count = np.zeros(P.n, np.int64)
-    err = np.full(1, -1, np.int64)
+    err = np.full(2, -1, np.int64)
     support_nodes(*s.stepper.records(), nodes, count, err)
     # A support past the ghost layer (inside the grid) would leave that particle without
     # nodes and fake a separation: stop with the reach error (the next p2g would raise it).
@@ -39,10 +40,12 @@ def components(s) -> int:
     # its own, and the next step stops the run unless the separation stops it first.
     # (The message is the highest such rank's, as it always was; the stepper's own choice, the
     # first particle in (patch, id) order, would make it the same on any number of ranks.)
-    bad = int(err[0]) >= 0 and support_reach(s.stepper, int(err[0]))[1]
+    inverted = int(err[0]) >= 0 and int(err[1]) == INVERTED
+    bad = inverted or (int(err[0]) >= 0 and support_reach(s.stepper, int(err[0]))[1])
     problem = None
     if bad:
-        problem = s.stepper.error or reach_message(s.stepper, int(err[0]), "the separation check")
+        explain = inverted_message if inverted else reach_message
+        problem = s.stepper.error or explain(s.stepper, int(err[0]), "the separation check")
     agree(s.comm, problem, root=None, error=SimulationError, key=-s.rank)
     compact, n_nodes = compact_nodes(nodes, count)
     k, label = local_components(compact, count, n_nodes)
@@ -105,7 +108,8 @@ def domain_corners(s) -> np.ndarray | None:
     if s.dim != 2:
         return None
     P = s.particles
-    return domains.domain_corners(2, s.disc.method, s.disc.lcr, P.x, P.F, P.r0, P.lh0)
+    return domains.domain_corners(2, s.disc.method, s.disc.lcr, P.x, P.F, P.r0, P.lh0,
+                                  P.corners)
 
 
 def decomposition_report(s) -> dict:

@@ -6,7 +6,9 @@ Fields use the literature's names: ``x`` position, ``v`` velocity, ``x0`` refere
 CPDI domain vectors (columns, physical units), ``lh0`` initial GIMP half-widths, ``mat`` material
 row, ``damage`` (for damage models), ``rf`` a frozen CPDI domain in the material's unrotated
 frame (zeros: not frozen; :mod:`parmpm.shapes.freeze`), ``affine`` the APIC affine velocity
-matrix ``C_p = B_p D_p⁻¹`` (Jiang et al. 2015; zeros under FLIP: :mod:`parmpm.affine`), ``gid`` global id (never changes: it is
+matrix ``C_p = B_p D_p⁻¹`` (Jiang et al. 2015; zeros under FLIP: :mod:`parmpm.affine`),
+``corners`` the CPDI2 domain's corners minus the particle's position ``(2^d, d)`` (physical
+units, the bit order of :mod:`parmpm.shapes.cpdi2`; moved by the grid in G2P), ``gid`` global id (never changes: it is
 how runs on different rank counts and restarts are compared), ``dx`` a scratch displacement for
 MUSL.
 """
@@ -19,11 +21,11 @@ from parmpm.jit import DIMS, kernel, loop_kernel
 from parmpm.patch_index import patch_id1, patch_id2, patch_id3
 
 FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx", "rf",
-                "affine")
+                "affine", "corners")
 INT_FIELDS = ("gid", "mat", "patch")
 #: fields only the runs that need them carry (elsewhere zero rows, never moved or stored):
-#: ``affine`` under APIC
-OPTIONAL_FIELDS = ("affine",)
+#: ``affine`` under APIC, ``corners`` under cpdi2
+OPTIONAL_FIELDS = ("affine", "corners")
 
 
 class Particles:
@@ -48,6 +50,7 @@ class Particles:
         self.r0 = np.zeros((n, d, d))
         self.rf = np.zeros((n, d, d))
         self.affine = np.zeros((n if "affine" in optional else 0, d, d))
+        self.corners = np.zeros((n if "corners" in optional else 0, 1 << d, d))
         self.patch = np.zeros(n, np.int64)
         self.start = np.zeros(1, np.int64)
 

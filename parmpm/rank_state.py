@@ -41,7 +41,8 @@ from parmpm.scene import scene_from_toml
 from parmpm.scene_schema import DEFAULT_PATCH_SIZE
 from parmpm.schedule import Clock
 from parmpm.seeding import seed_bodies
-from parmpm.shapes import CPDI, INTERPOLATORS
+from parmpm.shapes import CAPPED, CPDI2, INTERPOLATORS
+from parmpm.shapes.cpdi2 import affine_corners
 from parmpm.stepper import Stepper
 from parmpm.transfer import max_speed
 
@@ -56,7 +57,7 @@ class RankState:
     scene: object
     comm: object
     interp: object            # the interpolator's registry entry (name, code, ghost width)
-    lcr: float | None         # the CPDI cap (None: not CPDI)
+    lcr: float | None         # the CPDI/CPDI2 cap (None: neither, or no cap)
     update: str               # "usl" or "musl"
     disc: Discretisation
     params: np.ndarray        # material table
@@ -91,8 +92,11 @@ class RankState:
 
 def carried_fields(data: dict) -> tuple[str, ...]:
     """The optional particle fields (:data:`parmpm.particles.OPTIONAL_FIELDS`) a resolved scene
-    needs: ``affine`` under APIC."""
-    return ("affine",) if data["method"]["transfer"] == "apic" else ()
+    needs: ``affine`` under APIC, ``corners`` under cpdi2."""
+    method = data["method"]
+    return tuple(k for k, used in (("affine", method["transfer"] == "apic"),
+                                   ("corners", INTERPOLATORS[method["interpolator"]].code == CPDI2))
+                 if used)
 
 
 def set_up(scene, comm, checkpoint=None) -> RankState:
@@ -101,7 +105,7 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     data = scene.data
     d = data["dim"]
     interp = INTERPOLATORS[data["method"]["interpolator"]]
-    lcr = scene.lcr if interp.code == CPDI else None
+    lcr = scene.lcr if interp.code in CAPPED else None
     ghost = data["grid"]["ghost"]
     if ghost == "auto":
         ghost = interp.ghost_width(lcr, scene.min_dx)
@@ -114,9 +118,12 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     D = Discretisation.from_grid(d, interp.code, lcr, grid, int(ghost), exterior)
     params, names = material_table(data["materials"])
     P, patches, n_total, metrics = _particles(data, comm, D, params, names, checkpoint)
+    had = P.optional
     P.carry(carried_fields(data))  # a checkpoint of an older format may lack one: zeros
+    if "corners" in P.optional and "corners" not in had:  # e.g. a cpdi run continued as cpdi2
+        P.corners[:] = affine_corners(P.F, P.r0)
     m = data["method"]
-    update = m["update"] if m["update"] != "auto" else ("usl" if interp.code == CPDI else "musl")
+    update = m["update"] if m["update"] != "auto" else ("usl" if interp.code in CAPPED else "musl")
     bc, region_box, region_normal = _boundary(data, d)
     stepper = Stepper(D, P, patches, params, bc, region_box, update, m.get("flip", 1.0),
                       data["damping"]["coefficient"], n_total, region_normal, m["transfer"])
@@ -218,6 +225,8 @@ def _seeded(data, comm, D, params, names):
                         carried_fields(data))
     if man:
         manufactured.initialise(P, man["amplitude"], params)
+        if "corners" in P.optional:  # the domains of the initial F
+            P.corners[:] = affine_corners(P.F, P.r0)
     locate_patches(d, P.x, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
                    layout.patches_per_axis, P.patch, P.patch)
     metrics = make_metrics(data, P.x0, P.mass, comm, P.gid)

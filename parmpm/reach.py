@@ -9,7 +9,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from parmpm.shapes import BSPLINE, CPDI, CPGIMP, MPM
+from parmpm.shapes import BSPLINE, CPDI, CPDI2, CPGIMP, MPM
+from parmpm.shapes.cpdi2 import SCRATCH_SHAPE, cap_corners, domain_weights
 from parmpm.shapes.scaling import longest_corner
 from parmpm.shapes.support import domain_matrix
 
@@ -34,6 +35,8 @@ def support_reach(stepper: Stepper, i: int) -> tuple[float, bool]:
         R = np.zeros((3, 3))
         domain_matrix(D.dim, D.method, D.lcr, P.F[i], P.r0[i], R)
         reach = longest_corner(D.dim, R)
+    elif D.method == CPDI2:
+        reach = float(np.max(np.linalg.norm(capped_corners(stepper, i), axis=1)))
     elif D.method == CPGIMP:
         reach = float(np.max(P.lh0[i] * np.abs(np.diag(P.F[i]))))
     elif D.method in GRID_SUPPORT:
@@ -48,10 +51,13 @@ def support_reach(stepper: Stepper, i: int) -> tuple[float, bool]:
 
 def support_half_widths(stepper: Stepper, i: int) -> np.ndarray:
     """Half-extent per axis of particle ``i``'s support about its centre: the GIMP half-widths,
-    the bounding box of the CPDI corners ``x ± Σ_k |R_ak|`` (as interpolated, after scaling), or
-    the grid-sized support of the point methods (:data:`GRID_SUPPORT`)."""
+    the bounding box of the CPDI corners ``x ± Σ_k |R_ak|`` (as interpolated, after scaling; for
+    CPDI2 the largest ``|ĉ_αk|`` of its capped corners), or the grid-sized support of the point
+    methods (:data:`GRID_SUPPORT`)."""
     D, P = stepper.disc, stepper.P
     d = D.dim
+    if D.method == CPDI2:
+        return np.abs(capped_corners(stepper, i)).max(axis=0)
     if D.method == CPDI:
         R = np.zeros((3, 3))
         domain_matrix(d, D.method, D.lcr, P.F[i], P.r0[i], R)
@@ -61,6 +67,27 @@ def support_half_widths(stepper: Stepper, i: int) -> np.ndarray:
     if D.method in GRID_SUPPORT:
         return GRID_SUPPORT[D.method] * np.asarray(D.h[:d], float)
     return np.array(P.lh0[i], float)
+
+
+def capped_corners(stepper: Stepper, i: int) -> np.ndarray:
+    """Particle ``i``'s CPDI2 corners as interpolated (after the ``l_cr`` cap), (2^d, d)."""
+    d, sc = stepper.disc.dim, np.zeros(SCRATCH_SHAPE)
+    cap_corners(d, np.ascontiguousarray(stepper.P.corners[i]), stepper.disc.lcr, sc)
+    return sc[:1 << d, :d].copy()
+
+
+def inverted_message(stepper: Stepper, i: int, phase: str) -> str:
+    """The one-line explanation of a CPDI2 particle whose domain has turned inside out (its
+    capped corners enclose a volume <= 0, or a corner is not finite)."""
+    P, d = stepper.P, stepper.disc.dim
+    sc = np.zeros(SCRATCH_SHAPE)
+    sc[:1 << d, :d] = capped_corners(stepper, i)
+    vol = domain_weights(d, sc)
+    size = {1: "length", 2: "area"}.get(d, "volume")
+    return (f"domain of particle {P.gid[i]} at {fmt_vec(P.x[i])} inverted in {phase} (its "
+            f"corners, as interpolated, span a signed {size} of {vol:.4g}, not positive: the "
+            "grid velocity turned it inside out); reduce time.cfl, refine the grid or cap the "
+            "corners with method.lcr")
 
 
 def reach_message(stepper: Stepper, i: int, phase: str) -> str:

@@ -44,12 +44,12 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   about the box centre in the x-y plane; default none): turns the box, its particle lattice and
   its CPDI domains (GIMP domains stay axis-aligned). Every body's (turned) bounding box lies
   inside the grid.
-* ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi" | "bspline", default
-  "cpdi"), ``lcr``
+* ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi" | "bspline" | "cpdi2",
+  default "cpdi"), ``lcr``
   (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none", at most the largest
-  cell count or 64 cells, whichever is more; default "2dx" for cpdi,
+  cell count or 64 cells, whichever is more; default "2dx" for cpdi and cpdi2,
   "none" otherwise, and any other value is an error with another interpolator), ``update``
-  ("auto" | "usl" | "musl", default "auto": USL for cpdi, whose domains then keep tiling the body exactly, MUSL for the others, which USL destabilises through nearly empty nodes — see README), ``flip`` (0..1, default 1.0;
+  ("auto" | "usl" | "musl", default "auto": USL for cpdi and cpdi2, whose domains then keep tiling the body exactly, MUSL for the others, which USL destabilises through nearly empty nodes — see README), ``flip`` (0..1, default 1.0;
   not with APIC), ``transfer`` ("flip" | "apic", default "flip"; "apic" needs "bspline":
   :mod:`parmpm.affine`).
 * ``[gravity]``: ``g`` (default 0), ``ramp_time`` (>= 0 s, default 0: applied suddenly).
@@ -141,9 +141,9 @@ class Scene:
 
     @property
     def lcr(self) -> float | None:
-        """CPDI domain-scaling length l_cr in metres; None unless cpdi with scaling."""
+        """CPDI domain-scaling length l_cr in metres; None unless cpdi or cpdi2 with scaling."""
         method = self.data["method"]
-        if method["interpolator"] != "cpdi":
+        if method["interpolator"] not in ("cpdi", "cpdi2"):
             return None
         return lcr_length(method["lcr"], self.min_dx)
 

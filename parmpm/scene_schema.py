@@ -37,7 +37,7 @@ from parmpm.shapes import INTERPOLATORS
 from parmpm.update_order import UPDATES as _UPDATE_ORDERS
 
 DIMS = (1, 2, 3)
-UPDATES = ("auto", *_UPDATE_ORDERS)  # "auto": USL for cpdi, MUSL for the others
+UPDATES = ("auto", *_UPDATE_ORDERS)  # "auto": USL for cpdi and cpdi2, MUSL for the others
 BOUNDARY_KINDS = ("fixed", "slip", "free")
 
 TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method", "gravity",
@@ -60,6 +60,8 @@ CHECKPOINT_KEYS = ("every_steps", "every", "wall_minutes", "keep", "at_end", "ra
 
 DEFAULT_PATCH_SIZE = {1: 64, 2: 64, 3: 16}  # measured: see README "Throughput"
 DEFAULT_LCR = "2dx"
+#: the interpolators that cap their domains at ``method.lcr`` (default :data:`DEFAULT_LCR`)
+LCR_INTERPOLATORS = ("cpdi", "cpdi2")
 
 # ---------------------------------------------------------------- sections
 
@@ -234,7 +236,7 @@ def _method(c: _Checker, raw: Any, min_dx: float, max_cells: float = math.inf) -
     interp = c.choice("method.interpolator", t.get("interpolator", "cpdi"), tuple(INTERPOLATORS))
     lcr = t.get("lcr")
     if lcr is None:
-        lcr = DEFAULT_LCR if interp == "cpdi" else "none"
+        lcr = DEFAULT_LCR if interp in LCR_INTERPOLATORS else "none"
     try:
         length = lcr_length(lcr, min_dx)
     except ValueError as exc:
@@ -243,8 +245,8 @@ def _method(c: _Checker, raw: Any, min_dx: float, max_cells: float = math.inf) -
         c.fail("method.lcr", f"{show(lcr)} is {length / min_dx:g} cells long, more than the grid "
                              f"spans or a ghost layer may be wide ({max_cells} cells): use "
                              "\"none\" for no cap, or a shorter length")
-    if interp != "cpdi" and length is not None:
-        c.fail("method.lcr", f'only used by interpolator "cpdi", got {show(lcr)} with '
+    if interp not in LCR_INTERPOLATORS and length is not None:
+        c.fail("method.lcr", f'only used by interpolators "cpdi" and "cpdi2", got {show(lcr)} with '
                              f'interpolator "{interp}" (leave it out or set it to "none")')
     if not isinstance(lcr, str):
         lcr = float(lcr)

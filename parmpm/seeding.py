@@ -26,6 +26,7 @@ from decomposition.boxes import patch_of_coordinate
 from parmpm.errors import SceneError, SimulationError
 from parmpm.particles import Particles, locate_patches
 from parmpm.reach import fmt_vec
+from parmpm.shapes.cpdi2 import affine_corners
 
 #: lattice points per block (a multiple of ALIGN)
 BLOCK = 1 << 16
@@ -354,6 +355,8 @@ class Seeds:
             P.mat[s] = row
             P.lh0[s] = 0.5 * spacing
             P.r0[s] = np.diag(0.5 * spacing) if turn is None else turn * (0.5 * spacing)
+            if "corners" in P.optional:  # CPDI2: the corners of the domain R0 (F = I)
+                P.corners[s] = affine_corners(P.F[s], P.r0[s])
             first += len(src)
         return P
 

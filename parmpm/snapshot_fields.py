@@ -7,7 +7,8 @@ group's lead, who writes them; the datasets carry the units and descriptions of
 :func:`field_info`.
 
 The domains (``output.domains``) are the corners :func:`parmpm.domains.domain_corners` gives:
-the domains the interpolation uses, i.e. CPDI's ``R = F·r0`` after the ``l_cr`` cap, the
+the domains the interpolation uses, i.e. CPDI's ``R = F·r0`` after the ``l_cr`` cap (CPDI2: its
+tracked corners after the cap), the
 cpGIMP/uGIMP boxes, or MPM's nominal box. A frozen CPDI domain (:mod:`parmpm.shapes.freeze`)
 needs nothing more: the freeze resets ``r0`` after every deformation update so that ``F·r0`` is
 the frozen domain, which is what every kernel and ``domain_corners`` read.
@@ -53,6 +54,6 @@ def snapshot_fields(sim) -> dict:
               "rank": np.full(P.n, s.rank, np.int32), "gid": P.gid.astype(np.int64)}
     if sim.data["output"]["domains"]:
         fields["domains"] = domains.domain_corners(d, s.disc.method, s.disc.lcr, P.x, P.F,
-                                                   P.r0, P.lh0)
+                                                   P.r0, P.lh0, P.corners)
     fields["step"] = int(sim.nstep)
     return fields

@@ -29,8 +29,9 @@ from parmpm.kernels2d import KERNELS_2D
 from parmpm.kernels3d import KERNELS_3D
 from parmpm.materials import COL_DAMAGE
 from parmpm.particles import Particles, locate_patches
-from parmpm.reach import fmt_vec, grid_extent, reach_message
-from parmpm.shapes import CPDI
+from parmpm.reach import fmt_vec, grid_extent, inverted_message, reach_message
+from parmpm.shapes import CAPPED
+from parmpm.shapes.cpdi2 import INVERTED
 from parmpm.shapes.freeze import freeze_domains
 from parmpm.transfer import g2p, p2g, p2g_momentum
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
@@ -62,7 +63,7 @@ class Stepper:
         self.region_ranges = region_node_ranges(regions, disc.origin3, disc.h3, disc.dim)
         self.comm = patches.comm
         self.n_total = n_total
-        self.err = np.full(1, -1, np.int64)
+        self.err = np.full(2, -1, np.int64)  # (first particle in error, its support's code)
         mmin = float(particles.mass.min(initial=np.inf))
         mmin = float(allreduce_max(self.comm, np.array([-mmin]))[0])
         self.mass_eps = 1e-12 * (-mmin if math.isfinite(mmin) else 1.0)
@@ -74,8 +75,9 @@ class Stepper:
         self.migrated = 0
         self._new_patch = np.zeros(0, np.int64)
         self._located = None                # (first particle off the grid, moved) from G2P
-        #: damage-triggered CPDI domain freeze (parmpm.shapes.freeze): CPDI and a damage model
-        self.freezing = bool(disc.method == CPDI and np.any(params[:, COL_DAMAGE] != 0))
+        #: damage-triggered CPDI domain freeze (parmpm.shapes.freeze): CPDI or CPDI2 and a
+        #: damage model
+        self.freezing = bool(disc.method in CAPPED and np.any(params[:, COL_DAMAGE] != 0))
         self.frozen = 0
         lay = disc.layout
         self._loc, self._inv_psize = lay.locator()
@@ -122,7 +124,8 @@ class Stepper:
         particle arrays (rebuilt per call: migration replaces the arrays)."""
         D, P = self.disc, self.P
         boxes = Boxes(P.start, D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3, D.inv_h3)
-        fields = Fields(P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress, P.dx, P.affine)
+        fields = Fields(P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress, P.dx, P.affine,
+                        P.corners, P.rf)
         return Method(D.method, D.dim, D.lcr, self.apic), boxes, fields
 
     def _fail(self, i: int, message: str) -> None:
@@ -132,10 +135,11 @@ class Stepper:
             self.error_key = (int(self.P.patch[i]), int(self.P.gid[i]))
 
     def _check(self, phase: str) -> None:
-        i = int(self.err[0])
+        i, code = (int(c) for c in self.err)
         if i >= 0:
-            self.err[0] = -1
-            self._fail(i, reach_message(self, i, phase))
+            self.err[:] = -1
+            self._fail(i, inverted_message(self, i, phase) if code == INVERTED
+                       else reach_message(self, i, phase))
 
     def grid_records(self) -> tuple[OwnedNodes, Constraints]:
         """The grid update's records: the owned nodes of every patch slot, the constraints."""

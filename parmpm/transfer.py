@@ -16,8 +16,16 @@ Under APIC (``how.apic``, :mod:`parmpm.affine`) the momentum scattered is the pa
 field at the node, ``m_p φ_ip (v_p + C_p (x_i − x_p))``, and G2P sets ``v_p = Σ φ v_i`` and
 ``C_p = Σ φ v_i ⊗ (x_i − x_p) D_p⁻¹`` with the B-spline's ``D_p⁻¹ = diag(4/Δx_k²)``.
 
+Under cpdi2 (:mod:`parmpm.shapes.cpdi2`) G2P also moves the particle's tracked corners with the
+grid, after the particle's motion: ``c_α ← c_α + Δt (v(x_p + ĉ_α) − v_move)``, ``v(y) = Σ_i S_i(y)
+v_i`` the linear hat of the grid velocity, ``ĉ_α`` the corner as interpolated (after the ``l_cr``
+cap) and ``v_move = Σ φ v_i`` the velocity that moved the particle (MUSL: in the motion pass). A
+frozen particle's (``rf ≠ 0``, :mod:`parmpm.shapes.freeze`) corners no longer move relative to it
+(docs/cpdi2.md).
+
 A support that leaves the grid or the ghost layer sets ``err[0]`` (the first such particle) and
-that particle is skipped: the step still ends on every rank, and the caller stops the run.
+``err[1]`` its return code (-1 reach, -2 an inverted cpdi2 domain), and that particle is skipped:
+the step still ends on every rank, and the caller stops the run.
 
 Each public kernel allocates its scratch and hands it to a ``@loop_kernel`` body (``_*_loop``)
 that runs the particle loop without reference counting (see :mod:`parmpm.jit`). The hot bodies
@@ -34,6 +42,9 @@ from parmpm.jit import DIMS, helper_kernel, kernel, loop_kernel
 from parmpm.kinematics import det_d, flip_pic, update_F
 from parmpm.materials.damage import damage_update
 from parmpm.materials.laws import cauchy_stress, wave_speed
+from parmpm.shapes import CPDI2
+from parmpm.shapes.cpdi2 import SCRATCH_SHAPE
+from parmpm.shapes.hat import hat_axis
 from parmpm.shapes.support import domain_matrix, particle_support
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 
@@ -43,7 +54,8 @@ def _scratch(nloc, d):
     """Per-call scratch of the particle loops: ``R, C`` (CPDI domain and cofactor), ``xi`` (grid
     coordinates), the per-axis rows ``nk, jk, wk, dwk`` of :func:`particle_support`, its entries
     ``idx, w, g``, ``Lg, Fn`` (velocity gradient and new F in G2P) and ``r`` (each entry's node
-    minus the particle, physical units: APIC)."""
+    minus the particle, physical units: APIC), ``sc`` (cpdi2's capped corners and weights) and
+    ``vm`` (the velocity that moved the particle: cpdi2's corner update)."""
     M = max(nloc[0], nloc[1], nloc[2], 4)
     K = 64
     prod = 1
@@ -53,7 +65,8 @@ def _scratch(nloc, d):
     return (np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3), np.zeros(3, np.int64),
             np.zeros((3, M), np.int64), np.zeros((3, M)), np.zeros((3, M)),
             np.zeros(K, np.int64), np.zeros(K), np.zeros((K, 3)),
-            np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((K, 3)))
+            np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((K, 3)), np.zeros(SCRATCH_SHAPE),
+            np.zeros(3))
 
 
 @helper_kernel
@@ -105,18 +118,58 @@ def _affine_gather(d, n, gvel, p, inv_h, vi, Ci, scratch):
 def _entries(method, d, lcr, boxes, fields, i, p, err, scratch):
     """Particle ``i``'s (node, weight, gradient) entries in the scratch's ``idx, w, g`` for the
     node box of slot ``p``; their count, or -1 (noted in ``err``) when its support leaves the
-    grid or the ghost layer."""
-    R, C, xi, nk, jk, wk, dwk, idx, w, g, _, _, _ = scratch
+    grid or the ghost layer, -2 (cpdi2: an inverted domain); a negative count is noted in
+    ``err`` (particle, code) for the first such particle."""
+    R, C, xi, nk, jk, wk, dwk, idx, w, g, _, _, _, sc, _ = scratch
     x, F = fields.x, fields.F
     origin, inv_h = boxes.origin, boxes.inv_h
     for k in range(d):
         xi[k] = (x[i, k] - origin[k]) * inv_h[k]
     domain_matrix(d, method, lcr, F[i], fields.r0[i], R)
     n = particle_support(method, d, xi, F[i], fields.lh0[i], R, C, boxes.base[p], boxes.nloc,
-                         boxes.nglob, inv_h, nk, jk, wk, dwk, idx, w, g)
+                         boxes.nglob, inv_h, nk, jk, wk, dwk, idx, w, g, fields.corners, i, lcr,
+                         sc)
     if n < 0 and err[0] < 0:
         err[0] = i
+        err[1] = n
     return n
+
+
+@helper_kernel
+def _move_corners(d, dt, gvel, p, base, nloc, nglob, inv_h, c, scratch):
+    """cpdi2: ``c_α += Δt (v(x_p + ĉ_α) − v_move)`` for the particle whose capped corners ``ĉ``
+    :func:`_entries` left in the scratch (``sc``), ``v(y) = Σ_i S_i(y) v_i`` the linear hat of
+    the grid velocity ``gvel`` of slot ``p`` (node box at ``base``; ``c`` the particle's
+    corners, the scratch's ``vm`` its ``v_move``). The capped corners' nodes are in the box: the
+    support held them."""
+    xi, jk, wk, dwk, sc, vm = scratch[2], scratch[4], scratch[5], scratch[6], scratch[13], scratch[14]
+    L0, L1 = nloc[0], nloc[1]
+    n1 = 2 if d > 1 else 1
+    n2 = 2 if d > 2 else 1
+    for alpha in range(1 << d):
+        for k in range(d):
+            hat_axis(xi[k] + sc[alpha, k] * inv_h[k], base[k], nloc[k], nglob[k], inv_h[k],
+                     jk, wk, dwk, k)
+        for a in range(d):
+            s = 0.0
+            for i2 in range(n2):
+                w2 = wk[2, i2] if d > 2 else 1.0
+                o2 = jk[2, i2] if d > 2 else 0
+                for i1 in range(n1):
+                    w1 = wk[1, i1] if d > 1 else 1.0
+                    o1 = jk[1, i1] if d > 1 else 0
+                    for i0 in range(2):
+                        s += wk[0, i0] * w1 * w2 * gvel[p, jk[0, i0] + L0 * (o1 + L1 * o2), a]
+            c[alpha, a] += dt * (s - vm[a])
+
+
+@helper_kernel
+def _frozen(d, rf):
+    """A frozen domain (:mod:`parmpm.shapes.freeze`): ``rf`` not zero."""
+    for a in range(d):
+        if rf[a, 0] != 0.0:
+            return True
+    return False
 
 
 @kernel
@@ -226,7 +279,9 @@ def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scra
     affine = fields.affine
     mat, params, damage = material
     gvel, gdv = grid
-    idx, w, g, Lg, Fn = scratch[7], scratch[8], scratch[9], scratch[10], scratch[11]
+    idx, w, g, Lg, Fn, vm = scratch[7], scratch[8], scratch[9], scratch[10], scratch[11], scratch[14]
+    corners, rf = fields.corners, fields.rf
+    tracked = method == CPDI2
     vmax = 0.0
     for p in range(start.size - 1):
         for i in range(start[p], start[p + 1]):
@@ -254,6 +309,10 @@ def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scra
                     else:
                         dx[i, a] = dt * vi
                     v[i, a] = flip_pic(flip, v[i, a], dvi, vi)
+                    vm[a] = vi
+                if tracked and not _frozen(d, rf[i]):
+                    _move_corners(d, dt, gvel, p, boxes.base[p], boxes.nloc, boxes.nglob,
+                                  boxes.inv_h, corners[i], scratch)
             if mode == G2P_MUSL_MOTION:
                 continue
             for a in range(d):
@@ -314,6 +373,7 @@ def _support_nodes_loop(how, boxes, fields, nodes, count, err, scratch):
                 if c >= nodes.shape[1]:  # more than the ghost layer allows: the reach error
                     if err[0] < 0:
                         err[0] = i
+                        err[1] = -1
                     break
                 loc = idx[e]
                 i0 = loc % nloc[0]

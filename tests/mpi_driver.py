@@ -3,7 +3,8 @@
     mpirun -n 3 python tests/mpi_driver.py OUT_DIR CASES_JSON
 
 ``CASES_JSON`` maps a case name to ``[scene, [overrides...]]``. For each case, rank 0 writes
-``OUT_DIR/<case>.npz`` holding gid, x, v, F, stress (global-id order) and the summary as JSON.
+``OUT_DIR/<case>.npz`` holding gid, x, v, F, stress, damage (and cpdi2's corners; global-id
+order) and the summary as JSON.
 """
 import json
 import sys
@@ -25,8 +26,11 @@ def main() -> None:
         sim = Simulation(load_scene(scene, overrides), out / name, quiet=True, comm=comm)
         summary = sim.run()
         P = sim.particles
-        g = sim.gather({"gid": P.gid, "x": P.x, "v": P.v, "F": P.F, "stress": P.stress,
-                        "damage": P.damage})
+        fields = {"gid": P.gid, "x": P.x, "v": P.v, "F": P.F, "stress": P.stress,
+                  "damage": P.damage}
+        if "corners" in P.optional:  # cpdi2's tracked corners
+            fields["corners"] = P.corners
+        g = sim.gather(fields)
         if comm.Get_rank() == 0:
             np.savez(out / f"{name}.npz", summary=json.dumps(summary), **g)
 

@@ -4,7 +4,11 @@ import numpy as np
 from decomposition import PatchLayout
 from parmpm.kernel_records import kernel_lcr
 from parmpm.shapes import CPDI
+from parmpm.shapes.cpdi2 import SCRATCH_SHAPE
 from parmpm.shapes.support import domain_matrix, particle_support
+
+#: the empty ``corners`` field of a run without cpdi2, per dimension
+NO_CORNERS = {d: np.zeros((0, 1 << d, d)) for d in (1, 2, 3)}
 
 
 def entries(method, d, x, F=None, lh0=None, r0=None, lcr=None, h=None, cells=12, ghost=3, jit=True):
@@ -42,7 +46,8 @@ def _entries(method, d, x, F, lh0, r0, lcr, h, lay, base, jit):
     dm = domain_matrix if jit else domain_matrix.py_func
     ps = particle_support if jit else particle_support.py_func
     dm(d, method, kernel_lcr(lcr), F, r0, R)
-    n = ps(method, d, xi, F, lh0, R, C, base, nloc, nglob, inv_h, nk, jk, wk, dwk, idx, w, g)
+    n = ps(method, d, xi, F, lh0, R, C, base, nloc, nglob, inv_h, nk, jk, wk, dwk, idx, w, g,
+           NO_CORNERS[d], 0, kernel_lcr(lcr), np.zeros(SCRATCH_SHAPE))
     if n < 0:
         return None
     loc = idx[:n]

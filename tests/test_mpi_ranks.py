@@ -38,6 +38,9 @@ def _cases() -> dict:
                                                    "time.steps=40"]]
     # two patches only: on 3 and 4 ranks some ranks hold nothing; with snapshots and figure on
     cases["1d_cpdi_idle_ranks"] = ["hanging_bar_1d", ["grid.patch_size=16", "time.steps=30"]]
+    # CPDI2 (generic kernels): the tracked corners migrate with their particles
+    cases["2d_cpdi2"] = ["hanging_bar", OFF + ["method.interpolator=cpdi2", "grid.patch_size=4",
+                                               "time.steps=40"]]
     # the quadratic B-spline (generic kernels): one 2D case
     cases["2d_bspline"] = ["hanging_bar", OFF + ["method.interpolator=bspline", "grid.patch_size=4",
                                                  "time.steps=40"]]
@@ -97,7 +100,8 @@ def runs(tmp_path_factory):
 
 def _load(folder: Path, case: str):
     data = np.load(folder / f"{case}.npz")
-    return {k: data[k] for k in FIELDS}, json.loads(str(data["summary"]))
+    extra = ("corners",) if "corners" in data else ()  # cpdi2 runs
+    return {k: data[k] for k in FIELDS + extra}, json.loads(str(data["summary"]))
 
 
 @pytest.mark.parametrize("case", list(CASES))
@@ -108,7 +112,8 @@ def test_bit_identical_on_1_to_4_ranks(runs, case):
         got, summary = _load(runs[n], case)
         assert summary["ranks"] == n
         assert sum(summary["decomposition"]["particles_per_rank"]) == ref["gid"].size
-        for k in FIELDS:
+        assert got.keys() == ref.keys()
+        for k in ref:
             np.testing.assert_array_equal(got[k], ref[k], err_msg=f"{case}: {k} differs on {n} ranks")
         assert summary["metrics"] == ref_summary["metrics"], f"{case}: metrics differ on {n} ranks"
         assert summary["final"] == ref_summary["final"], f"{case}: totals differ on {n} ranks"
@@ -124,6 +129,13 @@ def test_damage_cases_damage(runs):
     assert ref["damage"].max() >= 0.3  # some domains froze
     ref, summary = _load(runs[1], "2d_tension_bar")
     assert ref["damage"].max() == 1.0 and summary["metrics"]["separated"]
+
+
+def test_cpdi2_case_compares_its_corners(runs):
+    """The cpdi2 case's tracked corners are saved (and so compared above), and they moved."""
+    ref, _ = _load(runs[1], "2d_cpdi2")
+    assert ref["corners"].shape == (ref["gid"].size, 4, 2)
+    assert np.abs(np.abs(ref["corners"]) - np.abs(ref["corners"]).min()).max() > 1e-3
 
 
 def test_set_up_without_metrics_is_the_same_run(runs):

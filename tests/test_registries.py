@@ -13,7 +13,7 @@ from parmpm.errors import SceneError
 from parmpm.materials import MODELS
 from parmpm.metrics import (METRIC_KINDS, NO_METRICS, make_metrics, metric_names, register_metrics,
                             separation_kinds)
-from parmpm.shapes import (BSPLINE, CPDI, CPGIMP, INTERPOLATORS, MPM, UGIMP,
+from parmpm.shapes import (BSPLINE, CPDI, CPDI2, CPGIMP, INTERPOLATORS, MPM, UGIMP,
                            UNBOUNDED_DEFAULT_GHOST, interpolator_names, interpolator_table)
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -46,7 +46,7 @@ def test_interpolator_codes_are_the_kernels_codes():
     assert (support.MPM, support.CPGIMP, support.CPDI) == (MPM, CPGIMP, CPDI)  # the registry's
     assert {n: i.code for n, i in INTERPOLATORS.items()} == {"mpm": MPM, "ugimp": UGIMP,
                                                              "cpgimp": CPGIMP, "cpdi": CPDI,
-                                                             "bspline": BSPLINE}
+                                                             "bspline": BSPLINE, "cpdi2": CPDI2}
     for name, interp in INTERPOLATORS.items():
         assert interp.name == name and interp.summary and interp.weight
 
@@ -56,7 +56,7 @@ def test_interpolator_codes_are_the_kernels_codes():
 def test_ghost_widths(lcr, min_dx, cpdi):
     widths = {n: i.ghost_width(lcr, min_dx) for n, i in INTERPOLATORS.items()}
     assert widths == {"mpm": 0, "ugimp": 1, "cpgimp": UNBOUNDED_DEFAULT_GHOST, "cpdi": cpdi,
-                      "bspline": 1}
+                      "bspline": 1, "cpdi2": cpdi}
     for interp in INTERPOLATORS.values():
         if not interp.bounded:
             assert interp.ghost_width(lcr, min_dx) == UNBOUNDED_DEFAULT_GHOST

@@ -41,6 +41,7 @@ Schema of a data file (a part, format ``parmpm-checkpoint-part``, or a one-write
     /particles/mass, vol0, damage   (n,) float64
     /particles/F, stress, r0, rf    (n, dim, dim) float64 (rf: frozen CPDI domain, 0 = none)
     /particles/affine               (n, dim, dim) float64 (APIC's C_p; 0 under FLIP)
+    /particles/corners              (n, 2^dim, dim) float64 (CPDI2's corners; cpdi2 runs only)
     /segments                       (K+1,) int64 offsets of the digest segments
     /digests/<field>                (K, 32) uint8: SHA-256 of each segment
     part attrs: format, version, part, parts, first_row, rows, step, lineage, block_rows,
@@ -72,11 +73,11 @@ PART_FORMAT = "parmpm-checkpoint-part"
 VERSION = 5
 #: stored particle fields (``dx`` is MUSL scratch, ``patch`` is derived from ``x``)
 FIELDS = ("gid", "mat", "x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage",
-          "rf", "affine")
+          "rf", "affine", "corners")
 
 
 #: fields a checkpoint holds only when the run carries them (:data:`parmpm.particles.OPTIONAL_FIELDS`)
-OPTIONAL = ("affine",)
+OPTIONAL = ("affine", "corners")
 
 
 def required_fields(version: int) -> tuple[str, ...]:

@@ -162,7 +162,7 @@ def _check_fields(f, where: str, n: int, d: int, names) -> dict:
     """``particles/<field>`` of ``f``: every field of ``names`` there, and the optional ones
     it holds, of shape (n, ...) and its type."""
     tails = {"x": (d,), "v": (d,), "x0": (d,), "lh0": (d,), "F": (d, d), "stress": (d, d),
-             "r0": (d, d), "rf": (d, d), "affine": (d, d)}
+             "r0": (d, d), "rf": (d, d), "affine": (d, d), "corners": (1 << d, d)}
     g = f.get("particles")
     if g is None:
         raise ParmpmError(f"{where}: damaged: missing particles group")
@@ -357,7 +357,7 @@ class CheckpointReader:
 
     def has(self, name: str) -> bool:
         """Whether the file holds ``particles/name`` (version 1 files have no ``rf``, versions
-        before 5 no ``affine``)."""
+        before 5 no ``affine``; ``affine`` and ``corners`` only when the run carried them)."""
         return name in self._datasets
 
     def read(self, name: str, lo: int = 0, hi: int | None = None) -> np.ndarray:

@@ -62,7 +62,8 @@ class RotationMetrics(History):
         n = np.shape(gid)[0]
         x, v = as_points(x, n, 2), as_points(v, n, 2)
         _, m = self.reference(gid, particles)
-        size = domain_sizes(2, method, lcr, F, particles.r0, particles.lh0)
+        size = domain_sizes(2, method, lcr, F, particles.r0, particles.lh0,
+                            getattr(particles, "corners", None))
         size0 = np.prod(2.0 * particles.lh0, axis=1)
         r = x - self.centre
         spin = 0.0

@@ -13,9 +13,9 @@ patch cell, so a support reaching ``r`` grid units from the centre touches nodes
 * ``ugimp``: half-width ``Δx/(2·ppc) ≤ Δx/2`` → 1;
 * ``bspline``: support half-width 3/2 cells, so the nodes ``c ± 1`` around the nearest node ``c``
   of a centre in a patch cell lie at most one cell outside the patch → 1;
-* ``cpdi`` with domain scaling: corners within ``l_cr`` → ``⌈l_cr / min Δx⌉`` (2 for the default
-  ``l_cr = 2·min Δx``: the seed's point);
-* ``cpgimp`` and unscaled ``cpdi``: unbounded (domains follow F), so 2 by default, a larger
+* ``cpdi`` and ``cpdi2`` with domain scaling: corners within ``l_cr`` → ``⌈l_cr / min Δx⌉`` (2 for
+  the default ``l_cr = 2·min Δx``: the seed's point);
+* ``cpgimp`` and unscaled ``cpdi``/``cpdi2``: unbounded (domains follow F), so 2 by default, a larger
   ``grid.ghost`` on request, and a reach check every step that stops the run cleanly.
 
 To add an interpolator: its per-axis or per-particle weights in a module beside
@@ -29,7 +29,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 #: the kernels' interpolator codes (:func:`parmpm.shapes.support.particle_support` switches on them)
-MPM, UGIMP, CPGIMP, CPDI, BSPLINE = 0, 1, 2, 3, 4
+MPM, UGIMP, CPGIMP, CPDI, BSPLINE, CPDI2 = 0, 1, 2, 3, 4, 5
 
 UNBOUNDED_DEFAULT_GHOST = 2
 
@@ -90,11 +90,18 @@ INTERPOLATORS = {i.name: i for i in (
                  "IJNME 76:922-948)",
                  "quadratic B-spline at the particle centre, C¹ (no cell-crossing jump)", "3^d", "1",
                  True, _one_cell),
+    Interpolator("cpdi2", CPDI2,
+                 "CPDI2 (Sadeghirad, Brannon & Guilkey 2013): tracked corners, optional l_cr cap",
+                 "CPDI2: `φ = Σ_α wf_α S_i(x_α)` over the 2^d tracked corners (docs/cpdi2.md)",
+                 "up to 4^d", "`⌈l_cr/min Δx⌉`", True, _capped_at_lcr),
 )}
+
+#: the interpolators whose domains are capped at ``l_cr`` (``method.lcr``; default ``"2dx"``)
+CAPPED = (CPDI, CPDI2)
 
 
 def interpolator_names() -> str:
-    """``"mpm, ugimp, cpgimp, cpdi, bspline"``: the registered names, for help texts."""
+    """``"mpm, ugimp, cpgimp, cpdi, bspline, cpdi2"``: the registered names, for help texts."""
     return ", ".join(INTERPOLATORS)
 
 
@@ -105,5 +112,5 @@ def interpolator_table() -> str:
     return "\n".join(rows)
 
 
-__all__ = ["INTERPOLATORS", "Interpolator", "MPM", "UGIMP", "CPGIMP", "CPDI", "BSPLINE",
+__all__ = ["INTERPOLATORS", "Interpolator", "MPM", "UGIMP", "CPGIMP", "CPDI", "BSPLINE", "CPDI2", "CAPPED",
            "UNBOUNDED_DEFAULT_GHOST", "interpolator_names", "interpolator_table"]

@@ -19,6 +19,8 @@ particle (ghost width ``⌈l_cr / min Δx⌉``, as CPDI1). The tracked corners a
 """
 import math
 
+import numpy as np
+
 from parmpm.jit import helper_kernel
 from parmpm.shapes.cpdi import cofactor_3d
 from parmpm.shapes.hat import hat_axis
@@ -32,6 +34,30 @@ WF, WG = 3, 4
 
 #: return codes of :func:`cpdi2_support` besides the entry count
 OUT_OF_BOX, INVERTED = -1, -2
+
+
+def corner_signs(d: int) -> np.ndarray:
+    """``s_αm`` (2^d, d): bit ``m`` of ``α`` set ↔ ``+1`` (the module's corner order)."""
+    return np.array([[1.0 if (a >> m) & 1 else -1.0 for m in range(d)] for a in range(1 << d)])
+
+
+def affine_corners(F: np.ndarray, r0: np.ndarray) -> np.ndarray:
+    """The corners ``c_α = F·R0·s_α`` (n, 2^d, d) of the parallelepiped domains ``F·R0`` (CPDI1's
+    corners, relative to the particle): CPDI2's corners at seeding. Plain sums, row by row (no
+    BLAS), so a particle's corners do not depend on which other particles are in the call."""
+    n, d = r0.shape[0], r0.shape[1]
+    R = np.zeros((n, d, d))
+    for a in range(d):
+        for b in range(d):
+            for k in range(d):
+                R[:, a, b] += F[:, a, k] * r0[:, k, b]
+    s = corner_signs(d)
+    out = np.zeros((n, 1 << d, d))
+    for al in range(1 << d):
+        for k in range(d):
+            for m in range(d):
+                out[:, al, k] += s[al, m] * R[:, k, m]
+    return out
 
 
 @helper_kernel

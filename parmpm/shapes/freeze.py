@@ -16,6 +16,10 @@ particle's ``r0`` is reset after each deformation update to ``r0 = F⁻¹·R_F·
 ``F·r0 = R_F·rf`` wherever a domain is formed (domain scaling by ``l_cr`` still applies on top).
 ``rf = 0`` marks a particle that is not frozen. Only particles whose material has a damage model
 are visited.
+
+CPDI2 (tracked corners, :mod:`parmpm.shapes.cpdi2`) freezes the same way here; its weights read
+neither ``r0`` nor ``rf``, but G2P stops moving a frozen particle's corners relative to it
+(:mod:`parmpm.transfer`; the choice is discussed in ``docs/cpdi2.md``).
 """
 import math
 

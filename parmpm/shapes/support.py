@@ -3,17 +3,19 @@
 ``particle_support`` dispatches on the interpolator's integer code (numba cannot cache kernels
 that take functions as arguments, so the registry in :mod:`parmpm.shapes` maps names to codes and
 this is the single switch). Tensor-product interpolators (mpm, ugimp, cpgimp, bspline) fill per-axis rows
-``(jk, wk, dwk)`` and are assembled here; cpdi writes its corner entries directly.
+``(jk, wk, dwk)`` and are assembled here; cpdi and cpdi2 write their corner entries directly.
 
 Entries: ``idx[e]`` flat local node index in the patch's ghost-inclusive box, ``w[e] = φ_ip``,
-``g[e, :] = ∇φ_ip`` (physical units). A return of -1 means the particle reaches a node outside the
-grid or beyond the patch's ghost layer.
+``g[e, :] = ∇φ_ip`` (physical units). A return of -1 (``OUT_OF_BOX``) means the particle reaches
+a node outside the grid or beyond the patch's ghost layer; -2 (``INVERTED``, cpdi2 only) that
+its domain's volume is not positive (:mod:`parmpm.shapes.cpdi2`).
 """
 from parmpm.jit import helper_kernel
 from parmpm.kernel_records import NO_SCALING
-from parmpm.shapes import BSPLINE, CPDI, CPGIMP, MPM
+from parmpm.shapes import BSPLINE, CPDI, CPDI2, CPGIMP, MPM
 from parmpm.shapes.bspline import bspline_axis
 from parmpm.shapes.cpdi import cpdi_support
+from parmpm.shapes.cpdi2 import INVERTED, OUT_OF_BOX, cpdi2_support  # noqa: F401 (re-exported)
 from parmpm.shapes.gimp import gimp_axis
 from parmpm.shapes.hat import mpm_axis
 from parmpm.shapes.scaling import scale_domain
@@ -64,13 +66,19 @@ def domain_matrix(d, method, lcr, F, r0, R):
 
 @helper_kernel
 def particle_support(method, d, xi, F, lh0, R, C, base, nloc, nglob, inv_h,
-                     nk, jk, wk, dwk, idx, w, g):
+                     nk, jk, wk, dwk, idx, w, g, corners, i, lcr, sc):
     """Entries of one particle; ``xi`` grid coordinates, ``F`` its deformation gradient, ``lh0``
-    its initial GIMP half-widths (physical), ``R`` its (already scaled) CPDI domain. Returns the
-    entry count or -1 (reach beyond the ghost layer / grid)."""
+    its initial GIMP half-widths (physical), ``R`` its (already scaled) CPDI domain;
+    ``corners[i]`` its CPDI2 corners (``corners`` the field of every particle: empty unless
+    cpdi2), capped at ``lcr`` into the scratch ``sc`` (:data:`parmpm.shapes.cpdi2.SCRATCH_SHAPE`,
+    where the capped corners stay for the caller). Returns the entry count, ``OUT_OF_BOX`` (-1:
+    reach beyond the ghost layer / grid) or ``INVERTED`` (-2: a cpdi2 domain of volume <= 0)."""
     if method == CPDI:
         return cpdi_support(d, xi, R, C, base, nloc, nglob, inv_h, nloc[0], nloc[1],
                             jk, wk, dwk, idx, w, g)
+    if method == CPDI2:
+        return cpdi2_support(d, xi, corners[i], lcr, base, nloc, nglob, inv_h, nloc[0], nloc[1],
+                             jk, wk, dwk, idx, w, g, sc)
     for k in range(d):
         if method == MPM:
             nk[k] = mpm_axis(xi[k], base[k], nloc[k], nglob[k], inv_h[k], jk, wk, dwk, k)
