@@ -129,7 +129,7 @@ VIB_CELLS = (8, 16, 32, 64)
 
 
 def lcr(method: str) -> list[str]:
-    return ["method.lcr=none"] if REGISTRY[method].interpolator == "cpdi" else []
+    return ["method.lcr=none"] if REGISTRY[method].interpolator in ("cpdi", "cpdi2") else []
 
 
 def chosen(method: str, methods) -> bool:

@@ -129,13 +129,14 @@ class Method:
 
     @property
     def title(self) -> str:
-        if self.interpolator != "cpdi":
+        if self.interpolator not in ("cpdi", "cpdi2"):
             name = {"mpm": "MPM", "ugimp": "uGIMP", "cpgimp": "cpGIMP",
                     "bspline": "B-spline"}[self.interpolator]
             return name + (" + APIC" if self.transfer == "apic" else "")
+        name = self.interpolator.upper()
         if self.lcr == "none":
-            return "CPDI, unscaled"
-        return f"CPDI, l_cr = {self.lcr.replace('dx', '·Δx')}"
+            return f"{name}, unscaled"
+        return f"{name}, l_cr = {self.lcr.replace('dx', '·Δx')}"
 
 
 METHODS = (
@@ -149,6 +150,8 @@ METHODS = (
     Method("cpdi_lcr2dx", "cpdi", "2dx"),
     Method("bspline", "bspline", "none"),
     Method("bspline_apic", "bspline", "none", "apic"),
+    Method("cpdi2", "cpdi2", "none"),
+    Method("cpdi2_lcr2dx", "cpdi2", "2dx"),
 )
 BY_LABEL = {m.label: m for m in METHODS}
 
@@ -258,7 +261,8 @@ class Watch:
         if sim.interp.name == "mpm":
             tops, reach, corner = P.x[:, axis], np.zeros(1), np.zeros(1)
         else:
-            corners = parmpm.domain_corners(d, sim.interp.code, sim.lcr, P.x, P.F, P.r0, P.lh0)
+            corners = parmpm.domain_corners(d, sim.interp.code, sim.lcr, P.x, P.F, P.r0, P.lh0,
+                                            corners=P.corners)
             tops = corners[:, :, axis].max(axis=1)
             reach = np.abs(corners - P.x[:, None, :]).max(axis=1) / sim.data["grid"]["cell_size"]
             corner = np.linalg.norm(corners - P.x[:, None, :], axis=2)

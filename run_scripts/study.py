@@ -63,6 +63,7 @@ METHODS = {m.key: m for m in (
     Method("cpdi", "cpdi", "flip", "usl", "CPDI", "tab:blue", "o"),
     Method("bspline", "bspline", "flip", "musl", "B-spline", "tab:purple", "v"),
     Method("bspline_apic", "bspline", "apic", "musl", "B-spline APIC", "tab:red", "P"),
+    Method("cpdi2", "cpdi2", "flip", "usl", "CPDI2", "tab:cyan", "X"),
 )}
 METHOD_KEYS = tuple(METHODS)
 
@@ -273,7 +274,7 @@ def manufactured_scene(dim: int, cells: int, interpolator: str = "cpdi", update:
             planes.append(f'{{ min = {vec(lo)}, max = {vec(hi)}, normal = "{a}" }}')
     n = cells + 4
     ps = patch_size or max(4, (n + 1) // 2)
-    lcr_line = f'lcr = "{lcr}"\n' if interpolator == "cpdi" else ""
+    lcr_line = f'lcr = "{lcr}"\n' if interpolator in ("cpdi", "cpdi2") else ""
     text = f"""
 name = "manufactured_{dim}d"
 dim = {dim}

@@ -233,7 +233,8 @@ class Tiling:
 
         P = sim.particles
         self.end = sim.data["time"]["end"]
-        a = 0.5 * parmpm.domain_sizes(1, sim.disc.method, sim.disc.lcr, P.F, P.r0, P.lh0)
+        a = 0.5 * parmpm.domain_sizes(1, sim.disc.method, sim.disc.lcr, P.F, P.r0, P.lh0,
+                                      corners=P.corners)
         g = sim.gather({"x": P.x[:, 0].copy(), "x0": P.x0[:, 0].copy(), "a": a})
         out = None
         if g is not None:
