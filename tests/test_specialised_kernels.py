@@ -21,7 +21,8 @@ from parmpm.kernels3d.cells import cells_of8
 from parmpm.kernels3d.material import stress_pass as stress_pass_3d
 from parmpm.materials import MODELS
 from parmpm.particles import locate_patches
-from parmpm.shapes import BSPLINE, CPDI, INTERPOLATORS
+from parmpm.shapes import BSPLINE, CPDI, CPDI2, INTERPOLATORS
+from parmpm.shapes.cpdi2 import affine_corners
 from parmpm.simulation import Simulation
 from parmpm.stepper import SPECIALISED
 from parmpm.transfer import stress_pass as generic_stress_pass
@@ -41,7 +42,7 @@ def _cases():
     out = []
     for dim, kernels in sorted(SPECIALISED.items()):
         for code in sorted(kernels):
-            lcrs = (["none", LCR[dim]] if code == CPDI else
+            lcrs = (["none", LCR[dim]] if code in (CPDI, CPDI2) else
                     ["none", "apic"] if code == BSPLINE else ["none"])
             out += [pytest.param(dim, NAME[code], lcr, id=f"{dim}d-{NAME[code]}-lcr={lcr}")
                     for lcr in lcrs]
@@ -80,7 +81,7 @@ def deformed_stepper(dim, method, lcr, model="neo_hookean", seed=1, tmp=None):
     deformation gradients and symmetric stresses."""
     over = QUIET + [f'method.interpolator="{method}"', "grid.patch_size=4",
                     f'materials.bar.model="{model}"']
-    if method == "cpdi":
+    if method in ("cpdi", "cpdi2"):
         over.append(f"method.lcr={lcr}")
     if lcr == "apic":
         over.append("method.transfer=apic")
@@ -90,13 +91,16 @@ def deformed_stepper(dim, method, lcr, model="neo_hookean", seed=1, tmp=None):
     P.F[:] = _deformation(rng, P.n, dim)
     P.v[:] = rng.normal(0.0, 1.0, (P.n, dim))
     P.affine[:] = rng.normal(0.0, 10.0, P.affine.shape)  # no rows under FLIP
+    if P.corners.shape[0]:  # cpdi2: the deformed domains, each corner moved off the parallelogram
+        P.corners[:] = affine_corners(P.F, P.r0) + rng.normal(0.0, 0.1, P.corners.shape) * np.abs(
+            P.r0).max()
     S = rng.normal(0.0, 1e4, (P.n, dim, dim))
     P.stress[:] = S + S.transpose(0, 2, 1)
     return sim, st, P
 
 
 def snapshot(P):
-    return {k: getattr(P, k).copy() for k in ("x", "v", "F", "stress", "dx", "affine")}
+    return {k: getattr(P, k).copy() for k in ("x", "v", "F", "stress", "dx", "affine", "corners")}
 
 
 def restore(P, snap):
