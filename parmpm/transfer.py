@@ -19,7 +19,10 @@ field at the node, ``m_p φ_ip (v_p + C_p (x_i − x_p))``, and G2P sets ``v_p =
 Under cpdi2 (:mod:`parmpm.shapes.cpdi2`) G2P also moves the particle's tracked corners with the
 grid, after the particle's motion: ``c_α ← c_α + Δt (v(x_p + ĉ_α) − v_move)``, ``v(y) = Σ_i S_i(y)
 v_i`` the linear hat of the grid velocity, ``ĉ_α`` the corner as interpolated (after the ``l_cr``
-cap) and ``v_move = Σ φ v_i`` the velocity that moved the particle (MUSL: in the motion pass). A
+cap) and ``v_move = Σ φ v_i``. Under MUSL the corners move in the deformation pass, with the
+re-mapped grid velocity (the field that deforms F), and not in the motion pass: the re-map must
+scatter momentum with the weights the mass was scattered with (the corners before the step), or a
+node the old domain barely touched gets momentum without mass and a huge velocity. A
 frozen particle's (``rf ≠ 0``, :mod:`parmpm.shapes.freeze`) corners no longer move relative to it
 (docs/cpdi2.md).
 
@@ -310,9 +313,15 @@ def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scra
                         dx[i, a] = dt * vi
                     v[i, a] = flip_pic(flip, v[i, a], dvi, vi)
                     vm[a] = vi
-                if tracked and not _frozen(d, rf[i]):
-                    _move_corners(d, dt, gvel, p, boxes.base[p], boxes.nloc, boxes.nglob,
-                                  boxes.inv_h, corners[i], scratch)
+            if tracked and mode != G2P_MUSL_MOTION and not _frozen(d, rf[i]):
+                if mode == G2P_MUSL_DEFORM:  # the re-mapped field moves the corners (see above)
+                    for a in range(d):
+                        vi = 0.0
+                        for e in range(n):
+                            vi += w[e] * gvel[p, idx[e], a]
+                        vm[a] = vi
+                _move_corners(d, dt, gvel, p, boxes.base[p], boxes.nloc, boxes.nglob,
+                              boxes.inv_h, corners[i], scratch)
             if mode == G2P_MUSL_MOTION:
                 continue
             for a in range(d):

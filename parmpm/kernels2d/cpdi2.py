@@ -15,7 +15,8 @@ quadrilateral (``a3 ≠ 0``). P2G scatters, per corner, ``wf_α m_p`` (mass), ``
 (momentum) and ``−V_p σ_p wg_α (+ wf_α m_p b_p)`` into the four nodes of the corner's cell;
 G2P gathers ``v(x_α)`` and ``Δv(x_α)`` and forms ``v_p = Σ wf_α v(x_α)`` (FLIP blend with
 ``Δv``), ``L_p = Σ v(x_α) ⊗ wg_α``, and moves each tracked corner with the velocity at its capped
-position, ``c_α += Δt (v(x_α) − v_move)`` (not a frozen particle's: :mod:`parmpm.transfer`).
+position, ``c_α += Δt (v(x_α) − Σ wf v(x_α))`` (not a frozen particle's; under MUSL in the
+deformation pass, with the re-mapped velocity: :mod:`parmpm.transfer` says why).
 A domain with ``V ≤ 0`` (or NaN) is reported as inverted (``err = (i, −2)``), one whose corners
 leave the patch's box as out of reach (``err = (i, −1)``).
 """
@@ -208,15 +209,6 @@ def g2p_cpdi2(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
                 vy = wf0 * u0y + wf1 * u1y + wf2 * u2y + wf3 * u3y
                 v[i, 0] = flip_pic(flip, v[i, 0], wf0 * d0x + wf1 * d1x + wf2 * d2x + wf3 * d3x, vx)
                 v[i, 1] = flip_pic(flip, v[i, 1], wf0 * d0y + wf1 * d1y + wf2 * d2y + wf3 * d3y, vy)
-                if rf[i, 0, 0] == 0.0 and rf[i, 1, 0] == 0.0:  # not frozen: follow the grid
-                    c[i, 0, 0] += dt * (u0x - vx)
-                    c[i, 0, 1] += dt * (u0y - vy)
-                    c[i, 1, 0] += dt * (u1x - vx)
-                    c[i, 1, 1] += dt * (u1y - vy)
-                    c[i, 2, 0] += dt * (u2x - vx)
-                    c[i, 2, 1] += dt * (u2y - vy)
-                    c[i, 3, 0] += dt * (u3x - vx)
-                    c[i, 3, 1] += dt * (u3y - vy)
                 if mode == G2P_MUSL_MOTION:
                     dx[i, 0] = dt * vx
                     dx[i, 1] = dt * vy
@@ -226,6 +218,18 @@ def g2p_cpdi2(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
             else:
                 x[i, 0] = xx + dx[i, 0]
                 x[i, 1] = xy + dx[i, 1]
+            if rf[i, 0, 0] == 0.0 and rf[i, 1, 0] == 0.0:  # not frozen: follow the grid
+                # (MUSL: in the deformation pass, with the re-mapped field; module doc)
+                ux = wf0 * u0x + wf1 * u1x + wf2 * u2x + wf3 * u3x
+                uy = wf0 * u0y + wf1 * u1y + wf2 * u2y + wf3 * u3y
+                c[i, 0, 0] += dt * (u0x - ux)
+                c[i, 0, 1] += dt * (u0y - uy)
+                c[i, 1, 0] += dt * (u1x - ux)
+                c[i, 1, 1] += dt * (u1y - uy)
+                c[i, 2, 0] += dt * (u2x - ux)
+                c[i, 2, 1] += dt * (u2y - uy)
+                c[i, 3, 0] += dt * (u3x - ux)
+                c[i, 3, 1] += dt * (u3y - uy)
             pid = patch_id2(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, loc, inv_ps)
             moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
             # L = Σ v(x_α) ⊗ wg_α, wg = (g0, g1, −g1, −g0)/V
