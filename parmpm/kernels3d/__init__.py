@@ -16,14 +16,16 @@ Grid fields come as two row blocks per patch slot (:func:`parmpm.grid.grid_block
 """
 from parmpm.kernels3d.bspline import g2p_bspline, p2g_bspline, p2g_momentum_bspline
 from parmpm.kernels3d.cpdi import g2p_cpdi, p2g_cpdi, p2g_momentum_cpdi
+from parmpm.kernels3d.cpdi2 import g2p_cpdi2, p2g_cpdi2, p2g_momentum_cpdi2
 from parmpm.kernels3d.hat import g2p_hat, p2g_hat, p2g_momentum_hat
-from parmpm.shapes import BSPLINE, CPDI, MPM
+from parmpm.shapes import BSPLINE, CPDI, CPDI2, MPM
 
 #: interpolator code → (p2g, p2g_momentum, g2p) specialised for 3D
 KERNELS_3D = {
     CPDI: (p2g_cpdi, p2g_momentum_cpdi, g2p_cpdi),
     MPM: (p2g_hat, p2g_momentum_hat, g2p_hat),
     BSPLINE: (p2g_bspline, p2g_momentum_bspline, g2p_bspline),  # FLIP and APIC
+    CPDI2: (p2g_cpdi2, p2g_momentum_cpdi2, g2p_cpdi2),
 }
 
 __all__ = ["KERNELS_3D"]

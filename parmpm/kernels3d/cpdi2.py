@@ -1,0 +1,206 @@
+"""3D CPDI2 transfers over a particle's eight tracked hexahedron corners.
+
+The corners (relative to the particle, bit order of :mod:`parmpm.shapes.cpdi2`) are capped at
+``l_cr`` one by one, and the hexahedron's weights ``wf_α`` and ``wg_α`` come from
+:func:`parmpm.shapes.cpdi2.domain_weights` (2×2×2 Gauss points, exact for the trilinear map).
+Then, as :mod:`parmpm.kernels3d.cpdi` does for CPDI1's corners: P2G scatters, per corner,
+``wf_α m_p`` (mass), ``wf_α m_p v_p`` (momentum) and ``−V_p σ_p wg_α (+ wf_α m_p b_p)`` (force)
+into the eight nodes of the corner's cell; G2P gathers ``v(x_α)``, ``Δv(x_α)`` there and forms
+``v_p = Σ wf_α v(x_α)`` (FLIP blend with ``Δv``), ``L_p = Σ v(x_α) ⊗ wg_α``, and moves the
+corners, ``c_α += Δt (v(x_α) − Σ wf v(x_α))``, in USL and in MUSL's deformation pass (not a
+frozen particle's; :mod:`parmpm.transfer` says why). Errors as in :mod:`parmpm.kernels2d.cpdi2`.
+
+The per-particle scratch (capped corners and weights, the corners' cells and fractions) comes from
+the ``@kernel`` wrappers; the loops run without reference counting.
+"""
+import numpy as np
+
+from parmpm.jit import inline_kernel, kernel, loop_kernel
+from parmpm.kernels2d.cells import cell_of, note_patch
+from parmpm.kernels2d.cpdi2 import note_error
+from parmpm.kernels3d.cells import frame_3d, slot_3d
+from parmpm.kernels3d.cpdi import gather6, scatter7, scatter_momentum
+from parmpm.kernels3d.material import update_F_stress
+from parmpm.kinematics import det_3d, flip_pic
+from parmpm.patch_index import patch_id3
+from parmpm.shapes.cpdi2 import SCRATCH_SHAPE, WF, WG, cap_corners, domain_weights
+from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
+
+
+@inline_kernel
+def _scratch():
+    return np.zeros(SCRATCH_SHAPE), np.zeros((8, 3), np.int64), np.zeros((8, 3))
+
+
+@inline_kernel
+def prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr):
+    """Capped corners and weights of particle ``i`` into ``sc`` and its corners' local cells and
+    fractions into ``cells``, ``fr``; returns ``(V, code)``: code 0, −2 (inverted) or −1 (a
+    corner's nodes leave the box)."""
+    cap_corners(3, c[i], lcr, sc)
+    V = domain_weights(3, sc)
+    if not V > 0.0:
+        return V, -2
+    bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
+    base, jlo, jhi = (bx, by, bz), (jlx, jly, jlz), (jhx, jhy, jhz)
+    ok = True
+    for a in range(8):
+        for k in range(3):
+            j, f = cell_of((x[i, k] - o[k]) * ih[k] + sc[a, k] * ih[k], base[k], jlo[k], jhi[k])
+            cells[a, k] = j
+            fr[a, k] = f
+            ok = ok and j >= 0
+    return V, 0 if ok else -1
+
+
+@kernel
+def p2g_cpdi2(lcr, boxes, fields, bforce, gsum, err):
+    """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
+    sc, cells, fr = _scratch()
+    _p2g_loop(lcr, boxes, fields, bforce, gsum, err, sc, cells, fr)
+
+
+@loop_kernel
+def _p2g_loop(lcr, boxes, fields, bforce, gsum, err, sc, cells, fr):
+    start = boxes.start
+    x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
+                                   fields.stress)
+    c = fields.corners
+    forced = bforce.shape[0] > 0
+    gsum[:] = 0.0
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
+    o, ih = (ox, oy, oz), (ihx, ihy, ihz)
+    for p in range(start.size - 1):
+        g = gsum[p]
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
+            V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
+            if code < 0:
+                note_error(err, i, code)
+                continue
+            Vp = det_3d(F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1], F[i, 1, 2],
+                        F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]) * vol0[i]
+            t00, t01, t02 = Vp * stress[i, 0, 0], Vp * stress[i, 0, 1], Vp * stress[i, 0, 2]
+            t10, t11, t12 = Vp * stress[i, 1, 0], Vp * stress[i, 1, 1], Vp * stress[i, 1, 2]
+            t20, t21, t22 = Vp * stress[i, 2, 0], Vp * stress[i, 2, 1], Vp * stress[i, 2, 2]
+            m = mass[i]
+            vx, vy, vz = v[i, 0], v[i, 1], v[i, 2]
+            bfx = m * bforce[i, 0] if forced else 0.0
+            bfy = m * bforce[i, 1] if forced else 0.0
+            bfz = m * bforce[i, 2] if forced else 0.0
+            for a in range(8):
+                wf, gx, gy, gz = sc[a, WF], sc[a, WG], sc[a, WG + 1], sc[a, WG + 2]
+                mw = m * wf
+                scatter7(g, L0, L01, cells[a, 0], cells[a, 1], cells[a, 2], fr[a, 0], fr[a, 1],
+                         fr[a, 2], mw, mw * vx, mw * vy, mw * vz,
+                         bfx * wf - (t00 * gx + t01 * gy + t02 * gz),
+                         bfy * wf - (t10 * gx + t11 * gy + t12 * gz),
+                         bfz * wf - (t20 * gx + t21 * gy + t22 * gz))
+
+
+@kernel
+def p2g_momentum_cpdi2(lcr, boxes, fields, gsum, err):
+    """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
+    sc, cells, fr = _scratch()
+    _p2g_momentum_loop(lcr, boxes, fields, gsum, err, sc, cells, fr)
+
+
+@loop_kernel
+def _p2g_momentum_loop(lcr, boxes, fields, gsum, err, sc, cells, fr):
+    start = boxes.start
+    x, v, mass = fields.x, fields.v, fields.mass
+    c = fields.corners
+    gsum[:, 1:4, :] = 0.0
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
+    o, ih = (ox, oy, oz), (ihx, ihy, ihz)
+    for p in range(start.size - 1):
+        g = gsum[p]
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+            V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
+            if code < 0:
+                note_error(err, i, code)
+                continue
+            m = mass[i]
+            for a in range(8):
+                mw = m * sc[a, WF]
+                scatter_momentum(g, L0, L01, cells[a, 0], cells[a, 1], cells[a, 2], fr[a, 0],
+                                 fr[a, 1], fr[a, 2], mw * v[i, 0], mw * v[i, 1], mw * v[i, 2])
+
+
+@kernel
+def g2p_cpdi2(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
+    """G2P in one of the three modes, moving the tracked corners in USL and MUSL's deformation
+    pass; returns (largest ``c_p + |v_p|`` when the stress is updated, particles that changed
+    patch, first particle off the grid)."""
+    sc, cells, fr = _scratch()
+    u = np.zeros((8, 6))
+    return _g2p_loop(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate, sc, cells,
+                     fr, u)
+
+
+@loop_kernel
+def _g2p_loop(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate, sc, cells, fr, u):
+    start = boxes.start
+    x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
+    c, rf = fields.corners, fields.rf
+    mat, params, damage = material
+    loc, inv_ps, slot_patch, new_patch = locate
+    vmax = 0.0
+    moved = 0
+    first_out = -1
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
+    o, ih = (ox, oy, oz), (ihx, ihy, ihz)
+    for p in range(start.size - 1):
+        g = gnew[p]
+        sp = slot_patch[p]
+        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+            V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
+            if code < 0:
+                note_error(err, i, code)
+                new_patch[i] = sp
+                continue
+            vx = vy = vz = dvx = dvy = dvz = 0.0
+            l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
+            for a in range(8):
+                u0, u1, u2, u3, u4, u5 = gather6(g, L0, L01, cells[a, 0], cells[a, 1],
+                                                 cells[a, 2], fr[a, 0], fr[a, 1], fr[a, 2])
+                u[a, 0], u[a, 1], u[a, 2] = u0, u1, u2
+                wf, gx, gy, gz = sc[a, WF], sc[a, WG], sc[a, WG + 1], sc[a, WG + 2]
+                vx += wf * u0
+                vy += wf * u1
+                vz += wf * u2
+                dvx += wf * u3
+                dvy += wf * u4
+                dvz += wf * u5
+                l00 += u0 * gx
+                l01 += u0 * gy
+                l02 += u0 * gz
+                l10 += u1 * gx
+                l11 += u1 * gy
+                l12 += u1 * gz
+                l20 += u2 * gx
+                l21 += u2 * gy
+                l22 += u2 * gz
+            xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
+            if mode != G2P_MUSL_DEFORM:
+                v[i, 0] = flip_pic(flip, v[i, 0], dvx, vx)
+                v[i, 1] = flip_pic(flip, v[i, 1], dvy, vy)
+                v[i, 2] = flip_pic(flip, v[i, 2], dvz, vz)
+                if mode == G2P_MUSL_MOTION:
+                    dx[i, 0], dx[i, 1], dx[i, 2] = dt * vx, dt * vy, dt * vz
+                    continue
+                x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
+            else:
+                x[i, 0], x[i, 1], x[i, 2] = xx + dx[i, 0], xy + dx[i, 1], xz + dx[i, 2]
+            if rf[i, 0, 0] == 0.0 and rf[i, 1, 0] == 0.0 and rf[i, 2, 0] == 0.0:  # not frozen
+                for a in range(8):
+                    c[i, a, 0] += dt * (u[a, 0] - vx)
+                    c[i, a, 1] += dt * (u[a, 1] - vy)
+                    c[i, a, 2] += dt * (u[a, 2] - vz)
+            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, loc, inv_ps)
+            moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
+            vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
+                                             dt * l12, dt * l20, dt * l21, dt * l22),
+                                   (F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
+                                    F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]),
+                                   v, F, stress, mat, params, damage)
+    return vmax, moved, first_out
