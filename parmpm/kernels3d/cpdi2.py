@@ -1,8 +1,9 @@
 """3D CPDI2 transfers over a particle's eight tracked hexahedron corners.
 
 The corners (relative to the particle, bit order of :mod:`parmpm.shapes.cpdi2`) are capped at
-``l_cr`` one by one, and the hexahedron's weights ``wf_α`` and ``wg_α`` come from
-:func:`parmpm.shapes.cpdi2.domain_weights` (2×2×2 Gauss points, exact for the trilinear map).
+``l_cr`` one by one, and the hexahedron's weights ``wf_α`` and ``wg_α`` are those of
+:func:`parmpm.shapes.cpdi2.domain_weights` (2×2×2 Gauss points, exact for the trilinear map), with
+``J`` assembled from the map's coefficients (:func:`hex_weights`).
 Then, as :mod:`parmpm.kernels3d.cpdi` does for CPDI1's corners: P2G scatters, per corner,
 ``wf_α m_p`` (mass), ``wf_α m_p v_p`` (momentum) and ``−V_p σ_p wg_α (+ wf_α m_p b_p)`` (force)
 into the eight nodes of the corner's cell; G2P gathers ``v(x_α)``, ``Δv(x_α)`` there and forms
@@ -23,7 +24,7 @@ from parmpm.kernels3d.cpdi import gather6, scatter7, scatter_momentum
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.kinematics import det_3d, flip_pic
 from parmpm.patch_index import patch_id3
-from parmpm.shapes.cpdi2 import SCRATCH_SHAPE, WF, WG, cap_corners, domain_weights
+from parmpm.shapes.cpdi2 import GAUSS, SCRATCH_SHAPE, WF, WG, cap_corners, corner_shape
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
 
@@ -32,13 +33,90 @@ def _scratch():
     return np.zeros(SCRATCH_SHAPE), np.zeros((8, 3), np.int64), np.zeros((8, 3))
 
 
+def _shape_table() -> np.ndarray:
+    """``N_α`` and ``∂N_α/∂ξ_m`` at the eight Gauss points (q, α, (N, dN0, dN1, dN2)): constants
+    numba folds into the kernels, where :func:`parmpm.shapes.cpdi2.corner_shape` would recompute
+    them per particle."""
+    out = np.zeros((8, 8, 4))
+    for q in range(8):
+        e = [GAUSS if (q >> m) & 1 else -GAUSS for m in range(3)]
+        for al in range(8):
+            out[q, al] = corner_shape.py_func(al, 3, e[0], e[1], e[2])
+    return out
+
+
+SHAPES = _shape_table()
+
+
+@inline_kernel
+def coefficients(sc, k):
+    """Component ``k`` of the trilinear map ``x(ξ) = A0 + A1 ξ + A2 η + A3 ζ + A12 ξη + A23 ηζ
+    + A13 ξζ + A123 ξηζ`` of the corners in ``sc`` (bit order): ``(A1, A2, A3, A12, A23, A13,
+    A123)``; ``A0`` does not enter the weights."""
+    c0, c1, c2, c3 = sc[0, k], sc[1, k], sc[2, k], sc[3, k]
+    c4, c5, c6, c7 = sc[4, k], sc[5, k], sc[6, k], sc[7, k]
+    return (0.125 * ((c1 - c0) + (c3 - c2) + (c5 - c4) + (c7 - c6)),
+            0.125 * ((c2 - c0) + (c3 - c1) + (c6 - c4) + (c7 - c5)),
+            0.125 * ((c4 - c0) + (c5 - c1) + (c6 - c2) + (c7 - c3)),
+            0.125 * ((c0 - c1) + (c3 - c2) + (c4 - c5) + (c7 - c6)),
+            0.125 * ((c0 - c2) + (c1 - c3) + (c6 - c4) + (c7 - c5)),
+            0.125 * ((c0 - c1) + (c2 - c3) + (c5 - c4) + (c7 - c6)),
+            0.125 * ((c1 - c0) + (c2 - c3) + (c4 - c5) + (c7 - c6)))
+
+
+@inline_kernel
+def hex_weights(sc):
+    """:func:`parmpm.shapes.cpdi2.domain_weights` for a hexahedron, with ``J`` from the map's
+    coefficients (3 × 4 terms per Gauss point instead of a sum over the eight corners): fills
+    ``sc[α, WF]``, ``sc[α, WG:WG+3]`` and returns ``V``."""
+    x1, x2, x3, x12, x23, x13, x123 = coefficients(sc, 0)
+    y1, y2, y3, y12, y23, y13, y123 = coefficients(sc, 1)
+    z1, z2, z3, z12, z23, z13, z123 = coefficients(sc, 2)
+    for a in range(8):
+        for k in range(WF, WG + 3):
+            sc[a, k] = 0.0
+    vol = 0.0
+    for q in range(8):
+        e0 = GAUSS if q & 1 else -GAUSS
+        e1 = GAUSS if (q >> 1) & 1 else -GAUSS
+        e2 = GAUSS if (q >> 2) & 1 else -GAUSS
+        # columns of J = ∂x/∂ξ
+        a0 = x1 + x12 * e1 + x13 * e2 + x123 * e1 * e2
+        a1 = y1 + y12 * e1 + y13 * e2 + y123 * e1 * e2
+        a2 = z1 + z12 * e1 + z13 * e2 + z123 * e1 * e2
+        b0 = x2 + x12 * e0 + x23 * e2 + x123 * e0 * e2
+        b1 = y2 + y12 * e0 + y23 * e2 + y123 * e0 * e2
+        b2 = z2 + z12 * e0 + z23 * e2 + z123 * e0 * e2
+        c0 = x3 + x13 * e0 + x23 * e1 + x123 * e0 * e1
+        c1 = y3 + y13 * e0 + y23 * e1 + y123 * e0 * e1
+        c2 = z3 + z13 * e0 + z23 * e1 + z123 * e0 * e1
+        # cofactor columns k1 = b × c, k2 = c × a, k3 = a × b; det = a · k1
+        k1x, k1y, k1z = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
+        k2x, k2y, k2z = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
+        k3x, k3y, k3z = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        det = a0 * k1x + a1 * k1y + a2 * k1z
+        vol += det
+        for al in range(8):
+            n, g0, g1, g2 = SHAPES[q, al, 0], SHAPES[q, al, 1], SHAPES[q, al, 2], SHAPES[q, al, 3]
+            sc[al, WF] += n * det
+            sc[al, WG] += k1x * g0 + k2x * g1 + k3x * g2
+            sc[al, WG + 1] += k1y * g0 + k2y * g1 + k3y * g2
+            sc[al, WG + 2] += k1z * g0 + k2z * g1 + k3z * g2
+    if vol > 0.0:
+        inv_v = 1.0 / vol
+        for al in range(8):
+            for k in range(WF, WG + 3):
+                sc[al, k] *= inv_v
+    return vol
+
+
 @inline_kernel
 def prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr):
     """Capped corners and weights of particle ``i`` into ``sc`` and its corners' local cells and
     fractions into ``cells``, ``fr``; returns ``(V, code)``: code 0, −2 (inverted) or −1 (a
     corner's nodes leave the box)."""
     cap_corners(3, c[i], lcr, sc)
-    V = domain_weights(3, sc)
+    V = hex_weights(sc)
     if not V > 0.0:
         return V, -2
     bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
