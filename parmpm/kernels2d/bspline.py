@@ -1,7 +1,8 @@
 """2D quadratic B-spline transfers, FLIP or APIC: the 3×3 nodes around the particle's nearest node.
 
 Per axis, with the nearest node ``c`` and ``t = ξ − c ∈ [−1/2, 1/2)`` (:mod:`parmpm.shapes.bspline`
-has the weights and the rounding rule; this module repeats them as scalars), the nodes
+has the weights and the rounding rule, :func:`~parmpm.shapes.bspline.nearest_node` and
+:func:`~parmpm.shapes.bspline.spline_weights`, which this module calls), the nodes
 ``c − 1, c, c + 1`` get ``N = (½(½ − t)², ¾ − t², ½(½ + t)²)`` and ``N' = (t − ½, −2t, t + ½)/Δx``.
 P2G scatters ``φ m_p``, the momentum ``φ m_p v_p`` (APIC: ``φ m_p (v_p + C_p r)`` with
 ``r = x_i − x_p = (k − 1 − t)Δx`` per axis) and ``−V_p σ_p ∇φ (+ φ m_p b_p)``; G2P gathers
@@ -11,8 +12,6 @@ P2G scatters ``φ m_p``, the momentum ``φ m_p v_p`` (APIC: ``φ m_p (v_p + C_p 
 APIC is on when the particles carry the affine field (``fields.affine`` has rows): the kernels
 need no extra argument and FLIP runs pay one branch per particle.
 """
-import math
-
 import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
@@ -20,6 +19,7 @@ from parmpm.kernels2d.cells import frame_2d, note_patch, slot_2d
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.kinematics import det_2d, flip_pic
 from parmpm.patch_index import patch_id2
+from parmpm.shapes.bspline import nearest_node, spline_weights
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
 
@@ -28,25 +28,11 @@ def spline_of(xi, base, jlo, jhi):
     """(local index of node ``c − 1``, ``t``) along one axis, or ``(-1, 0)`` when the three nodes
     leave the grid or the patch's box (usable cells ``jlo..jhi`` as for the hat: nodes
     ``jlo..jhi + 1``)."""
-    fl = math.floor(xi)
-    f = xi - fl
-    c = int(fl)
-    t = f
-    if f >= 0.5:
-        c += 1
-        t = f - 1.0  # exact (Sterbenz)
+    c, t = nearest_node(xi)
     lo = c - 1
     if lo < jlo or lo + 2 > jhi + 1:
         return -1, 0.0
     return lo - base, t
-
-
-@inline_kernel
-def weights(t, ih):
-    """The three weights and gradients (physical units) of one axis."""
-    m = 0.5 - t
-    p = 0.5 + t
-    return 0.5 * (m * m), 0.75 - t * t, 0.5 * (p * p), -m * ih, -2.0 * t * ih, p * ih
 
 
 @loop_kernel
@@ -72,8 +58,8 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
                 if err[0] < 0:
                     err[0] = i
                 continue
-            wx0, wx1, wx2, dx0, dx1, dx2 = weights(tx, ihx)
-            wy0, wy1, wy2, dy0, dy1, dy2 = weights(ty, ihy)
+            wx0, wx1, wx2, dx0, dx1, dx2 = spline_weights(tx, ihx)
+            wy0, wy1, wy2, dy0, dy1, dy2 = spline_weights(ty, ihy)
             V = det_2d(F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]) * vol0[i]
             t00, t01 = V * stress[i, 0, 0], V * stress[i, 0, 1]
             t10, t11 = V * stress[i, 1, 0], V * stress[i, 1, 1]
@@ -128,8 +114,8 @@ def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
                 if err[0] < 0:
                     err[0] = i
                 continue
-            wx0, wx1, wx2, _, _, _ = weights(tx, ihx)
-            wy0, wy1, wy2, _, _, _ = weights(ty, ihy)
+            wx0, wx1, wx2, _, _, _ = spline_weights(tx, ihx)
+            wy0, wy1, wy2, _, _, _ = spline_weights(ty, ihy)
             m = mass[i]
             vx, vy = v[i, 0], v[i, 1]
             c00 = c01 = c10 = c11 = 0.0
@@ -179,8 +165,8 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
                     err[0] = i
                 new_patch[i] = sp
                 continue
-            wx0, wx1, wx2, dx0, dx1, dx2 = weights(tx, ihx)
-            wy0, wy1, wy2, dy0, dy1, dy2 = weights(ty, ihy)
+            wx0, wx1, wx2, dx0, dx1, dx2 = spline_weights(tx, ihx)
+            wy0, wy1, wy2, dy0, dy1, dy2 = spline_weights(ty, ihy)
             # the 3×3 sums factor by rows: Σ_ab wy_b wx_a u = Σ_b wy_b (Σ_a wx_a u_ab)
             wr0, wr1, wr2 = wx0 * (-1.0 - tx), wx1 * (-tx), wx2 * (1.0 - tx)
             vx = vy = dvx = dvy = 0.0

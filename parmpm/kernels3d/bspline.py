@@ -1,7 +1,7 @@
 """3D quadratic B-spline transfers, FLIP or APIC: the 3×3×3 nodes around the nearest node.
 
 The 3D counterpart of :mod:`parmpm.kernels2d.bspline` (same per-axis weights and rounding,
-:func:`parmpm.kernels2d.bspline.spline_of` and :func:`~parmpm.kernels2d.bspline.weights`), on the
+:func:`parmpm.kernels2d.bspline.spline_of` and :func:`parmpm.shapes.bspline.spline_weights`), on the
 3D grid rows ``gsum[s, :, node] = (m, mv, f)`` and ``gnew[s, :, node] = (v, Δv)`` with
 ``node = i0 + L0 (i1 + L1 i2)``. APIC (``C_p`` in ``fields.affine``, :mod:`parmpm.affine`) is on
 when the particles carry the affine field.
@@ -9,12 +9,13 @@ when the particles carry the affine field.
 import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
-from parmpm.kernels2d.bspline import spline_of, weights
+from parmpm.kernels2d.bspline import spline_of
 from parmpm.kernels2d.cells import note_patch
 from parmpm.kernels3d.cells import frame_3d, slot_3d
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.kinematics import det_3d, flip_pic
 from parmpm.patch_index import patch_id3
+from parmpm.shapes.bspline import spline_weights
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
 
@@ -56,9 +57,9 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
                 if err[0] < 0:
                     err[0] = i
                 continue
-            wx0, wx1, wx2, dx0, dx1, dx2 = weights(tx, ihx)
-            wy0, wy1, wy2, dy0, dy1, dy2 = weights(ty, ihy)
-            wz0, wz1, wz2, dz0, dz1, dz2 = weights(tz, ihz)
+            wx0, wx1, wx2, dx0, dx1, dx2 = spline_weights(tx, ihx)
+            wy0, wy1, wy2, dy0, dy1, dy2 = spline_weights(ty, ihy)
+            wz0, wz1, wz2, dz0, dz1, dz2 = spline_weights(tz, ihz)
             f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
             f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
             f20, f21, f22 = F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]
@@ -119,9 +120,9 @@ def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
                 if err[0] < 0:
                     err[0] = i
                 continue
-            wx0, wx1, wx2, _, _, _ = weights(tx, ihx)
-            wy0, wy1, wy2, _, _, _ = weights(ty, ihy)
-            wz0, wz1, wz2, _, _, _ = weights(tz, ihz)
+            wx0, wx1, wx2, _, _, _ = spline_weights(tx, ihx)
+            wy0, wy1, wy2, _, _, _ = spline_weights(ty, ihy)
+            wz0, wz1, wz2, _, _, _ = spline_weights(tz, ihz)
             m = mass[i]
             vx, vy, vz = v[i, 0], v[i, 1], v[i, 2]
             for c in range(3):
@@ -170,9 +171,9 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
                     err[0] = i
                 new_patch[i] = sp
                 continue
-            wx0, wx1, wx2, dx0, dx1, dx2 = weights(tx, ihx)
-            wy0, wy1, wy2, dy0, dy1, dy2 = weights(ty, ihy)
-            wz0, wz1, wz2, dz0, dz1, dz2 = weights(tz, ihz)
+            wx0, wx1, wx2, dx0, dx1, dx2 = spline_weights(tx, ihx)
+            wy0, wy1, wy2, dy0, dy1, dy2 = spline_weights(ty, ihy)
+            wz0, wz1, wz2, dz0, dz1, dz2 = spline_weights(tz, ihz)
             # the sums factor by rows of three x-nodes: Σ_abc w_c w_b w_a u = Σ_bc w_c w_b (Σ_a w_a u)
             wr0, wr1, wr2 = wx0 * (-1.0 - tx), wx1 * (-tx), wx2 * (1.0 - tx)
             vx = vy = vz = dvx = dvy = dvz = 0.0

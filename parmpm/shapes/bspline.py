@@ -35,10 +35,10 @@ from parmpm.jit import helper_kernel
 
 
 @helper_kernel
-def bspline_axis(xi, base, nloc, nglob, inv_h, jk, wk, dwk, a):
-    """Fill row ``a`` of (jk, wk, dwk) with the three nodes ``c − 1, c, c + 1`` of the point
-    ``xi`` (grid units) along one axis: local indices, weights, gradients (physical units).
-    Returns 3, or -1 if a node falls outside the grid or the patch's local (ghost-inclusive) box."""
+def nearest_node(xi):
+    """``(c, t)``: the nearest node ``c`` of the point ``xi`` (grid units) and ``t = xi − c`` in
+    ``[−1/2, 1/2)``, from the exact fraction (module doc: the same bits either way at a half
+    cell)."""
     fl = math.floor(xi)
     f = xi - fl
     c = int(fl)
@@ -46,17 +46,28 @@ def bspline_axis(xi, base, nloc, nglob, inv_h, jk, wk, dwk, a):
     if f >= 0.5:
         c += 1
         t = f - 1.0  # exact (Sterbenz)
+    return c, t
+
+
+@helper_kernel
+def spline_weights(t, inv_h):
+    """The weights of nodes ``c − 1, c, c + 1`` and their gradients (physical units) at offset
+    ``t`` from the nearest node: ``(N0, N1, N2, N0', N1', N2')``."""
+    m = 0.5 - t
+    p = 0.5 + t
+    return 0.5 * (m * m), 0.75 - t * t, 0.5 * (p * p), -m * inv_h, -2.0 * t * inv_h, p * inv_h
+
+
+@helper_kernel
+def bspline_axis(xi, base, nloc, nglob, inv_h, jk, wk, dwk, a):
+    """Fill row ``a`` of (jk, wk, dwk) with the three nodes ``c − 1, c, c + 1`` of the point
+    ``xi`` (grid units) along one axis: local indices, weights, gradients (physical units).
+    Returns 3, or -1 if a node falls outside the grid or the patch's local (ghost-inclusive) box."""
+    c, t = nearest_node(xi)
     lo = c - 1
     if lo < 0 or c + 1 > nglob - 1 or lo - base < 0 or c + 1 - base > nloc - 1:
         return -1
-    m = 0.5 - t
-    p = 0.5 + t
     for k in range(3):
         jk[a, k] = lo + k - base
-    wk[a, 0] = 0.5 * (m * m)
-    wk[a, 1] = 0.75 - t * t
-    wk[a, 2] = 0.5 * (p * p)
-    dwk[a, 0] = -m * inv_h
-    dwk[a, 1] = -2.0 * t * inv_h
-    dwk[a, 2] = p * inv_h
+    wk[a, 0], wk[a, 1], wk[a, 2], dwk[a, 0], dwk[a, 1], dwk[a, 2] = spline_weights(t, inv_h)
     return 3
