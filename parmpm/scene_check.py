@@ -45,7 +45,7 @@ _BARE_KEY = re.compile(r"^[A-Za-z0-9_-]+$")
 
 def toml_key(key: str) -> str:
     """A TOML key: bare if it can be, else a quoted basic string."""
-    return key if _BARE_KEY.match(key) else _escape(key)
+    return key if _BARE_KEY.fullmatch(key) else _escape(key)  # not match: "$" passes "0\n"
 
 
 def toml_value(value: Any) -> str:
