@@ -8,7 +8,9 @@ then per-face conditions on the nodes of the
 physical boundary faces and on every node of the exterior layer beyond them (``grid.exterior``:
 cells kept outside the faces so that a particle domain next to a wall has nodes to reach; the
 nodes there carry mass and momentum like any other) — fixed: ``v = 0``; slip: the normal
-component is 0; free: nothing — then ``v = 0``
+component is 0; symmetry: a mirror (:mod:`parmpm.symmetry` folds the image into the sums
+before this update and reflects the nodes beyond the face after it; here it acts as slip on the
+face node); free: nothing — then ``v = 0``
 on every node inside a fixed region (a grip, e.g. the hanging bar's support) and ``v·n = 0`` inside
 a slip region (a symmetry plane inside the grid, e.g. the manufactured solution's faces) — applied to both
 ``v_old`` and ``v_new`` so the FLIP increment ``Δv = v_new − v_old`` respects them too. Nodes with
@@ -27,15 +29,16 @@ from parmpm.jit import DIMS, helper_kernel, kernel, loop_kernel
 #: of another at the same 4 KiB offset (a measured 20 % slow-down of P2G with equal offsets)
 ROW_STAGGER = 208
 
-FREE, SLIP, FIXED = 0, 1, 2
-BC_CODES = {"free": FREE, "slip": SLIP, "fixed": FIXED}
+FREE, SLIP, FIXED, SYMMETRY = 0, 1, 2, 3
+BC_CODES = {"free": FREE, "slip": SLIP, "fixed": FIXED, "symmetry": SYMMETRY}
 
 
 @helper_kernel
 def _apply_bc(d, gidx, face_lo, face_hi, bc, vel):
     """Face conditions of a node at global index ``gidx``: the physical faces of axis ``k`` are
     the nodes ``face_lo[k]`` and ``face_hi[k]`` (0 and the last node without an exterior layer);
-    a node beyond a face (in the exterior layer) is treated as the face demands."""
+    a node beyond a face (in the exterior layer) is treated as the face demands, but for a
+    symmetry face, whose nodes beyond hold the mirror image (:mod:`parmpm.symmetry`)."""
     for k in range(d):
         side = -1
         if gidx[k] <= face_lo[k]:
@@ -44,11 +47,36 @@ def _apply_bc(d, gidx, face_lo, face_hi, bc, vel):
             side = 1
         if side < 0 or bc[k, side] == FREE:
             continue
+        if bc[k, side] == SYMMETRY and gidx[k] != (face_lo[k] if side == 0 else face_hi[k]):
+            continue  # beyond a mirror face: the image's node (parmpm.symmetry)
         if bc[k, side] == FIXED:
             for a in range(d):
                 vel[a] = 0.0
         else:
             vel[k] = 0.0
+
+
+@helper_kernel
+def reflected_gravity(d, gidx, face_lo, face_hi, bc, gvec, out):
+    """``out``: gravity at a node, its normal component reversed beyond each symmetry face (the
+    image body falls the mirrored way), so the pointwise grid update keeps the mirror."""
+    for a in range(d):
+        out[a] = gvec[a]
+    for k in range(d):
+        if ((bc[k, 0] == SYMMETRY and gidx[k] < face_lo[k])
+                or (bc[k, 1] == SYMMETRY and gidx[k] > face_hi[k])):
+            out[k] = -gvec[k]
+
+
+@helper_kernel
+def beyond_symmetry(d, gidx, face_lo, face_hi, bc):
+    """True for a node beyond a symmetry face (it holds the image's mirrored values)."""
+    for k in range(d):
+        if bc[k, 0] == SYMMETRY and gidx[k] < face_lo[k]:
+            return True
+        if bc[k, 1] == SYMMETRY and gidx[k] > face_hi[k]:
+            return True
+    return False
 
 
 @helper_kernel
@@ -107,18 +135,21 @@ def grid_update(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, 
     vnew = np.zeros(3)
     gidx = np.zeros(3, np.int64)
     face = np.zeros((3, 2), np.bool_)  # constrained global faces
+    mirror = False                     # any symmetry face: gravity reflected beyond it
     for k in range(d):
         for side in range(2):
             face[k, side] = bc[k, side] != FREE
+            mirror = mirror or bc[k, side] == SYMMETRY
+    gref = np.zeros(3)
     for dim in literal_unroll(DIMS):
         if dim == d:
             _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
-                       from_momentum_only, vold, vnew, gidx, face)
+                       from_momentum_only, vold, vnew, gidx, face, mirror, gref)
 
 
 @loop_kernel
 def _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
-               from_momentum_only, vold, vnew, gidx, face):
+               from_momentum_only, vold, vnew, gidx, face, mirror, gref):
     literally(dim)
     d = dim * 1
     own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
@@ -155,6 +186,13 @@ def _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
                             or (face[0, 1] and g0 >= face_hi[0])
                             or (nreg > 0 and _near_region(g0, g1, g2, ranges))):
                         gidx[0], gidx[1], gidx[2] = g0, g1, g2
+                        if (mirror and m > 0.0 and not from_momentum_only
+                                and beyond_symmetry(d, gidx, face_lo, face_hi, bc)):
+                            reflected_gravity(d, gidx, face_lo, face_hi, bc, gvec, gref)
+                            for a in range(d):
+                                fm = G[1 + d + a, node] / m if m > mass_eps else 0.0
+                                vnew[a] = ((vold[a] + dt * (fm + gref[a]))
+                                           / (1.0 + damping * dt))
                         _apply_bc(d, gidx, face_lo, face_hi, bc, vold)
                         if nreg:
                             _apply_regions(d, gidx, origin, h, regions, normal, vold)

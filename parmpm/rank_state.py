@@ -24,10 +24,11 @@ from parmpm import manufactured
 from parmpm.collective import agree
 from parmpm.discretisation import Discretisation, exterior_cells
 from parmpm.energy import EnergyWatch
-from parmpm.errors import ParmpmError, SimulationError
+from parmpm.errors import ParmpmError, SceneError, SimulationError
 from parmpm.exact import manufactured_motion
 from parmpm.footprint import check_memory
 from parmpm.grid import BC_CODES
+from parmpm.symmetry import check_blocks
 from parmpm.io.checkpoint_gather import load_patches, load_rows
 from parmpm.io.checkpoint_parts import CheckpointReader
 from parmpm.log import get_logger
@@ -116,6 +117,10 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     # the patches cover the grid and its exterior layer (grid.exterior), the face conditions
     # stay on the user's faces (parmpm.discretisation.exterior_cells)
     D = Discretisation.from_grid(d, interp.code, lcr, grid, int(ghost), exterior)
+    bc, region_box, region_normal = _boundary(data, d)
+    cut = check_blocks(D.layout, D.face_lo3, D.face_hi3, bc)
+    if cut is not None:
+        raise SceneError(f"{scene.source}: {cut}")
     params, names = material_table(data["materials"])
     P, patches, n_total, metrics = _particles(data, comm, D, params, names, checkpoint)
     had = P.optional
@@ -124,7 +129,6 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
         P.corners[:] = affine_corners(P.F, P.r0)
     m = data["method"]
     update = m["update"] if m["update"] != "auto" else ("usl" if interp.code in CAPPED else "musl")
-    bc, region_box, region_normal = _boundary(data, d)
     stepper = Stepper(D, P, patches, params, bc, region_box, update, m.get("flip", 1.0),
                       data["damping"]["coefficient"], n_total, region_normal, m["transfer"])
     if data.get("manufactured"):

@@ -33,6 +33,7 @@ from parmpm.reach import fmt_vec, grid_extent, inverted_message, reach_message
 from parmpm.shapes import CAPPED
 from parmpm.shapes.cpdi2 import INVERTED
 from parmpm.shapes.freeze import freeze_domains
+from parmpm.symmetry import fold_sums, row_signs, symmetry_faces
 from parmpm.transfer import g2p, p2g, p2g_momentum
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 
@@ -61,6 +62,10 @@ class Stepper:
         #: diag D_p of the affine transfers (zeros under FLIP): the affine angular momentum
         self.inertia = inertia_diagonal(disc.method, disc.h, self.apic)
         self.region_ranges = region_node_ranges(regions, disc.origin3, disc.h3, disc.dim)
+        #: symmetry faces (3, 2) when there are any (:mod:`parmpm.symmetry`), else None
+        sym = symmetry_faces(bc)
+        self.symmetry = sym if sym.any() else None
+        self._signs = row_signs(disc.dim)
         self.comm = patches.comm
         self.n_total = n_total
         self.err = np.full(2, -1, np.int64)  # (first particle in error, its support's code)
@@ -155,6 +160,17 @@ class Stepper:
         grid_update(D.dim, nodes, constraints, dt, gravity, self.damping, self.mass_eps,
                     self.gsum_block, self.gnew_block, momentum_only)
 
+    def _fold(self, momentum_only: bool) -> None:
+        """Symmetry faces: fold the mirror images into this rank's partial sums (all rows, or the
+        momentum alone in a MUSL re-map) before the ghost accumulation (:mod:`parmpm.symmetry`)."""
+        if self.symmetry is None:
+            return
+        D = self.disc
+        d = D.dim
+        fold_sums(d, D.nloc, D.base, D.face_lo3, D.face_hi3, self.symmetry, self._signs,
+                  1 if momentum_only else 0, 1 + d if momentum_only else 1 + 2 * d,
+                  self.gsum_block)
+
     def _lap(self, phase: str, t0: float) -> float:
         t = time.perf_counter()
         self.timers[phase] += t - t0
@@ -206,6 +222,7 @@ class Stepper:
             bforce = self._bforce
             self.forcing(time_now, P, bforce)
         self._p2g(bforce)
+        self._fold(momentum_only=False)
         t = self._lap("p2g", t)
         accumulate(plan, self.gsum)
         t = self._lap("accumulate", t)
@@ -222,6 +239,7 @@ class Stepper:
             self._check("g2p")
             t = self._lap("g2p", t)
             self._p2g_momentum()
+            self._fold(momentum_only=True)
             t = self._lap("p2g", t)
             accumulate(plan, self.gmv)
             t = self._lap("accumulate", t)

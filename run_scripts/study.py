@@ -245,7 +245,7 @@ def main_guard(main) -> None:
 def manufactured_scene(dim: int, cells: int, interpolator: str = "cpdi", update: str = "auto",
                        ppc: int = 2, amplitude: float = 0.05, cfl: float = 0.2,
                        periods: float = 1.0, lcr: str = "none", patch_size: int | None = None,
-                       transfer: str = "flip"):
+                       transfer: str = "flip", faces: str = "symmetry"):
     """The axis-aligned manufactured solution (the built-in ``manufactured`` scene, any
     dimension): unit cube of ``cells`` cells per axis plus two cells of room on each side,
     symmetry planes on its faces, Uintah's parameters (E = 1e4, ν = 0.3, ρ0 = 1: period 0.02 s).
@@ -272,14 +272,22 @@ def manufactured_scene(dim: int, cells: int, interpolator: str = "cpdi", update:
             else:
                 lo[k] = 1.0
             planes.append(f'{{ min = {vec(lo)}, max = {vec(hi)}, normal = "{a}" }}')
-    n = cells + 4
-    ps = patch_size or max(4, (n + 1) // 2)
+    if faces == "symmetry":  # mirror faces on the body (parmpm.symmetry), exterior layer auto
+        origin, n = 0.0, cells
+        ps = patch_size or max(6, (cells + 5) // 2)
+        boundary = "\n".join(f'{a}_{s} = "symmetry"' for a in axes for s in ("min", "max"))
+    elif faces == "slip_regions":  # slip regions holding every node on or beyond the faces
+        origin, n = -2 * h, cells + 4
+        ps = patch_size or max(4, (n + 1) // 2)
+        boundary = f"slip_regions = [{', '.join(planes)}]"
+    else:
+        raise ValueError(f"faces: expected 'symmetry' or 'slip_regions', got {faces!r}")
     lcr_line = f'lcr = "{lcr}"\n' if interpolator in ("cpdi", "cpdi2") else ""
     text = f"""
 name = "manufactured_{dim}d"
 dim = {dim}
 [grid]
-origin = {-2 * h!r}
+origin = {origin!r}
 cell_size = {h!r}
 cells = {n}
 patch_size = {ps}
@@ -301,7 +309,7 @@ interpolator = "{interpolator}"
 update = "{update}"
 transfer = "{transfer}"
 {lcr_line}[boundary]
-slip_regions = [{", ".join(planes)}]
+{boundary}
 [time]
 end = {0.02 * periods!r}
 cfl = {cfl!r}

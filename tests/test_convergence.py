@@ -6,9 +6,10 @@ What is asserted is what the script's docstring and docs/verification.md expect:
 * the axis-aligned manufactured solution converges at second order with cpdi (USL) and cpGIMP
   (MUSL) in 1D (16, 32, 64 cells) and 2D (8, 16, 32): every observed order ≥ 1.8, the finest
   pair included;
-* quadratic B-splines (bspline, FLIP) converge there too, but at first order (measured 1.08–1.14
-  in 1D and 2D; the nodal symmetry planes are the likely limit, see the script's docstring): every
-  order within [0.9, 1.5], and a larger error than cpdi's at every resolution;
+* quadratic B-splines (bspline, FLIP) on the mirror faces (``"symmetry"``): second order in 2D
+  (measured 2.04, 1.97 at 8 → 16 → 32 cells); in 1D second order from 16 to 32 cells (1.84), and
+  then the error stalls near 3e-4 (order 0.80 to 64 cells: the particles then travel three cells,
+  docs/verification.md);
 * the vibrating bar's centre-of-mass velocity stays within 2.5 % (relative L2 over 4 periods)
   with cpdi at 16 cells, USL and MUSL;
 * the 1D hanging bar: the ramped, damped bar reaches the exact large-deformation static state
@@ -65,14 +66,16 @@ def test_manufactured_second_order(quick, dim, method):
 
 
 @pytest.mark.parametrize("dim", [1, 2])
-def test_manufactured_bspline_first_order(quick, dim):
+def test_manufactured_bspline_second_order_on_mirror_faces(quick, dim):
     rows = _read(quick / "convergence.csv")
     s = _series(rows, dim, "bspline")
     assert len(s) == 3 and all(r["update"] == "musl" for r in s), s
     orders = [float(r["order"]) for r in s[1:]]
-    assert all(0.9 <= p <= 1.5 for p in orders), (dim, orders)
-    for r, ref in zip(s, _series(rows, dim, "cpdi")):
-        assert r["cells"] == ref["cells"] and float(r["error"]) > float(ref["error"])
+    errors = [float(r["error"]) for r in s]
+    if dim == 2:
+        assert all(p >= 1.8 for p in orders), (dim, orders)
+    else:  # the 1D stall beyond 32 cells (module docstring)
+        assert orders[0] >= 1.8 and 0.5 <= orders[1] < 1.8 and errors[-1] < 4e-4, (orders, errors)
 
 
 @pytest.mark.parametrize("update", ["usl", "musl"])
