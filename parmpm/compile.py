@@ -109,7 +109,7 @@ def tiny_scene_toml(dim: int, method: str, update: str) -> str:
     """A scene of a few hundred particles that takes every path of a step around the kernels:
     a damageable neo-Hookean block (damage never starts, but the CPDI freeze check runs) and a
     linear-elastic one, moving fast enough to cross a patch face, under gravity, between a fixed
-    and a slip face, with a fixed and a slip region, hanging-bar metrics (the separation count),
+    and a slip face (and a symmetry face in 2D and 3D), with a fixed and a slip region, hanging-bar metrics (the separation count),
     a history with probes and snapshots with domains."""
     if dim not in DIMS or method not in METHODS or update not in UPDATES:
         raise ValueError(f"tiny scene: dim {dim}, method {method!r}, update {update!r}")
@@ -118,7 +118,8 @@ def tiny_scene_toml(dim: int, method: str, update: str) -> str:
     lo_b, hi_b = [0.2] * (dim - 1) + [0.6], [0.5] * (dim - 1) + [0.8]
     velocity = [200.0] + [0.0] * (dim - 1)
     g = [0.0] * (dim - 1) + [-10.0]
-    faces = "x_min = \"fixed\"\n" + ("y_min = \"slip\"\n" if dim > 1 else "x_max = \"slip\"\n")
+    faces = "x_min = \"fixed\"\n" + ("y_min = \"slip\"\ny_max = \"symmetry\"\n" if dim > 1
+                                      else "x_max = \"slip\"\n")
     lcr = "" if method in ("cpdi", "cpdi2") else 'lcr = "none"\n'
     return f"""\
 name = "compile_{dim}d_{method}_{update}"

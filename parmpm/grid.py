@@ -8,11 +8,12 @@ then per-face conditions on the nodes of the
 physical boundary faces and on every node of the exterior layer beyond them (``grid.exterior``:
 cells kept outside the faces so that a particle domain next to a wall has nodes to reach; the
 nodes there carry mass and momentum like any other) — fixed: ``v = 0``; slip: the normal
-component is 0; symmetry: a mirror (:mod:`parmpm.symmetry` folds the image into the sums
-before this update and reflects the nodes beyond the face after it; here it acts as slip on the
-face node); free: nothing — then ``v = 0``
+component is 0; symmetry: a mirror (:mod:`parmpm.symmetry` folds the image into the P2G
+sums; here the face node's normal velocity is held at 0 and gravity is reflected on the nodes
+beyond the face, which hold the image); free: nothing — then ``v = 0``
 on every node inside a fixed region (a grip, e.g. the hanging bar's support) and ``v·n = 0`` inside
-a slip region (a symmetry plane inside the grid, e.g. the manufactured solution's faces) — applied to both
+a slip region (a symmetry plane inside the grid; a mirror face is better for wide supports:
+:mod:`parmpm.symmetry`) — applied to both
 ``v_old`` and ``v_new`` so the FLIP increment ``Δv = v_new − v_old`` respects them too. Nodes with
 mass below ``mass_eps`` get no force term (``f/m`` is unbounded as ``m → 0``) but keep
 ``v = (mv)/m``, a mean of their particles' velocities (all weights are ≥ 0): a GIMP domain that

@@ -5,7 +5,7 @@ Physics. Three problems with exact solutions (``docs/verification.md``):
 * **Axis-aligned manufactured solution** (Wallstedt & Guilkey 2008; Kamojjala et al. 2015; §3):
   a unit line/square/cube of neo-Hookean material (E = 10⁴, ν = 0.3, ρ0 = 1, so one period
   T = 0.02 s) is driven by the body force that makes ``U_k = A sin(πX_k) sin(cπt + φ_k)``
-  (A = 0.05, stretches 0.84–1.16) the exact motion; symmetry planes on the faces, 2 particles
+  (A = 0.05, stretches 0.84–1.16) the exact motion; mirror (``"symmetry"``) faces, 2 particles
   per cell per axis, CFL 0.2, one period. The error is the RMS over particles of
   ``|x_p − φ(X_p, t)|``, maximised over 41 equally spaced times in [0, T] (the built-in
   ``manufactured`` metric, sampled at those times). Every method of ``study.METHODS`` (mpm,
@@ -38,17 +38,17 @@ Expected (the literature) and found (full study, RMS error / relative error; ord
   cross cells (its fixed-size domains do not follow the ±16 % stretch): 2D orders 1.80, 1.48,
   1.08, and in 1D the error grows again at 128 cells; mpm does not converge at all (its
   cell-crossing error grows as h shrinks).
-  Quadratic B-splines (``bspline``): C¹ weights with no cell-crossing error, so on this smooth
-  solution one would hope for second order in displacement. But the symmetry planes are nodal
-  conditions, and a B-spline particle within half a cell of a face also weighs the node beyond
-  it (held at zero, not at the mirrored value): the likely cause (not isolated here) of what is
-  found, the clamp weakness the vibrating bar shows (README). Found: first order in 1D, 2D and
-  3D, FLIP and APIC alike, 2–48× cpdi's error (the gap widening under refinement; FLIP is even
-  above mpm at 2D 8 cells and 3D 16 cells): FLIP 1D 1.08e-2 → 1.08e-3 (orders 1.13, 1.08,
-  1.10), 2D 2.91e-2 → 2.71e-3 (1.14, 1.13, 1.16), 3D 7.1e-2 → 1.36e-2 (1.20, 1.21, 1.16); APIC
-  1D 9.7e-3 → 1.19e-3 (1.05, 1.02, 0.96), 2D 2.27e-2 → 2.80e-3 (0.97, 1.03, 1.02), 3D 5.1e-2 →
-  1.22e-2 (1.00, 1.05, 1.05). In 1D (32, 64 cells) the error is largest mid-body, not at the
-  faces; in 2D and 3D the maximum over the period is reached at its end.
+  Quadratic B-splines (``bspline``): C¹ weights, second order expected on this smooth
+  solution, provided the faces are mirrors: a B-spline particle within half a cell of a face
+  weights the node beyond it, whose velocity is the mirror of its twin's (``parmpm.symmetry``;
+  the slip planes used before held it at zero and gave first order: 2D 1.14, 1.13, 1.16).
+  Found, mirror faces: FLIP 1D 1.85e-3, 5.13e-4, 2.96e-4, 7.82e-4 at 16 → 128 cells (orders
+  1.85, 0.79, −1.40), 2D 8.99e-3, 2.19e-3, 5.57e-4, 3.61e-4 (2.04, 1.97, 0.62), 3D 4.2e-2 →
+  2.27e-3 (2.21, 1.96, 2.08); APIC 1D (1.73, 0.74, −0.65), 2D (2.07, 1.88, 0.64), 3D (1.96,
+  2.04, 1.97). Second order until the particles travel a few cells (3.2 cells at 64 cells),
+  then a stall, as uGIMP's (1D 1.67, 0.76, −2.04 here); at A = 0.01 the 1D B-spline stays
+  second order to 128 cells (2.04, 2.01, 1.91). Likely the grid-crossing error of particle
+  quadrature, not isolated (4 ppc did not lower it; CFL 0.1 halved it at 128 cells).
 * vibrating bar: a few per cent at 16 cells, converging (Bardenhagen 2002). Found: 1.5–2.2 % at
   16 cells for every method but the B-splines, USL and MUSL alike (bspline 31 %, APIC 29 %: the
   clamp); cpdi 7.9 % → 0.17 % at 8 → 64 cells (orders 1.9, 1.8, 1.8; the lumped-mass phase

@@ -5,8 +5,8 @@ Physics. Two verification problems (docs/verification.md):
 * ``manufactured`` — the 2D axis-aligned manufactured solution (Wallstedt & Guilkey 2008;
   Kamojjala et al. 2015; :func:`study.manufactured_scene`): a neo-Hookean unit square (E = 1e4,
   ν = 0.3, ρ0 = 1) driven by the body force that makes ``U = A sin(πX) sin(cπt)``,
-  ``V = A sin(πY) sin(cπt + 2π/3)`` (A = 0.05) exact, one period (0.02 s), CFL 0.2, symmetry
-  planes, each method of ``study.METHODS`` (mpm, uGIMP, cpGIMP, CPDI, quadratic B-splines with
+  ``V = A sin(πY) sin(cπt + 2π/3)`` (A = 0.05) exact, one period (0.02 s), CFL 0.2, mirror
+  (``"symmetry"``) faces, each method of ``study.METHODS`` (mpm, uGIMP, cpGIMP, CPDI, quadratic B-splines with
   FLIP and with APIC) with its default update (USL for cpdi, MUSL for the others), CPDI
   unscaled. **Error**: the largest over 41 equally spaced times of the RMS over particles of
   ``|x_p − φ(X_p, t)|`` (metres; :class:`study.ManufacturedError` — within 0.2 % of the
@@ -49,13 +49,15 @@ Found (a run of every case but the 64-cell ones, one core, shared machine):
   cells (ppc ≥ 2) but loses accuracy at 40 cells (0.06–0.1) and separates at 80; uGIMP and mpm
   are worse and separate earlier (every non-CPDI ppc 1 run separates, except uGIMP's and
   cpGIMP's at 10 cells). Below an error of 4e-4 the front is CPDI's alone.
-* Quadratic B-splines (issue 18's run: every case but the 64-cell ones, the other core busy
-  with another study): first order on both problems and never on a front but once.
-  Manufactured, ppc 2: FLIP 2.9e-2, 1.3e-2, 6.0e-3 m at 8, 16, 32 cells (orders 1.14, 1.13),
-  APIC 2.3e-2, 1.2e-2, 5.7e-3 (0.97, 1.03): 15–16× CPDI's error at 32 cells for the same
-  particle-steps. At ppc 1 bspline *is* uGIMP (a quadratic B-spline is the hat averaged over a
-  cell-wide box): the same errors to 1e-14 relative; APIC at ppc 1 is the front's cheapest point
-  (8 cells, 7.1e-3 m) and reaches 1.2e-3 at 32 cells. Hanging bar: FLIP does not converge
+* Quadratic B-splines on the mirror faces (the manufactured rows re-run after
+  ``parmpm.symmetry``; with the slip planes before, both were first order, 15–16× CPDI's error
+  at 32 cells): manufactured, ppc 2: FLIP 9.0e-3, 2.2e-3, 5.6e-4, 3.6e-4 m at 8 → 64 cells
+  (orders 2.04, 1.97, 0.62: second order, then the stall of README's convergence section),
+  APIC 5.0e-3, 1.2e-3, 3.2e-4, 2.1e-4 (2.07, 1.88, 0.64). APIC at ppc 1 is on the time front
+  from 8 to 32 cells (3.6e-3, 1.1e-3, 3.8e-4 m: 2.3×, 2.2×, 1.6× below CPDI at the same
+  resolution, 1.24–1.35× its step time) and not at 64 (3.1e-4 against CPDI's 1.4e-4). At ppc 1
+  bspline *is* uGIMP (a quadratic B-spline is the hat averaged over a cell-wide box): the same
+  errors to 1e-14 relative. Hanging bar: FLIP does not converge
   (ppc 2: 0.080, 0.041, 0.25, 4.6 at 10 → 80 cells; ppc 1 separates from 20 cells), APIC
   converges at first order (ppc 2: 0.087, 0.044, 0.022, 0.011; ppc 3 0.065 → 0.0082; ppc 1
   0.21 at 10 cells, then separates). Step cost on the 2D manufactured solution (specialised

@@ -247,8 +247,10 @@ def manufactured_scene(dim: int, cells: int, interpolator: str = "cpdi", update:
                        periods: float = 1.0, lcr: str = "none", patch_size: int | None = None,
                        transfer: str = "flip", faces: str = "symmetry"):
     """The axis-aligned manufactured solution (the built-in ``manufactured`` scene, any
-    dimension): unit cube of ``cells`` cells per axis plus two cells of room on each side,
-    symmetry planes on its faces, Uintah's parameters (E = 1e4, ν = 0.3, ρ0 = 1: period 0.02 s).
+    dimension): unit cube of ``cells`` cells per axis, mirror faces (``faces = "symmetry"``,
+    :mod:`parmpm.symmetry`, the exterior layer auto) or, as before, two cells of room on each
+    side held by slip regions on and beyond the faces (``faces = "slip_regions"``: first order
+    for the B-spline); Uintah's parameters (E = 1e4, ν = 0.3, ρ0 = 1: period 0.02 s).
     ``interpolator`` may also be a key of :data:`METHODS` (e.g. ``"bspline_apic"``), which sets
     ``transfer`` too: the transfer has to be in the scene from the start, because a resolved
     FLIP scene carries ``method.flip``, which an APIC override would contradict."""

@@ -65,8 +65,9 @@ Found (full run, one core):
   bottom 2 m below the bar. uGIMP and cpGIMP separate with either update, MUSL 17–23 % sooner;
   mpm separates with MUSL (0.038 s) and blows up with USL (0.049 s).
 * Quadratic B-splines (FLIP ``bspline``, APIC ``bspline_apic``; default MUSL): USL and MUSL
-  equally accurate again (within 7 %; manufactured 8 → 64 cells first order only, FLIP 2.9e-2
-  → 2.7e-3 MUSL, 2.9e-3 USL; APIC 2.3e-2 → 2.8e-3 both; vibrating bar 16 → 64 cells 0.31 →
+  equally accurate to 32 cells (manufactured, mirror faces: FLIP 8.99e-3 → 5.57e-4 MUSL,
+  8.90e-3 → 5.58e-4 USL; APIC 4.9e-3 → 3.3e-4), apart at 64 cells where the B-spline stalls
+  (FLIP 3.61e-4 MUSL, 2.35e-4 USL; APIC USL 2.18e-4); vibrating bar 16 → 64 cells 0.31 →
   0.072 FLIP, 0.29 → 0.071 APIC: the clamp, first order). CFL: FLIP with USL is bounded to 0.9
   on the vibrating bar and blows up from 0.95; FLIP MUSL and APIC with either update are
   bounded and accurate to 0.99 on both problems (APIC's largest KE growth 1.0004). The seed's
