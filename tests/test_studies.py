@@ -166,8 +166,12 @@ def test_speed_accuracy_rows_and_pareto_front(speed):
             assert front and all(math.isfinite(num(r["error"])) for r in front)
         ok = [r for r in mine if math.isfinite(num(r["error"]))]
         best = min(ok, key=lambda r: num(r["error"]))
-        # the smallest error of the study is CPDI's or cpGIMP's: the end of both fronts
-        assert best["method"] in ("cpdi", "cpgimp") and best["on_front_psteps"] == "True"
+        # the smallest error of the study is CPDI's or cpGIMP's: the end of both fronts. On the
+        # manufactured solution's mirror faces at these resolutions (<= 16 cells) uGIMP is level
+        # with them (ppc 2, 16 cells: 1.518e-3, cpGIMP 1.527e-3, CPDI 1.619e-3); it stalls from
+        # 32 cells on (README)
+        best_methods = ("cpdi", "cpgimp") + (("ugimp",) if problem == "manufactured" else ())
+        assert best["method"] in best_methods and best["on_front_psteps"] == "True"
         assert best["on_front_time"] == "True"
         for r in mine:
             assert int(r["particle_steps"]) == int(r["particles"]) * int(r["steps"]) > 0
