@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from decomposition import ordered_sum
-from parmpm.grid import _apply_bc, _apply_regions, _near_region, beyond_symmetry
+from parmpm.grid import _apply_bc, _apply_regions, _near_region, beyond_mirror
 from parmpm.jit import kernel
 from parmpm.materials.laws import stored_energy
 from parmpm.metrics.sums import patch_sums
@@ -103,7 +103,7 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew):
                         if gidx[k] <= face_lo[k] or gidx[k] >= face_hi[k]:
                             edge = True
                     if edge:
-                        if beyond_symmetry(d, gidx, face_lo, face_hi, bc):
+                        if beyond_mirror(d, gidx, face_lo, face_hi, bc):
                             continue  # the mirror image's node (parmpm.symmetry)
                         _apply_bc(d, gidx, face_lo, face_hi, bc, free)
                     if nreg and _near_region(gidx[0], gidx[1], gidx[2], ranges):

@@ -8,9 +8,9 @@ then per-face conditions on the nodes of the
 physical boundary faces and on every node of the exterior layer beyond them (``grid.exterior``:
 cells kept outside the faces so that a particle domain next to a wall has nodes to reach; the
 nodes there carry mass and momentum like any other) — fixed: ``v = 0``; slip: the normal
-component is 0; symmetry: a mirror (:mod:`parmpm.symmetry` folds the image into the P2G
-sums; here the face node's normal velocity is held at 0 and gravity is reflected on the nodes
-beyond the face, which hold the image); free: nothing — then ``v = 0``
+component is 0; symmetry and clamped: mirrors, even and odd (:mod:`parmpm.symmetry` folds the
+image into the P2G sums; here the face node's normal velocity, or all of it, is held at 0 and
+gravity is reflected on the nodes beyond the face, which hold the image); free: nothing — then ``v = 0``
 on every node inside a fixed region (a grip, e.g. the hanging bar's support) and ``v·n = 0`` inside
 a slip region (a symmetry plane inside the grid; a mirror face is better for wide supports:
 :mod:`parmpm.symmetry`) — applied to both
@@ -30,8 +30,8 @@ from parmpm.jit import DIMS, helper_kernel, kernel, loop_kernel
 #: of another at the same 4 KiB offset (a measured 20 % slow-down of P2G with equal offsets)
 ROW_STAGGER = 208
 
-FREE, SLIP, FIXED, SYMMETRY = 0, 1, 2, 3
-BC_CODES = {"free": FREE, "slip": SLIP, "fixed": FIXED, "symmetry": SYMMETRY}
+FREE, SLIP, FIXED, SYMMETRY, CLAMPED = 0, 1, 2, 3, 4
+BC_CODES = {"free": FREE, "slip": SLIP, "fixed": FIXED, "symmetry": SYMMETRY, "clamped": CLAMPED}
 
 
 @helper_kernel
@@ -48,9 +48,10 @@ def _apply_bc(d, gidx, face_lo, face_hi, bc, vel):
             side = 1
         if side < 0 or bc[k, side] == FREE:
             continue
-        if bc[k, side] == SYMMETRY and gidx[k] != (face_lo[k] if side == 0 else face_hi[k]):
+        if (bc[k, side] == SYMMETRY or bc[k, side] == CLAMPED) and gidx[k] != (
+                face_lo[k] if side == 0 else face_hi[k]):
             continue  # beyond a mirror face: the image's node (parmpm.symmetry)
-        if bc[k, side] == FIXED:
+        if bc[k, side] == FIXED or bc[k, side] == CLAMPED:
             for a in range(d):
                 vel[a] = 0.0
         else:
@@ -59,23 +60,31 @@ def _apply_bc(d, gidx, face_lo, face_hi, bc, vel):
 
 @helper_kernel
 def reflected_gravity(d, gidx, face_lo, face_hi, bc, gvec, out):
-    """``out``: gravity at a node, its normal component reversed beyond each symmetry face (the
-    image body falls the mirrored way), so the pointwise grid update keeps the mirror."""
+    """``out``: gravity at a node as the mirror image feels it — beyond a symmetry face its
+    normal component reversed, beyond a clamped face all of it (the image of an odd reflection
+    accelerates the opposite way) — so the pointwise grid update keeps the mirror."""
     for a in range(d):
         out[a] = gvec[a]
     for k in range(d):
-        if ((bc[k, 0] == SYMMETRY and gidx[k] < face_lo[k])
-                or (bc[k, 1] == SYMMETRY and gidx[k] > face_hi[k])):
-            out[k] = -gvec[k]
+        for side in range(2):
+            code = bc[k, side]
+            if code != SYMMETRY and code != CLAMPED:
+                continue
+            if (gidx[k] < face_lo[k]) if side == 0 else (gidx[k] > face_hi[k]):
+                if code == SYMMETRY:
+                    out[k] = -out[k]
+                else:
+                    for a in range(d):
+                        out[a] = -out[a]
 
 
 @helper_kernel
-def beyond_symmetry(d, gidx, face_lo, face_hi, bc):
-    """True for a node beyond a symmetry face (it holds the image's mirrored values)."""
+def beyond_mirror(d, gidx, face_lo, face_hi, bc):
+    """True for a node beyond a mirror (symmetry or clamped) face: it holds the image."""
     for k in range(d):
-        if bc[k, 0] == SYMMETRY and gidx[k] < face_lo[k]:
+        if (bc[k, 0] == SYMMETRY or bc[k, 0] == CLAMPED) and gidx[k] < face_lo[k]:
             return True
-        if bc[k, 1] == SYMMETRY and gidx[k] > face_hi[k]:
+        if (bc[k, 1] == SYMMETRY or bc[k, 1] == CLAMPED) and gidx[k] > face_hi[k]:
             return True
     return False
 
@@ -136,11 +145,11 @@ def grid_update(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, 
     vnew = np.zeros(3)
     gidx = np.zeros(3, np.int64)
     face = np.zeros((3, 2), np.bool_)  # constrained global faces
-    mirror = False                     # any symmetry face: gravity reflected beyond it
+    mirror = False                     # any mirror face: gravity reflected beyond it
     for k in range(d):
         for side in range(2):
             face[k, side] = bc[k, side] != FREE
-            mirror = mirror or bc[k, side] == SYMMETRY
+            mirror = mirror or bc[k, side] == SYMMETRY or bc[k, side] == CLAMPED
     gref = np.zeros(3)
     for dim in literal_unroll(DIMS):
         if dim == d:
@@ -188,7 +197,7 @@ def _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
                             or (nreg > 0 and _near_region(g0, g1, g2, ranges))):
                         gidx[0], gidx[1], gidx[2] = g0, g1, g2
                         if (mirror and m > 0.0 and not from_momentum_only
-                                and beyond_symmetry(d, gidx, face_lo, face_hi, bc)):
+                                and beyond_mirror(d, gidx, face_lo, face_hi, bc)):
                             reflected_gravity(d, gidx, face_lo, face_hi, bc, gvec, gref)
                             for a in range(d):
                                 fm = G[1 + d + a, node] / m if m > mass_eps else 0.0

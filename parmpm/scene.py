@@ -55,7 +55,8 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
 * ``[gravity]``: ``g`` (default 0), ``ramp_time`` (>= 0 s, default 0: applied suddenly).
 * ``[damping]``: ``coefficient`` (>= 0 1/s, default 0).
 * ``[boundary]``: ``x_min`` ... ``z_max`` for the scene's axes only: "fixed" | "slip" |
-  "symmetry" (a mirror: :mod:`parmpm.symmetry`) | "free" (default "free"); the resolved table has all ``2·dim`` keys. ``fixed_regions`` (list of
+  "symmetry" (a mirror) | "clamped" (held, with the odd mirror beyond: :mod:`parmpm.symmetry`)
+  | "free" (default "free"); the resolved table has all ``2·dim`` keys. ``fixed_regions`` (list of
   ``{min, max}``: every node inside has ``v = 0``, e.g. a grip) and ``slip_regions`` (list of
   ``{min, max, normal}`` with ``normal`` "x" | "y" | "z": every node inside has zero velocity
   along ``normal``, a symmetry plane inside the grid); both default to none.

@@ -38,7 +38,7 @@ from parmpm.update_order import UPDATES as _UPDATE_ORDERS
 
 DIMS = (1, 2, 3)
 UPDATES = ("auto", *_UPDATE_ORDERS)  # "auto": USL for cpdi and cpdi2, MUSL for the others
-BOUNDARY_KINDS = ("fixed", "slip", "symmetry", "free")
+BOUNDARY_KINDS = ("fixed", "slip", "symmetry", "clamped", "free")
 
 TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method", "gravity",
             "damping", "boundary", "time", "output", "metrics", "decomposition", "checkpoint",

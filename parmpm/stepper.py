@@ -33,7 +33,7 @@ from parmpm.reach import fmt_vec, grid_extent, inverted_message, reach_message
 from parmpm.shapes import CAPPED
 from parmpm.shapes.cpdi2 import INVERTED
 from parmpm.shapes.freeze import freeze_domains
-from parmpm.symmetry import fold_sums, row_signs, symmetry_faces
+from parmpm.symmetry import fold_sums, mirror_faces, row_signs
 from parmpm.transfer import g2p, p2g, p2g_momentum
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 
@@ -62,10 +62,11 @@ class Stepper:
         #: diag D_p of the affine transfers (zeros under FLIP): the affine angular momentum
         self.inertia = inertia_diagonal(disc.method, disc.h, self.apic)
         self.region_ranges = region_node_ranges(regions, disc.origin3, disc.h3, disc.dim)
-        #: symmetry faces (3, 2) when there are any (:mod:`parmpm.symmetry`), else None
-        sym = symmetry_faces(bc)
+        #: mirror (symmetry or clamped) faces (3, 2) when there are any (:mod:`parmpm.symmetry`),
+        #: else None
+        sym = mirror_faces(bc)
         self.symmetry = sym if sym.any() else None
-        self._signs = row_signs(disc.dim)
+        self._signs = row_signs(disc.dim, bc)
         self.comm = patches.comm
         self.n_total = n_total
         self.err = np.full(2, -1, np.int64)  # (first particle in error, its support's code)
@@ -161,7 +162,7 @@ class Stepper:
                     self.gsum_block, self.gnew_block, momentum_only)
 
     def _fold(self, momentum_only: bool) -> None:
-        """Symmetry faces: fold the mirror images into this rank's partial sums (all rows, or the
+        """Mirror faces: fold the mirror images into this rank's partial sums (all rows, or the
         momentum alone in a MUSL re-map) before the ghost accumulation (:mod:`parmpm.symmetry`)."""
         if self.symmetry is None:
             return

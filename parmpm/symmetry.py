@@ -20,38 +20,51 @@ come out as the mirrors of their twins as long as gravity is reflected there too
 after axis (reflections commute), so a corner between two symmetry faces gets its doubly
 reflected image.
 
+A ``"clamped"`` face is the odd mirror, for a body attached to a rigid face: the image moves
+with the opposite velocity (``v(f − j) = −v(f + j)``, every component), the natural extension
+of a field that vanishes on the face, so a B-spline particle near a clamp sees a velocity that
+is linear through the face instead of one held at 0 on the node beyond it (what ``"fixed"``
+does, a first-order error for the B-spline). The fold is the same with every vector component
+flipped; the face node is held at ``v = 0``.
+
 The node beyond the face carries the image's mass, so an energy sum over the grid skips those
-nodes (:func:`parmpm.grid.beyond_symmetry`), and the face node keeps its own (not doubled) mass: its velocity
+nodes (:func:`parmpm.grid.beyond_mirror`), and the face node keeps its own (not doubled) mass: its velocity
 is the same either way, and the sum over the remaining nodes is then exactly the body's half.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from parmpm.grid import SYMMETRY
+from parmpm.grid import CLAMPED, SYMMETRY
 from parmpm.jit import helper_kernel, kernel
 
 
-def row_signs(d: int) -> np.ndarray:
-    """(3, 1 + 2d) sign of each row of the P2G block (m, mv, f) under the reflection across a
-    face of normal ``k``: the mass keeps its sign, the vectors' component ``k`` flips."""
-    signs = np.ones((3, 1 + 2 * d))
+def row_signs(d: int, bc: np.ndarray) -> np.ndarray:
+    """(3, 2, 1 + 2d) sign of each row of the P2G block (m, mv, f) under the reflection across
+    face ``(k, side)``: the mass keeps its sign; across a symmetry face the vectors' component
+    ``k`` flips (an even mirror), across a clamped face every component (an odd mirror)."""
+    signs = np.ones((3, 2, 1 + 2 * d))
     for k in range(d):
-        signs[k, 1 + k] = signs[k, 1 + d + k] = -1.0
+        for side in range(2):
+            if bc[k, side] == SYMMETRY:
+                signs[k, side, 1 + k] = signs[k, side, 1 + d + k] = -1.0
+            elif bc[k, side] == CLAMPED:
+                signs[k, side, 1:] = -1.0
     return signs
 
 
-def symmetry_faces(bc: np.ndarray) -> np.ndarray:
-    """(3, 2) bool: which faces are symmetry faces."""
-    return np.asarray(bc) == SYMMETRY
+def mirror_faces(bc: np.ndarray) -> np.ndarray:
+    """(3, 2) bool: which faces are mirrors (symmetry or clamped)."""
+    bc = np.asarray(bc)
+    return (bc == SYMMETRY) | (bc == CLAMPED)
 
 
 def check_blocks(layout, face_lo, face_hi, bc) -> str | None:
     """None when every patch's local block (owned nodes and ghosts) holds the mirror of each of
-    its nodes beyond a symmetry face, else a one-line explanation (the same on every rank: it
+    its nodes beyond a mirror face, else a one-line explanation (the same on every rank: it
     reads only the global layout). Holds whenever the exterior layer is no wider than the ghost
     layer and a patch at least that wide, so in practice it guards a user's ``grid.exterior``."""
-    sym = symmetry_faces(bc)
+    sym = mirror_faces(bc)
     coords = layout.patch_coords()
     lo = layout.local_base(coords)
     hi = lo + layout.local_nodes3 - 1  # inclusive
@@ -72,7 +85,8 @@ def check_blocks(layout, face_lo, face_hi, bc) -> str | None:
                 width = int(last[k]) - f
             if np.any(bad):
                 face = "xyz"[k] + ("_min" if side == 0 else "_max")
-                return (f"boundary.{face} = \"symmetry\" reflects the exterior layer into the "
+                kind = "symmetry" if bc[k, side] == SYMMETRY else "clamped"
+                return (f"boundary.{face} = \"{kind}\" reflects the exterior layer into the "
                         f"patches that hold it, but a patch of {int(layout.psize3[k])} cells with "
                         f"{int(layout.ghost3[k])} ghost cells cannot hold the mirror of an exterior "
                         f"layer of {width} cells; use a larger grid.patch_size or a narrower "
@@ -82,7 +96,7 @@ def check_blocks(layout, face_lo, face_hi, bc) -> str | None:
 
 @kernel
 def fold_sums(d, nloc, base, face_lo, face_hi, sym, signs, first, last, block):
-    """The image's contribution, added on the body's side of every symmetry face to the rows
+    """The image's contribution, added on the body's side of every mirror face to the rows
     ``first..last - 1`` (:func:`row_signs`) of every patch's local block (before the ghost
     accumulation: partial sums); the face node's flipped rows are zeroed, and the nodes beyond
     the face take the reflection of their (folded) mirror."""
@@ -90,7 +104,7 @@ def fold_sums(d, nloc, base, face_lo, face_hi, sym, signs, first, last, block):
         for side in range(2):
             if sym[k, side]:
                 f = face_lo[k] if side == 0 else face_hi[k]
-                _fold_axis(nloc, base, k, side, f, signs[k], first, last, block)
+                _fold_axis(nloc, base, k, side, f, signs[k, side], first, last, block)
 
 
 @helper_kernel

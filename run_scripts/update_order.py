@@ -172,7 +172,7 @@ class Case:
         if self.problem == "vibrating_bar":
             h = BAR_LEN / self.cells
             over = common + [f"bodies.0.ppc={self.ppc}", f"grid.cell_size={h!r}",
-                             f"grid.origin={-2 * h!r}", f"grid.cells={self.cells + 6}",
+                             f"grid.cells={self.cells + 4}",  # the scene's clamped face at X = 0
                              f"grid.patch_size={max(8, (self.cells + 6) // 3)}", "output.every=0.25",
                              f"metrics.every_steps={BAR_SAMPLE_EVERY}"]
             return "vibrating_bar", over, observers

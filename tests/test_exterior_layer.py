@@ -189,14 +189,16 @@ def test_bad_exterior_is_a_one_line_error(value):
 def test_auto_adds_no_layer_to_builtin_scenes(name):
     """Every built-in scene's bodies start a cell or more from every face: "auto" gives them no
     layer, so they run on exactly the grid (and give exactly the results) they did before —
-    but the manufactured solution, whose body fills the grid up to its mirror faces (the
-    layer holds the mirror image, parmpm.symmetry)."""
+    but the manufactured solution, whose body fills the grid up to its mirror faces, and the
+    vibrating bar, clamped at its x_min face (the layer holds the mirror image, parmpm.symmetry)."""
     sc = parmpm.load_scene(name)
     assert sc.data["grid"]["exterior"] == "auto"
     for ghost in (1, 2, 3):
         lo, hi = exterior_cells(sc.data, ghost)
         if name == "manufactured":
             assert list(lo) == list(hi) == [ghost, ghost]
+        elif name == "vibrating_bar":
+            assert list(lo) == [ghost] and list(hi) == [0]
         else:
             assert not lo.any() and not hi.any(), (name, lo, hi)
 
