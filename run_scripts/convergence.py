@@ -48,9 +48,11 @@ Expected (the literature) and found (full study, RMS error / relative error; ord
   2.04, 1.97). Second order until the particles travel a few cells (3.2 cells at 64 cells),
   then a stall, as uGIMP's (1D 1.67, 0.76, −2.04 here); at A = 0.01 the 1D B-spline stays
   second order to 128 cells (2.04, 2.01, 1.91). Likely the grid-crossing error of particle
-  quadrature, not isolated (4 ppc did not lower it; CFL 0.1 halved it at 128 cells).
-* vibrating bar: a few per cent at 16 cells, converging (Bardenhagen 2002). Found: 1.5–2.2 % at
-  16 cells for every method but the B-splines, USL and MUSL alike (bspline 31 %, APIC 29 %: the
+  quadrature, not isolated (1 ppc diverges as uGIMP's does, 2.6e-3, 2.3e-2, 5.3e-2 at 32, 64,
+  128 cells; 4 ppc did not lower it; CFL 0.1 halved it at 128 cells).
+* vibrating bar: a few per cent at 16 cells, converging (Bardenhagen 2002). Found (the scene's
+  ``"clamped"`` face): 1.5–2.2 % at 16 cells for every method, USL and MUSL alike, but FLIP
+  B-splines 3.5 % (APIC 1.8 %; with the held nodes used before 31 % and 29 %: a first-order
   clamp); cpdi 7.9 % → 0.17 % at 8 → 64 cells (orders 1.9, 1.8, 1.8; the lumped-mass phase
   error accumulating over 4 periods).
 * hanging bar, static (large deformation, top stretch 2.5): cpdi with USL converges at second
