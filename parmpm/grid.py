@@ -35,11 +35,24 @@ BC_CODES = {"free": FREE, "slip": SLIP, "fixed": FIXED, "symmetry": SYMMETRY, "c
 
 
 @helper_kernel
+def is_mirror(code):
+    """A symmetry or clamped face: the nodes beyond it hold the mirror image
+    (:mod:`parmpm.symmetry`)."""
+    return code == SYMMETRY or code == CLAMPED
+
+
+@helper_kernel
+def _beyond_face(k, side, gidx, face_lo, face_hi):
+    """Node ``gidx`` lies strictly beyond face ``(k, side)`` (in the exterior layer)."""
+    return gidx[k] < face_lo[k] if side == 0 else gidx[k] > face_hi[k]
+
+
+@helper_kernel
 def _apply_bc(d, gidx, face_lo, face_hi, bc, vel):
     """Face conditions of a node at global index ``gidx``: the physical faces of axis ``k`` are
     the nodes ``face_lo[k]`` and ``face_hi[k]`` (0 and the last node without an exterior layer);
     a node beyond a face (in the exterior layer) is treated as the face demands, but for a
-    symmetry face, whose nodes beyond hold the mirror image (:mod:`parmpm.symmetry`)."""
+    mirror face, whose nodes beyond hold the image (:mod:`parmpm.symmetry`)."""
     for k in range(d):
         side = -1
         if gidx[k] <= face_lo[k]:
@@ -48,9 +61,8 @@ def _apply_bc(d, gidx, face_lo, face_hi, bc, vel):
             side = 1
         if side < 0 or bc[k, side] == FREE:
             continue
-        if (bc[k, side] == SYMMETRY or bc[k, side] == CLAMPED) and gidx[k] != (
-                face_lo[k] if side == 0 else face_hi[k]):
-            continue  # beyond a mirror face: the image's node (parmpm.symmetry)
+        if is_mirror(bc[k, side]) and _beyond_face(k, side, gidx, face_lo, face_hi):
+            continue
         if bc[k, side] == FIXED or bc[k, side] == CLAMPED:
             for a in range(d):
                 vel[a] = 0.0
@@ -67,25 +79,22 @@ def reflected_gravity(d, gidx, face_lo, face_hi, bc, gvec, out):
         out[a] = gvec[a]
     for k in range(d):
         for side in range(2):
-            code = bc[k, side]
-            if code != SYMMETRY and code != CLAMPED:
+            if not (is_mirror(bc[k, side]) and _beyond_face(k, side, gidx, face_lo, face_hi)):
                 continue
-            if (gidx[k] < face_lo[k]) if side == 0 else (gidx[k] > face_hi[k]):
-                if code == SYMMETRY:
-                    out[k] = -out[k]
-                else:
-                    for a in range(d):
-                        out[a] = -out[a]
+            if bc[k, side] == SYMMETRY:
+                out[k] = -out[k]
+            else:
+                for a in range(d):
+                    out[a] = -out[a]
 
 
 @helper_kernel
 def beyond_mirror(d, gidx, face_lo, face_hi, bc):
     """True for a node beyond a mirror (symmetry or clamped) face: it holds the image."""
     for k in range(d):
-        if (bc[k, 0] == SYMMETRY or bc[k, 0] == CLAMPED) and gidx[k] < face_lo[k]:
-            return True
-        if (bc[k, 1] == SYMMETRY or bc[k, 1] == CLAMPED) and gidx[k] > face_hi[k]:
-            return True
+        for side in range(2):
+            if is_mirror(bc[k, side]) and _beyond_face(k, side, gidx, face_lo, face_hi):
+                return True
     return False
 
 
@@ -149,7 +158,7 @@ def grid_update(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, 
     for k in range(d):
         for side in range(2):
             face[k, side] = bc[k, side] != FREE
-            mirror = mirror or bc[k, side] == SYMMETRY or bc[k, side] == CLAMPED
+            mirror = mirror or is_mirror(bc[k, side])
     gref = np.zeros(3)
     for dim in literal_unroll(DIMS):
         if dim == d:

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from parmpm.grid import CLAMPED, SYMMETRY
+from parmpm.grid import CLAMPED, SYMMETRY, is_mirror
 from parmpm.jit import helper_kernel, kernel
 
 
@@ -55,8 +55,7 @@ def row_signs(d: int, bc: np.ndarray) -> np.ndarray:
 
 def mirror_faces(bc: np.ndarray) -> np.ndarray:
     """(3, 2) bool: which faces are mirrors (symmetry or clamped)."""
-    bc = np.asarray(bc)
-    return (bc == SYMMETRY) | (bc == CLAMPED)
+    return np.vectorize(is_mirror, otypes=[bool])(np.asarray(bc))
 
 
 def check_blocks(layout, face_lo, face_hi, bc) -> str | None:
