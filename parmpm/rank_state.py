@@ -120,7 +120,7 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     bc, region_box, region_normal = _boundary(data, d)
     cut = check_blocks(D.layout, D.face_lo3, D.face_hi3, bc)
     if cut is not None:
-        raise SceneError(f"{scene.source}: {cut}")
+        raise SceneError(f"scene '{scene.source}': {cut}")
     params, names = material_table(data["materials"])
     P, patches, n_total, metrics = _particles(data, comm, D, params, names, checkpoint)
     had = P.optional

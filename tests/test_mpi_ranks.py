@@ -54,6 +54,9 @@ def _cases() -> dict:
     cases["2d_manufactured_bspline"] = ["manufactured", OFF + ["method.interpolator=bspline",
                                                                "grid.patch_size=4",
                                                                "time.steps=40"]]
+    # the odd mirror of a clamped face (1D B-spline vibrating bar, folded patch by patch)
+    cases["1d_vibrating_bspline_clamped"] = ["vibrating_bar", OFF + [
+        "method.interpolator=bspline", "grid.patch_size=4", "time.steps=120"]]
     cases["2d_spinning_cpdi"] = ["spinning_disk", OFF + ["grid.patch_size=6", "time.steps=60",
                                                          "metrics.every_steps=5"]]
     # APIC: the affine field migrates with its particles (the disk crosses patches)

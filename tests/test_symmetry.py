@@ -113,7 +113,7 @@ def test_an_exterior_layer_wider_than_a_patch_can_mirror_is_refused():
                             ppc=2, extra="", ps=ps)
         return scene_from_toml(text.replace("cell_size = 0.1", f"cell_size = 0.1\nexterior = {exterior!r}".replace("'", '"')),
                                "<block>")
-    with pytest.raises(SceneError, match=r'^<block>: boundary\.x_min = "symmetry" reflects the '
+    with pytest.raises(SceneError, match=r"^scene '<block>': boundary\.x_min = \"symmetry\" reflects the "
                                          r'exterior layer into the patches that hold it, but a patch'
                                          r' of 3 cells with 1 ghost cells cannot hold the mirror of '
                                          r'an exterior layer of 4 cells; use a larger '
