@@ -57,9 +57,10 @@ def energy_terms(d, mass, vol0, v, x, x0, F, mat, damage, params, g):
 
 def energy_totals(comm, patch_ids, P, params, g) -> np.ndarray:
     """(K, Ψ, W_g) over all ranks (collective), the same on any number of ranks."""
-    terms = energy_terms(P.dim, P.mass, P.vol0, P.v, P.x, P.x0, P.F, P.mat, P.damage, params,
+    R = P.rows  # as they lie (no copy into canonical order): summed in P.order()
+    terms = energy_terms(P.dim, R.mass, R.vol0, R.v, R.x, R.x0, R.F, R.mat, R.damage, params,
                          np.ascontiguousarray(g[:P.dim], dtype=np.float64))
-    return ordered_sum(comm, patch_ids, patch_sums(P.start, terms))
+    return ordered_sum(comm, patch_ids, patch_sums(P.start, terms, P.order()))
 
 
 @kernel

@@ -142,19 +142,20 @@ def _vector_columns(dim: int) -> list[str]:
 
 
 @kernel
-def history_sums(d, start, mass, vol0, v, x, x0, F, mat, damage, rf, params, g, freezing,
+def history_sums(d, start, order, mass, vol0, v, x, x0, F, mat, damage, rf, params, g, freezing,
                  affine, inertia):
     """Per patch, in one pass over its particles (in storage order): K, Ψ, Σ m g·(x − X),
     momentum (d), angular momentum (1 in 2D, 3 in 3D; with APIC's affine part
     ``m ε : (C D)ᵀ``, ``inertia = diag D``, zeros under FLIP: :mod:`parmpm.affine`), mass,
-    damaged and frozen particles."""
+    damaged and frozen particles. Rows ``order[start[p]:start[p + 1]]`` make patch ``p``."""
     spin = 1 if d == 2 else (3 if d == 3 else 0)
     k = 3 + d + spin + 3
     apic = affine.shape[0] > 0  # FLIP runs carry no affine rows
     out = np.zeros((start.size - 1, k))
     for p in range(start.size - 1):
         o = out[p]
-        for i in range(start[p], start[p + 1]):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+            i = order[kk]
             m = mass[i]
             ke = 0.0
             w = 0.0
@@ -205,10 +206,11 @@ class History:
     def sample(self, s, gravity: np.ndarray) -> list[float]:
         """One row of the run's state ``s`` (a :class:`parmpm.rank_state.RankState`)."""
         P, d = s.particles, self.dim
-        per_patch = history_sums(d, P.start, P.mass, P.vol0, P.v, P.x, P.x0, P.F, P.mat,
-                                 P.damage, P.rf, s.params,
+        R = P.rows  # as they lie (no copy into canonical order): summed in P.order()
+        per_patch = history_sums(d, P.start, P.order(), R.mass, R.vol0, R.v, R.x, R.x0, R.F,
+                                 R.mat, R.damage, R.rf, s.params,
                                  np.ascontiguousarray(gravity[:d], dtype=np.float64),
-                                 s.stepper.freezing, P.affine, s.stepper.inertia)
+                                 s.stepper.freezing, R.affine, s.stepper.inertia)
         total = ordered_sum(s.comm, s.patches.local_ids, per_patch)
         k, psi, minus_ug = total[0], total[1], total[2]
         ledger = s.energy.ledger

@@ -28,9 +28,12 @@ def kernel_lcr(lcr: float | None) -> float:
 #: the interpolator code, the dimension, ``l_cr`` (:data:`NO_SCALING`: no domain scaling) and
 #: whether transfers are affine (APIC, :mod:`parmpm.affine`) rather than FLIP/PIC
 Method = namedtuple("Method", ("code", "dim", "lcr", "apic"))
-#: a rank's patches in slot order: particle ranges ``start``, node-box origins ``base``, usable
-#: cells ``jlo..jhi``, box and grid node counts, grid origin and ``1/Δx`` (3-axis padded)
-Boxes = namedtuple("Boxes", ("start", "base", "jlo", "jhi", "nloc", "nglob", "origin", "inv_h"))
+#: a rank's patches in slot order: particle ranges ``start`` of the canonical ``order`` (slot
+#: ``s`` holds physical rows ``order[start[s]:start[s + 1]]``, :meth:`parmpm.particles.Particles.order`),
+#: node-box origins ``base``, usable cells ``jlo..jhi``, box and grid node counts, grid origin
+#: and ``1/Δx`` (3-axis padded)
+Boxes = namedtuple("Boxes", ("start", "order", "base", "jlo", "jhi", "nloc", "nglob", "origin",
+                             "inv_h"))
 #: the particle fields a transfer reads or writes (``affine``, ``corners``: optional fields, empty
 #: unless carried; ``rf``: which domains are frozen)
 Fields = namedtuple("Fields", ("x", "v", "F", "r0", "lh0", "mass", "vol0", "stress", "dx",

@@ -25,6 +25,7 @@ from parmpm.transfer import support_nodes
 def components(s) -> int:
     """Connected pieces of material over all ranks (particles linked through grid nodes)."""
     P, D, ps = s.particles, s.disc, s.patches
+    P.compact()  # rows in canonical order: ``nodes`` rows and the fields below agree
     # entries per particle: a tensor-product support reaches at most `ghost` cells past the
     # particle's cell on each side (farther is the reach error below), a CPDI one 2^d nodes
     # for each of 2^d corners

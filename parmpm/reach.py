@@ -30,7 +30,7 @@ def fmt_vec(v) -> str:
 
 def support_reach(stepper: Stepper, i: int) -> tuple[float, bool]:
     """(Longest reach of particle ``i``'s support from its centre, is the support on the grid?)."""
-    D, P = stepper.disc, stepper.P
+    D, P = stepper.disc, stepper.P.rows  # ``i``: a physical row
     if D.method == CPDI:
         R = np.zeros((3, 3))
         domain_matrix(D.dim, D.method, D.lcr, P.F[i], P.r0[i], R)
@@ -54,7 +54,7 @@ def support_half_widths(stepper: Stepper, i: int) -> np.ndarray:
     the bounding box of the CPDI corners ``x ± Σ_k |R_ak|`` (as interpolated, after scaling; for
     CPDI2 the largest ``|ĉ_αk|`` of its capped corners), or the grid-sized support of the point
     methods (:data:`GRID_SUPPORT`)."""
-    D, P = stepper.disc, stepper.P
+    D, P = stepper.disc, stepper.P.rows  # ``i``: a physical row
     d = D.dim
     if D.method == CPDI2:
         return np.abs(capped_corners(stepper, i)).max(axis=0)
@@ -72,14 +72,14 @@ def support_half_widths(stepper: Stepper, i: int) -> np.ndarray:
 def capped_corners(stepper: Stepper, i: int) -> np.ndarray:
     """Particle ``i``'s CPDI2 corners as interpolated (after the ``l_cr`` cap), (2^d, d)."""
     d, sc = stepper.disc.dim, np.zeros(SCRATCH_SHAPE)
-    cap_corners(d, np.ascontiguousarray(stepper.P.corners[i]), stepper.disc.lcr, sc)
+    cap_corners(d, np.ascontiguousarray(stepper.P.rows.corners[i]), stepper.disc.lcr, sc)
     return sc[:1 << d, :d].copy()
 
 
 def inverted_message(stepper: Stepper, i: int, phase: str) -> str:
     """The one-line explanation of a CPDI2 particle whose domain has turned inside out (its
     capped corners enclose a volume <= 0, or a corner is not finite)."""
-    P, d = stepper.P, stepper.disc.dim
+    P, d = stepper.P.rows, stepper.disc.dim
     sc = np.zeros(SCRATCH_SHAPE)
     sc[:1 << d, :d] = capped_corners(stepper, i)
     vol = domain_weights(d, sc)
@@ -92,7 +92,7 @@ def inverted_message(stepper: Stepper, i: int, phase: str) -> str:
 
 def reach_message(stepper: Stepper, i: int, phase: str) -> str:
     """The one-line explanation of a particle whose support leaves its patch's ghost layer."""
-    D, P = stepper.disc, stepper.P
+    D, P = stepper.disc, stepper.P.rows  # ``i``: a physical row
     g, dmin = D.layout.ghost, float(D.h.min())
     reach, inside = support_reach(stepper, i)
     x = P.x[i]

@@ -81,6 +81,7 @@ class Stepper:
         self.migrated = 0
         self._new_patch = np.zeros(0, np.int64)
         self._located = None                # (first particle off the grid, moved) from G2P
+        self._moved = -1                    # particles that changed patch (-1: not counted)
         #: damage-triggered CPDI domain freeze (parmpm.shapes.freeze): CPDI or CPDI2 and a
         #: damage model
         self.freezing = bool(disc.method in CAPPED and np.any(params[:, COL_DAMAGE] != 0))
@@ -122,23 +123,26 @@ class Stepper:
         self.gm, self.gmv, self.gf = (self.gsum[:, :, :1], self.gsum[:, :, 1:1 + d],
                                       self.gsum[:, :, 1 + d:])
         self.gvel, self.gdv = self.gnew[:, :, :d], self.gnew[:, :, d:]
-        P.group_by_patch(P.patch, ps.slot_of, n, force=True)
+        P.group_by_patch(P.rows.patch, ps.slot_of, n, force=True)  # no copy: see _reslot
 
     # --- the step -------------------------------------------------------------------------------
     def records(self):
         """The kernels' records (:mod:`parmpm.kernel_records`) of the current patches and
         particle arrays (rebuilt per call: migration replaces the arrays)."""
         D, P = self.disc, self.P
-        boxes = Boxes(P.start, D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3, D.inv_h3)
-        fields = Fields(P.x, P.v, P.F, P.r0, P.lh0, P.mass, P.vol0, P.stress, P.dx, P.affine,
-                        P.corners, P.rf)
+        R = P.rows  # physical rows, visited in P.order(): no copy of the fields per step
+        boxes = Boxes(P.start, P.order(), D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3,
+                      D.inv_h3)
+        fields = Fields(R.x, R.v, R.F, R.r0, R.lh0, R.mass, R.vol0, R.stress, R.dx, R.affine,
+                        R.corners, R.rf)
         return Method(D.method, D.dim, D.lcr, self.apic), boxes, fields
 
     def _fail(self, i: int, message: str) -> None:
         """Note the first problem of this step (particle ``i``); :meth:`finish` raises it."""
         if self.error is None:
             self.error = message
-            self.error_key = (int(self.P.patch[i]), int(self.P.gid[i]))
+            R = self.P.rows  # ``i`` is a physical row
+            self.error_key = (int(R.patch[i]), int(R.gid[i]))
 
     def _check(self, phase: str) -> None:
         i, code = (int(c) for c in self.err)
@@ -198,7 +202,7 @@ class Stepper:
         is final (``_located``: one pass over the particles fewer than :meth:`locate_and_send`)."""
         P = self.P
         how, boxes, fields = self.records()
-        material = Material(P.mat, self.params, P.damage)
+        material = Material(P.rows.mat, self.params, P.rows.damage)
         if self.kernels is not None:
             if self._new_patch.size != P.n:
                 self._new_patch = np.zeros(P.n, np.int64)
@@ -221,7 +225,7 @@ class Stepper:
             if self._bforce.shape[0] != P.n:
                 self._bforce = np.zeros((P.n, P.dim))
             bforce = self._bforce
-            self.forcing(time_now, P, bforce)
+            self.forcing(time_now, P.rows, bforce)  # per physical row, as P2G reads it
         self._p2g(bforce)
         self._fold(momentum_only=False)
         t = self._lap("p2g", t)
@@ -251,8 +255,9 @@ class Stepper:
             vmax = self._g2p(G2P_MUSL_DEFORM, dt)
         self._check("g2p")
         if self.freezing:
-            P = self.P
-            self.frozen = freeze_domains(P.dim, P.F, P.r0, P.rf, P.damage, P.mat, self.params)
+            R = self.P.rows
+            self.frozen = freeze_domains(self.P.dim, R.F, R.r0, R.rf, R.damage, R.mat,
+                                         self.params)
         t = self._lap("g2p", t)
         moves = self.locate_and_send()
         t = self._lap("migrate", t)
@@ -271,6 +276,7 @@ class Stepper:
         """Find every particle's new patch and exchange the particles that change rank; returns
         what :meth:`regroup` needs (None when no particle changed patch on a single rank)."""
         D, P, ps = self.disc, self.P, self.patches
+        R = P.rows  # indices here are physical rows
         lay = D.layout
         if self._new_patch.size != P.n:
             self._new_patch = np.zeros(P.n, np.int64)
@@ -279,31 +285,33 @@ class Stepper:
             bad, moved = self._located
             self._located = None
         else:
-            bad, moved = locate_patches(D.dim, P.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
-                                        lay.patches_per_axis, P.patch, new)
+            bad, moved = locate_patches(D.dim, R.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
+                                        lay.patches_per_axis, R.patch, new, P.order())
+        self._moved = int(moved)
         parallel = is_parallel(self.comm)
         if bad >= 0:  # before any early return: the same on any rank count
-            self._fail(bad, f"particle {P.gid[bad]} at {fmt_vec(P.x[bad])} left the grid at "
-                       f"{math.hypot(*P.v[bad]):.4g} m/s ({grid_extent(D)}); enlarge grid.cells "
+            self._fail(bad, f"particle {R.gid[bad]} at {fmt_vec(R.x[bad])} left the grid at "
+                       f"{math.hypot(*R.v[bad]):.4g} m/s ({grid_extent(D)}); enlarge grid.cells "
                        "or move grid.origin, or check what drives it (gravity, velocities)")
         if moved == 0 and not parallel:  # nothing to regroup, nothing to send
             return None, None, None, None
         if moved == 0:  # every particle stays in its patch, so on this rank
-            keep, received = (exchange(P.fields(), None, self.comm, ps.peers) if parallel
+            keep, received = (exchange(P.raw_fields(), None, self.comm, ps.peers) if parallel
                               else (None, None))
             return new, None, keep, received
         dest = ps.rank_of[new]
         lost = dest < 0
         if np.any(lost):  # moved past a neighbour patch in one step (CFL > 1): stay, and stop
-            i = int(np.flatnonzero(lost)[0])
-            self._fail(i, f"particle {P.gid[i]} at {fmt_vec(P.x[i])} moved more than one patch "
+            order = P.order()
+            i = int(order[np.flatnonzero(lost[order])[0]])  # the first in (patch, id) order
+            self._fail(i, f"particle {R.gid[i]} at {fmt_vec(R.x[i])} moved more than one patch "
                        "in one step; reduce time.cfl")
-            new[lost] = P.patch[lost]
+            new[lost] = R.patch[lost]
             dest[lost] = ps.rank
         keep, received, fields = None, None, None
         if parallel:
             self.migrated += int(np.count_nonzero(dest != ps.rank))
-            fields = P.fields()
+            fields = P.raw_fields()
             fields["patch"] = new
             keep, received = exchange(fields, dest, self.comm, ps.peers)
         return new, fields, keep, received
@@ -318,13 +326,15 @@ class Stepper:
         occupied_before = np.diff(P.start) > 0
         if keep is not None or received is not None:  # some left or came
             if fields is None:
-                fields = P.fields()
+                fields = P.raw_fields()
                 fields["patch"] = new
             P.merge(fields, np.arange(P.n) if keep is None else keep, received, ps.slot_of,
                     ps.n_local)
             self._new_patch = np.zeros(0, np.int64)
-        elif P.group_by_patch(new, ps.slot_of, ps.n_local):
-            self._new_patch = np.zeros(0, np.int64)
+        else:
+            old = P.rows.patch
+            if P.group_by_patch(new, ps.slot_of, ps.n_local, moved=self._moved):
+                self._new_patch = old  # the next step's buffer (P.patch is ``new`` now)
         self._occupancy_changed = bool(np.any((np.diff(P.start) > 0) != occupied_before))
 
     # --- agreement between ranks ----------------------------------------------------------------

@@ -192,6 +192,7 @@ def _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch):
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
     method, lcr, apic = how.code, how.lcr, how.apic
     start = boxes.start
+    order = boxes.order
     v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
     affine = fields.affine
     gm, gmv, gf = out
@@ -201,7 +202,8 @@ def _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch):
     gmv[:] = 0.0
     gf[:] = 0.0
     for p in range(start.size - 1):
-        for i in range(start[p], start[p + 1]):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue
@@ -241,10 +243,12 @@ def _p2g_momentum_loop(how, dim, boxes, fields, gmv, err, scratch):
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
     method, lcr, apic = how.code, how.lcr, how.apic
     start, v, mass = boxes.start, fields.v, fields.mass
+    order = boxes.order
     idx, w = scratch[7], scratch[8]
     gmv[:] = 0.0
     for p in range(start.size - 1):
-        for i in range(start[p], start[p + 1]):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue
@@ -278,6 +282,7 @@ def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scra
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
     method, lcr, apic = how.code, how.lcr, how.apic
     start = boxes.start
+    order = boxes.order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     affine = fields.affine
     mat, params, damage = material
@@ -287,7 +292,8 @@ def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scra
     tracked = method == CPDI2
     vmax = 0.0
     for p in range(start.size - 1):
-        for i in range(start[p], start[p + 1]):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue
@@ -369,9 +375,11 @@ def support_nodes(how, boxes, fields, nodes, count, err):
 def _support_nodes_loop(how, boxes, fields, nodes, count, err, scratch):
     method, d, lcr = how.code, how.dim, how.lcr
     start, base, nloc, nglob = boxes.start, boxes.base, boxes.nloc, boxes.nglob
+    order = boxes.order
     idx, w = scratch[7], scratch[8]
     for p in range(start.size - 1):
-        for i in range(start[p], start[p + 1]):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue

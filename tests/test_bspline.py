@@ -170,7 +170,8 @@ def test_reach_message_uses_the_grid_sized_support():
     from parmpm.reach import support_half_widths
     from parmpm.shapes import MPM
 
-    P = SimpleNamespace(lh0=np.array([[0.01, 0.02]]))
+    rows = SimpleNamespace(lh0=np.array([[0.01, 0.02]]))  # the stepper reads physical rows
+    P = SimpleNamespace(rows=rows)
     for method, cells in ((MPM, 1.0), (BSPLINE, 1.5)):
         D = SimpleNamespace(method=method, dim=2, h=np.array([0.1, 0.2, 1.0]))
         half = support_half_widths(SimpleNamespace(disc=D, P=P), 0)

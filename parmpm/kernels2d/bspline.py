@@ -40,6 +40,7 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
     """Mass, momentum (FLIP or APIC) and force of every patch slot from its particles (``lcr``
     unused: the signature is the CPDI kernel's)."""
     start = boxes.start
+    order = boxes.order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     C = fields.affine
@@ -51,7 +52,8 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             kx, tx = spline_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             ky, ty = spline_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if kx < 0 or ky < 0:
@@ -98,6 +100,7 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
 def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum only (FLIP or APIC), into ``gsum[..., 1:3]``."""
     start = boxes.start
+    order = boxes.order
     x, v, mass = fields.x, fields.v, fields.mass
     C = fields.affine
     apic = C.shape[0] > 0
@@ -107,7 +110,8 @@ def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             kx, tx = spline_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             ky, ty = spline_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if kx < 0 or ky < 0:
@@ -143,6 +147,7 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
     ``c_p + |v_p|`` when the stress is updated, the particles that changed patch and the first
     that left the grid."""
     start = boxes.start
+    order = boxes.order
     x, v, F, stress, dxs = fields.x, fields.v, fields.F, fields.stress, fields.dx
     C = fields.affine
     apic = C.shape[0] > 0
@@ -156,7 +161,8 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
         g = gnew[p]
         sp = slot_patch[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             xx, xy = x[i, 0], x[i, 1]
             kx, tx = spline_of((xx - ox) * ihx, bx, jlx, jhx)
             ky, ty = spline_of((xy - oy) * ihy, by, jly, jhy)

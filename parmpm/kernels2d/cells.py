@@ -79,7 +79,7 @@ def note_patch(new_patch, i, pid, sp, moved, first_out):
     if pid < 0:
         new_patch[i] = sp
         if first_out < 0:
-            first_out = i
+            first_out = np.int64(i)
     else:
         new_patch[i] = pid
         if pid != sp:

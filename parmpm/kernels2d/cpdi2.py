@@ -97,6 +97,7 @@ def note_error(err, i, code):
 def p2g_cpdi2(lcr, boxes, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
     start = boxes.start
+    order = boxes.order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     c = fields.corners
@@ -106,7 +107,8 @@ def p2g_cpdi2(lcr, boxes, fields, bforce, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             x0, y0, x1, y1, x2, y2, x3, y3 = quad(lcr, c, i)
             wf0, wf1, wf2, wf3, g0x, g0y, g1x, g1y, V = weights(x0, y0, x1, y1, x2, y2, x3, y3)
             if not V > 0.0:
@@ -141,6 +143,7 @@ def p2g_cpdi2(lcr, boxes, fields, bforce, gsum, err):
 def p2g_momentum_cpdi2(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2) of ``gsum`` only."""
     start = boxes.start
+    order = boxes.order
     x, v, mass = fields.x, fields.v, fields.mass
     c = fields.corners
     gsum[:, 1:3, :] = 0.0
@@ -148,7 +151,8 @@ def p2g_momentum_cpdi2(lcr, boxes, fields, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             x0, y0, x1, y1, x2, y2, x3, y3 = quad(lcr, c, i)
             wf0, wf1, wf2, wf3, _, _, _, _, V = weights(x0, y0, x1, y1, x2, y2, x3, y3)
             if not V > 0.0:
@@ -173,6 +177,7 @@ def g2p_cpdi2(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     corners in the modes that move the particle; returns the largest ``c_p + |v_p|`` in the
     modes that update the stress."""
     start = boxes.start
+    order = boxes.order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     c, rf = fields.corners, fields.rf
     mat, params, damage = material
@@ -185,7 +190,8 @@ def g2p_cpdi2(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
         g = gnew[p]
         sp = slot_patch[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             x0, y0, x1, y1, x2, y2, x3, y3 = quad(lcr, c, i)
             wf0, wf1, wf2, wf3, g0x, g0y, g1x, g1y, V = weights(x0, y0, x1, y1, x2, y2, x3, y3)
             xx, xy = x[i, 0], x[i, 1]

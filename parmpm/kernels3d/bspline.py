@@ -40,6 +40,7 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
     """Mass, momentum (FLIP or APIC) and force of every patch slot from its particles (``lcr``
     unused: the signature is the CPDI kernel's)."""
     start = boxes.start
+    order = boxes.order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     C = fields.affine
@@ -51,7 +52,8 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
     hx, hy, hz = 1.0 / ihx, 1.0 / ihy, 1.0 / ihz
     for p in range(start.size - 1):
         g = gsum[p]
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             kx, ky, kz, tx, ty, tz = locate3(x, i, o, ih, boxes, p)
             if kx < 0 or ky < 0 or kz < 0:
                 if err[0] < 0:
@@ -105,6 +107,7 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
 def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only (FLIP or APIC)."""
     start = boxes.start
+    order = boxes.order
     x, v, mass = fields.x, fields.v, fields.mass
     C = fields.affine
     apic = C.shape[0] > 0
@@ -114,7 +117,8 @@ def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
     hx, hy, hz = 1.0 / ihx, 1.0 / ihy, 1.0 / ihz
     for p in range(start.size - 1):
         g = gsum[p]
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             kx, ky, kz, tx, ty, tz = locate3(x, i, o, ih, boxes, p)
             if kx < 0 or ky < 0 or kz < 0:
                 if err[0] < 0:
@@ -151,6 +155,7 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
     ``c_p + |v_p|`` when the stress is updated, the particles that changed patch and the first
     that left the grid."""
     start = boxes.start
+    order = boxes.order
     x, v, F, stress, dxs = fields.x, fields.v, fields.F, fields.stress, fields.dx
     C = fields.affine
     apic = C.shape[0] > 0
@@ -164,7 +169,8 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
     for p in range(start.size - 1):
         g = gnew[p]
         sp = slot_patch[p]
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             kx, ky, kz, tx, ty, tz = locate3(x, i, o, ih, boxes, p)
             if kx < 0 or ky < 0 or kz < 0:
                 if err[0] < 0:

@@ -141,6 +141,7 @@ def p2g_cpdi2(lcr, boxes, fields, bforce, gsum, err):
 @loop_kernel
 def _p2g_loop(lcr, boxes, fields, bforce, gsum, err, sc, cells, fr):
     start = boxes.start
+    order = boxes.order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     c = fields.corners
@@ -150,7 +151,8 @@ def _p2g_loop(lcr, boxes, fields, bforce, gsum, err, sc, cells, fr):
     o, ih = (ox, oy, oz), (ihx, ihy, ihz)
     for p in range(start.size - 1):
         g = gsum[p]
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # unsigned: no wraparound
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
             if code < 0:
                 note_error(err, i, code)
@@ -185,6 +187,7 @@ def p2g_momentum_cpdi2(lcr, boxes, fields, gsum, err):
 @loop_kernel
 def _p2g_momentum_loop(lcr, boxes, fields, gsum, err, sc, cells, fr):
     start = boxes.start
+    order = boxes.order
     x, v, mass = fields.x, fields.v, fields.mass
     c = fields.corners
     gsum[:, 1:4, :] = 0.0
@@ -192,7 +195,8 @@ def _p2g_momentum_loop(lcr, boxes, fields, gsum, err, sc, cells, fr):
     o, ih = (ox, oy, oz), (ihx, ihy, ihz)
     for p in range(start.size - 1):
         g = gsum[p]
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
             if code < 0:
                 note_error(err, i, code)
@@ -218,6 +222,7 @@ def g2p_cpdi2(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
 @loop_kernel
 def _g2p_loop(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate, sc, cells, fr, u):
     start = boxes.start
+    order = boxes.order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     c, rf = fields.corners, fields.rf
     mat, params, damage = material
@@ -230,7 +235,8 @@ def _g2p_loop(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate, s
     for p in range(start.size - 1):
         g = gnew[p]
         sp = slot_patch[p]
-        for i in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
             if code < 0:
                 note_error(err, i, code)

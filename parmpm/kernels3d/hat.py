@@ -60,6 +60,7 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
     """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` unused:
     the signature is the CPDI kernel's)."""
     start = boxes.start
+    order = boxes.order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     forced = bforce.shape[0] > 0
@@ -68,7 +69,8 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             jz, fz = hat_cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
@@ -104,13 +106,15 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
 def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
     start = boxes.start
+    order = boxes.order
     x, v, mass = fields.x, fields.v, fields.mass
     gsum[:, 1:4, :] = 0.0
     ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
     for p in range(start.size - 1):
         g = gsum[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             jz, fz = hat_cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
@@ -132,6 +136,7 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
     updated."""
     start = boxes.start
+    order = boxes.order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     mat, params, damage = material
     loc, inv_ps, slot_patch, new_patch = locate
@@ -143,7 +148,8 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
         g = gnew[p]
         sp = slot_patch[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
-        for i in range(start[p], start[p + 1]):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = order[kk]  # the physical row (Particles.order)
             xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
             jx, fx = hat_cell_of((xx - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((xy - oy) * ihy, by, jly, jhy)

@@ -21,12 +21,21 @@ from parmpm.jit import kernel
 _PW_BLOCK = 128
 
 
+def patch_sums(start, values, order=None):
+    """(patches, k) sums of ``values`` rows over each patch's particles, strictly in canonical
+    order: rows ``order[start[p]:start[p + 1]]`` (:meth:`parmpm.particles.Particles.order`;
+    default: the rows as they lie)."""
+    if order is None:
+        order = np.arange(values.shape[0], dtype=np.uint64)
+    return _patch_sums(start, values, order)
+
+
 @kernel
-def patch_sums(start, values):
-    """(patches, k) sums of ``values`` rows over each patch's particles, strictly in order."""
+def _patch_sums(start, values, order):
     out = np.zeros((start.size - 1, values.shape[1]))
     for p in range(start.size - 1):
-        for i in range(start[p], start[p + 1]):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+            i = order[kk]
             for c in range(values.shape[1]):
                 out[p, c] += values[i, c]
     return out
