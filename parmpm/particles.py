@@ -18,6 +18,7 @@ import numpy as np
 from numba import literal_unroll, literally
 
 from parmpm.jit import DIMS, kernel, loop_kernel
+from parmpm.particle_order import LEFT, merge_order, move_runs
 from parmpm.patch_index import patch_id1, patch_id2, patch_id3
 
 FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx", "rf",
@@ -29,8 +30,16 @@ OPTIONAL_FIELDS = ("affine", "corners")
 
 
 class Particles:
-    """SoA particle arrays of one rank, grouped by local patch slot (``start``: CSR offsets) and
-    sorted by global id inside a patch. ``patch`` is the global id of the particle's patch."""
+    """SoA particle arrays of one rank, grouped by local patch slot (``start``: CSR offsets into
+    :meth:`order`) and sorted by global id inside a patch. ``patch`` is the global id of the
+    particle's patch.
+
+    Reading a field (``P.x``) always gives the rows in that canonical order. The time step
+    works on the rows as they lie (:attr:`rows`) and visits them through :meth:`order`
+    (:mod:`parmpm.particle_order`): after particles change patch or rank only the index moves,
+    and the fields are copied into order (:meth:`compact`) when a field is read from outside the
+    step or once :data:`COMPACT_FRACTION` of the rows are out of place. The arrays may be views
+    of longer buffers (room for arriving rows without a reallocation)."""
 
     def __init__(self, dim: int, n: int, optional: tuple[str, ...] = ()):
         unknown = sorted(set(optional) - set(OPTIONAL_FIELDS))
@@ -45,10 +54,13 @@ class Particles:
         #: canonical position -> physical row while the rows are not in canonical order, else None
         self._order: np.ndarray | None = None
         self._identity = np.zeros(0, np.uint64)
-        self._leaving = np.zeros(0, np.uint8)  # _regroup's scratch
-        self._spare = np.zeros(0, np.uint64)  # the order array _regroup writes next
+        self._order_bufs = [np.zeros(0, np.uint64), np.zeros(0, np.uint64)]
+        self._order_in = -1  # which of _order_bufs ``_order`` lies in (-1: neither)
+        self._flags = np.zeros(0, np.uint8)  # merge_order's zeroed scratch byte per row
+        #: longer arrays the fields are views of (None: the fields are exact-size arrays)
+        self._buf: dict[str, np.ndarray] | None = None
         #: ``start`` and the order group the rows by their ``patch`` (False after arbitrary
-        #: replacements, until :meth:`group_by_patch` or :meth:`merge` regroups them)
+        #: replacements, until :meth:`group_by_patch` regroups them)
         self._grouped = False
         #: rows placed out of canonical order since the last :meth:`compact`
         self.displaced = 0
@@ -73,6 +85,11 @@ class Particles:
     def n(self) -> int:
         return self._a["gid"].size
 
+    def names(self) -> tuple[str, ...]:
+        """The fields this store carries: every field but the optional ones it does not."""
+        return INT_FIELDS + tuple(k for k in FLOAT_FIELDS
+                                  if k not in OPTIONAL_FIELDS or k in self.optional)
+
     # --- canonical order ------------------------------------------------------------------------
     def order(self) -> np.ndarray:
         """Canonical position -> physical row (uint64, what the kernels loop over: patch slot
@@ -88,20 +105,43 @@ class Particles:
         read through this, so code outside the time step never sees the lazy order."""
         if self._order is None:
             return
-        order, self._order = self._order.astype(np.int64), None
-        self.displaced = 0
+        order = self._order.astype(np.int64)
+        n = order.size
+        # as long as the buffers were: room for arrivals where rows come and go (the exchange
+        # made it), none where they never did
+        rows = n if self._buf is None else max(n, self._buf["gid"].shape[0])
+        buf, self._buf = {}, None  # each old array goes as its field is replaced
         for name in self.names():
-            self._a[name] = np.take(self._a[name], order, axis=0)
+            a = self._a[name]
+            b = np.empty((rows,) + a.shape[1:], a.dtype)
+            np.take(a, order, axis=0, out=b[:n], mode="clip")  # "raise" buffers a copy
+            buf[name] = b
+            self._a[name] = b[:n]
+        self._buf = buf
+        self._set_order(None)
+        self.displaced = 0
 
-    def names(self) -> tuple[str, ...]:
-        """The fields this store carries: every field but the optional ones it does not."""
-        return INT_FIELDS + tuple(k for k in FLOAT_FIELDS
-                                  if k not in OPTIONAL_FIELDS or k in self.optional)
+    def _set_order(self, order: np.ndarray | None, into: int = -1) -> None:
+        self._order, self._order_in = order, into
 
+    def _order_buffer(self, n: int) -> tuple[np.ndarray, int]:
+        """An ``n``-long uint64 array to write the next order into (never the current one)."""
+        k = 1 if self._order_in == 0 else 0
+        if self._order_bufs[k].size < n:
+            self._order_bufs[k] = np.empty(_room(n), np.uint64)
+        return self._order_bufs[k][:n], k
+
+    def _flag_bytes(self, n: int) -> np.ndarray:
+        if self._flags.size < n:
+            self._flags = np.zeros(_room(n), np.uint8)
+        return self._flags
+
+    # --- whole-store changes --------------------------------------------------------------------
     def carry(self, optional: tuple[str, ...]) -> None:
         """Carry exactly the optional fields ``optional`` (a new one starts at zero): a restart
         from a checkpoint that lacks one (an older format) still runs."""
         self.compact()
+        self._buf = None
         for k in OPTIONAL_FIELDS:
             a = self._a[k]
             rows = self.n if k in optional else 0
@@ -120,7 +160,8 @@ class Particles:
 
     def replace(self, fields: dict[str, np.ndarray]) -> None:
         """Take new arrays for every field (after migration); ``start`` must be rebuilt."""
-        self._order, self.displaced, self._grouped = None, 0, False
+        self._set_order(None)
+        self.displaced, self._grouped, self._buf = 0, False, None
         for name, arr in fields.items():
             self._a[name] = arr
 
@@ -128,54 +169,31 @@ class Particles:
         """Reorder (or select) every field by ``perm``, one field at a time (so at most one
         field's worth of extra memory is held: the old array goes as soon as it is replaced)."""
         self.compact()
-        self._grouped = False
+        self._grouped, self._buf = False, None
         for name in self.names():
             self._a[name] = np.take(self._a[name], perm, axis=0)
 
-    def merge(self, fields: dict[str, np.ndarray], keep: np.ndarray, received: dict | None,
-              slot_of: np.ndarray, n_slots: int) -> None:
-        """After a migration: the kept rows ``fields[keep]`` and the ``received`` ones, sorted by
-        (slot, gid) and written once into fresh arrays (one copy per field, no intermediates).
-        ``fields['patch']`` holds the kept rows' new global patch ids; ``fields`` is emptied."""
-        k = keep.size
-        patch = fields["patch"][keep]
-        gid = self._a["gid"][keep]
-        if received is not None:
-            patch = np.concatenate([patch, received["patch"]])
-            gid = np.concatenate([gid, received["gid"]])
-        slot = slot_of[patch]
-        order = np.argsort(slot * (int(gid.max(initial=0)) + 1) + gid, kind="stable")
-        n = order.size
-        for name in list(fields):  # popped, so each old array goes once its new one is written
-            a = fields.pop(name)
-            out = np.empty((n,) + a.shape[1:], a.dtype)
-            r = received[name] if received is not None else a[:0]
-            w = int(np.prod(a.shape[1:], dtype=np.int64))
-            _merge_rows(out.reshape(n, w), a.reshape(a.shape[0], w), r.reshape(r.shape[0], w),
-                        keep, order, k)
-            self._a[name] = out
-            del a
-        self._order, self.displaced, self._grouped = None, 0, True
-        counts = np.bincount(slot, minlength=n_slots)
-        self.start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-
+    # --- regrouping after a step ----------------------------------------------------------------
     def group_by_patch(self, new_patch: np.ndarray, slot_of: np.ndarray, n_slots: int,
-                       force: bool = False, moved: int = -1) -> bool:
+                       force: bool = False, moved: int = -1, keep: np.ndarray | None = None,
+                       received: dict | None = None) -> bool:
         """Group by (local slot of the global patch id, gid) and rebuild the CSR offsets; a no-op
-        when no particle changed patch (and not ``force``). Returns True if the order changed.
-        The order inside a patch depends only on the patch's particles, never on the rank.
+        when no particle changed patch or rank (and not ``force``). Returns True if the order
+        changed. The order inside a patch depends only on the patch's particles, never on the
+        rank.
 
-        Lazily: the new canonical order is an index (:meth:`order`) merged in O(n) from the old
-        one and the few particles that changed patch (``moved`` of them, when the caller counted
-        them); the rows are copied into that order (:meth:`compact`) only once more than
-        :data:`COMPACT_FRACTION` of them sit out of place, or when code outside the step reads
-        a field. ``new_patch`` becomes the store's ``patch`` array."""
+        ``new_patch``: every row's next patch (it becomes the store's ``patch`` array unless
+        rows left); ``moved``: how many changed patch, when the caller counted them; after an
+        exchange, ``keep`` (increasing) are the rows that stay on this rank and ``received`` the
+        arrived records. Lazily (:mod:`parmpm.particle_order`): the new order is merged in O(n)
+        from the old one and the rows that changed patch; rows that left are filled from the
+        tail, received rows appended; the fields are copied into order (:meth:`compact`) only
+        once more than :data:`COMPACT_FRACTION` of the rows sit out of place."""
         a = self._a
+        exchanged = keep is not None or received is not None
         if force or not self._grouped or self.start.size != n_slots + 1:
-            force = True
-        elif moved == 0 or (moved < 0 and np.array_equal(new_patch, a["patch"])):
-            return False
-        if force:
+            if exchanged:
+                raise ValueError("group_by_patch: an exchange needs the rows grouped first")
             if not (self._grouped and new_patch is a["patch"] and self._reslot(slot_of, n_slots)):
                 self.compact()
                 slot = slot_of[new_patch]
@@ -186,21 +204,60 @@ class Particles:
                 self.start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
             self._grouped = True
             return True
+        if not exchanged and (moved == 0 or (moved < 0 and np.array_equal(new_patch, a["patch"]))):
+            return False
+        n = self.n
+        empty = np.zeros(0, np.int64)
+        keep = np.arange(n) if keep is None else np.asarray(keep, np.int64)
+        n_keep = keep.size
+        r = 0 if received is None else int(received["gid"].shape[0])
+        flags = self._flag_bytes(n)
+        holes = fillers = empty
+        if n_keep < n:
+            gone = np.ones(n, bool)
+            gone[keep] = False
+            leavers = np.flatnonzero(gone)
+            flags[leavers] = LEFT
+            holes, fillers = leavers[leavers < n_keep], keep[keep >= n_keep]
         counts = np.diff(self.start)
-        out = self._spare if self._spare.size == self.n else np.empty(self.n, np.uint64)
-        if self._leaving.size != self.n:
-            self._leaving = np.zeros(self.n, np.uint8)
-        n_moved = _regroup(self.order(), a["patch"], new_patch, slot_of, a["gid"], self.start,
-                           counts, self._leaving, out)
-        a["patch"] = new_patch
-        # the old order is the next regroup's output buffer (never the array it reads)
-        self._spare = self._order if self._order is not None else np.zeros(0, np.uint64)
-        self._order = out
+        out, into = self._order_buffer(n_keep + r)
+        changed = merge_order(self.order(), a["patch"], new_patch, slot_of, a["gid"],
+                              self.start, counts, flags, fillers, holes,
+                              slot_of[received["patch"]] if r else empty,
+                              received["gid"] if r else empty, out)
+        if n_keep == n and r == 0:
+            a["patch"] = new_patch
+        else:
+            self._move_rows(new_patch, holes, fillers, received, n_keep + r)
+        self._set_order(out, into)
         self.start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        self.displaced += n_moved
+        self.displaced += changed + r
         if self.displaced > COMPACT_FRACTION * self.n:
             self.compact()
         return True
+
+    def _move_rows(self, new_patch, holes, fillers, received, n_new) -> None:
+        """Rows ``fillers`` (kept rows past the new kept count) into the rows that left
+        (``holes``), the received rows after the kept ones; ``new_patch`` gives the kept rows'
+        patches. Buffers grow by an eighth more than needed when the rows outgrow them (one copy)."""
+        a = self._a
+        n_keep = n_new - (0 if received is None else int(received["gid"].shape[0]))
+        grow = self._buf is None or self._buf["gid"].shape[0] < n_new
+        buf = {} if grow else self._buf
+        self._buf = None  # when growing, each old array goes as its field is replaced
+        for name in self.names():
+            src = new_patch if name == "patch" else a[name]
+            if holes.size:
+                src[holes] = src[fillers]
+            if grow:
+                buf[name] = np.empty((_room(n_new),) + src.shape[1:], src.dtype)
+            dst = buf[name]
+            if grow or name == "patch":
+                dst[:n_keep] = src[:n_keep]
+            if received is not None:
+                dst[n_keep:n_new] = received[name]
+            a[name] = dst[:n_new]
+        self._buf = buf
 
     def _reslot(self, slot_of: np.ndarray, n_slots: int) -> bool:
         """The patch set changed but every particle's patch is still here: the patches' runs of
@@ -216,16 +273,23 @@ class Particles:
         counts = np.zeros(n_slots, np.int64)
         counts[to] = sizes[full]
         start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-        out = np.empty(self.n, np.uint64)
-        _move_runs(self.order(), old[full], sizes[full], start[to], out)
-        self._order, self.start = out, start
+        out, into = self._order_buffer(self.n)
+        move_runs(self.order(), old[full], sizes[full], start[to], out)
+        self._set_order(out, into)
+        self.start = start
         return True
 
 
 #: the share of rows out of canonical place at which :meth:`Particles.group_by_patch` copies
-#: every field into canonical order (a gather of misplaced rows costs cache misses every pass;
-#: the copy costs a pass over all the fields)
+#: every field into canonical order. Measured (1e6 CPDI particles, 2D, 1 core): P2G and G2P
+#: run ~4 % slower with the rows never compacted over 230 steps of patch crossings; a copy
+#: costs ~60 ms, so at ~0.8 % of the rows moving per step it pays every ~30 steps
 COMPACT_FRACTION = 0.25
+
+
+def _room(n: int) -> int:
+    """Rows to allocate for ``n`` when they grow: an eighth more."""
+    return n + n // 8 + 64
 
 
 class _Rows:
@@ -255,90 +319,13 @@ def _field(name: str) -> property:
             self.compact()
         if name == "patch":
             self._grouped = False
+        self._buf = None  # the fields are no longer all views of the buffers
         self._a[name] = value
     return property(get, put, doc=f"``{name}``, rows in canonical order")
 
 
 for _name in INT_FIELDS + FLOAT_FIELDS:
     setattr(Particles, _name, _field(_name))
-
-
-@kernel
-def _regroup(order, patch, new, slot_of, gid, start, counts, leaving, out):
-    """The canonical order after some particles changed patch: ``out`` merges, slot by slot,
-    the old order's particles that stayed (still in gid order) with the ones that arrived
-    (sorted by (slot, gid)); ``counts`` (per slot) is updated in place. ``leaving``: a zeroed
-    byte per row (left zeroed). Returns how many moved. Two passes: the movers are found in
-    row order (sequential reads), the merge reads a stayer's gid only where arrivals wait."""
-    n = order.size
-    rows = np.empty(n, np.int64)
-    m = 0
-    top = 0
-    for i in range(n):
-        if new[i] != patch[i]:
-            rows[m] = i
-            leaving[i] = 1
-            counts[slot_of[patch[i]]] -= 1
-            counts[slot_of[new[i]]] += 1
-            top = max(top, gid[i])
-            m += 1
-    key = np.empty(m, np.int64)
-    for j in range(m):
-        key[j] = slot_of[new[rows[j]]] * (top + 1) + gid[rows[j]]
-    srt = np.argsort(key)
-    b = 0
-    pos = 0
-    for s in range(start.size - 1):
-        k = start[s]
-        end = start[s + 1]
-        # arrivals into slot s: srt[b:b_end]
-        b_end = b
-        while b_end < m and slot_of[new[rows[srt[b_end]]]] == s:
-            b_end += 1
-        while b < b_end:
-            g = gid[rows[srt[b]]]
-            while k < end:  # stayers before the next arrival
-                i = order[k]
-                if leaving[i] == 0:
-                    if gid[i] > g:
-                        break
-                    out[pos] = i
-                    pos += 1
-                k += 1
-            out[pos] = rows[srt[b]]
-            pos += 1
-            b += 1
-        while k < end:  # the rest of the slot's stayers: no gid needed
-            i = order[k]
-            if leaving[i] == 0:
-                out[pos] = i
-                pos += 1
-            k += 1
-    for j in range(m):
-        leaving[rows[j]] = 0
-    return m
-
-
-@kernel
-def _move_runs(order, src, size, dst, out):
-    """``out[dst[r]:dst[r] + size[r]] = order[src[r]:src[r] + size[r]]`` for every run ``r``."""
-    for r in range(src.size):
-        for k in range(size[r]):
-            out[dst[r] + k] = order[src[r] + k]
-
-
-@kernel
-def _merge_rows(out, old, new, keep, order, k):
-    """``out[i] = (old[keep] ++ new)[order[i]]`` row by row, without building the concatenation."""
-    for i in range(order.size):
-        j = order[i]
-        if j < k:
-            s = keep[j]
-            for c in range(out.shape[1]):
-                out[i, c] = old[s, c]
-        else:
-            for c in range(out.shape[1]):
-                out[i, c] = new[j - k, c]
 
 
 def locate_patches(d, x, origin, inv_h, cells, psize, ppa, current, out, order=None):

@@ -325,12 +325,9 @@ class Stepper:
             return
         occupied_before = np.diff(P.start) > 0
         if keep is not None or received is not None:  # some left or came
-            if fields is None:
-                fields = P.raw_fields()
-                fields["patch"] = new
-            P.merge(fields, np.arange(P.n) if keep is None else keep, received, ps.slot_of,
-                    ps.n_local)
-            self._new_patch = np.zeros(0, np.int64)
+            P.group_by_patch(new, ps.slot_of, ps.n_local,
+                             keep=np.arange(P.n) if keep is None else keep, received=received)
+            self._new_patch = np.zeros(0, np.int64)  # P's patch rows may lie in it now
         else:
             old = P.rows.patch
             if P.group_by_patch(new, ps.slot_of, ps.n_local, moved=self._moved):
