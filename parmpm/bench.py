@@ -23,7 +23,8 @@ Each case first runs a tiny block of the same dimension and method (``jit_warmup
 kernels compiled, or loaded from numba's on-disk cache), then the measured block, whose first step
 is excluded from the timings too. Phases (seconds per step; ``reduce`` is the one end-of-step
 ``Allreduce`` that agrees on the next Δt, errors and patch changes; ``sort`` regroups particles
-into (patch, id) order after some changed patch; the stress update is fused into ``g2p`` and
+into (patch, id) order after some changed patch or rank: :mod:`parmpm.particle_order`'s index
+merge, plus now and then a copy of the fields into that order; the stress update is fused into ``g2p`` and
 reported beside it as the time the same work takes on its own). Memory per particle is the
 growth of this process's resident set from just before the block is built to its peak (grid,
 particles and every buffer; the interpreter and compiled code excluded), divided by the

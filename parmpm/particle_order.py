@@ -29,14 +29,16 @@ def _new_row(i, flags, fillers, holes):
 
 @kernel
 def merge_order(order, patch, new, slot_of, gid, start, counts, flags, fillers, holes,
-                recv_slot, recv_gid, out):
+                recv_slot, recv_gid, scratch, out):
     """The canonical order after a step's moves, into ``out`` (its length is the new count):
     slot by slot, the old order's rows that stayed in their patch (still in gid order) merged
     with the arrivals (rows that changed patch here and the ``recv_*`` received rows, appended
     after the kept ones) sorted by (slot, gid). ``flags``: a zeroed byte per row, with
     :data:`LEFT` set on the rows that left the rank (left zeroed again); ``fillers``/``holes``:
-    the kept rows past the new end and the rows they fill (both increasing). ``counts`` (per
-    slot) is updated in place. Returns how many rows changed patch or left.
+    the kept rows past the new end and the rows they fill (both increasing); ``scratch``:
+    (4, ≥ rows + received) int64, only its first entries touched (a persistent buffer, so no
+    step allocates). ``counts`` (per slot) is updated in place. Returns how many rows changed
+    patch or left.
 
     Two passes over the rows: the movers are found in row order (sequential reads), then the
     merge reads a stayer's gid only while arrivals wait in its slot."""
@@ -44,11 +46,8 @@ def merge_order(order, patch, new, slot_of, gid, start, counts, flags, fillers, 
     n_keep = out.size - recv_slot.size
     for j in range(fillers.size):
         flags[fillers[j]] |= FILLER
-    cap = n + recv_slot.size
-    rows = np.empty(cap, np.int64)   # arrivals: new row, slot, gid
-    aslot = np.empty(cap, np.int64)
-    agid = np.empty(cap, np.int64)
-    marked = np.empty(n, np.int64)   # rows whose flags are cleared at the end
+    rows, aslot, agid = scratch[0], scratch[1], scratch[2]  # arrivals: new row, slot, gid
+    marked = scratch[3]  # rows whose flags are cleared at the end
     m = 0
     n_marked = 0
     top = 0

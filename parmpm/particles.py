@@ -57,6 +57,7 @@ class Particles:
         self._order_bufs = [np.zeros(0, np.uint64), np.zeros(0, np.uint64)]
         self._order_in = -1  # which of _order_bufs ``_order`` lies in (-1: neither)
         self._flags = np.zeros(0, np.uint8)  # merge_order's zeroed scratch byte per row
+        self._scratch = np.zeros((4, 0), np.int64)  # merge_order's lists (prefixes touched)
         #: longer arrays the fields are views of (None: the fields are exact-size arrays)
         self._buf: dict[str, np.ndarray] | None = None
         #: ``start`` and the order group the rows by their ``patch`` (False after arbitrary
@@ -100,6 +101,11 @@ class Particles:
             self._identity = np.arange(self.n, dtype=np.uint64)
         return self._identity
 
+    def lazy_order(self) -> np.ndarray:
+        """:meth:`order`, or an empty array while the rows lie in canonical order (the kernels
+        then index the rows directly: a load fewer per particle)."""
+        return self._order if self._order is not None else _NO_ORDER
+
     def compact(self) -> None:
         """Put the rows into canonical (slot, gid) order (a no-op when they are): every field is
         read through this, so code outside the time step never sees the lazy order."""
@@ -130,6 +136,11 @@ class Particles:
         if self._order_bufs[k].size < n:
             self._order_bufs[k] = np.empty(_room(n), np.uint64)
         return self._order_bufs[k][:n], k
+
+    def _scratch_rows(self, n: int) -> np.ndarray:
+        if self._scratch.shape[1] < n:
+            self._scratch = np.empty((4, _room(n)), np.int64)
+        return self._scratch
 
     def _flag_bytes(self, n: int) -> np.ndarray:
         if self._flags.size < n:
@@ -224,7 +235,8 @@ class Particles:
         changed = merge_order(self.order(), a["patch"], new_patch, slot_of, a["gid"],
                               self.start, counts, flags, fillers, holes,
                               slot_of[received["patch"]] if r else empty,
-                              received["gid"] if r else empty, out)
+                              received["gid"] if r else empty, self._scratch_rows(n + r),
+                              out)
         if n_keep == n and r == 0:
             a["patch"] = new_patch
         else:
@@ -280,11 +292,15 @@ class Particles:
         return True
 
 
-#: the share of rows out of canonical place at which :meth:`Particles.group_by_patch` copies
-#: every field into canonical order. Measured (1e6 CPDI particles, 2D, 1 core): P2G and G2P
-#: run ~4 % slower with the rows never compacted over 230 steps of patch crossings; a copy
-#: costs ~60 ms, so at ~0.8 % of the rows moving per step it pays every ~30 steps
-COMPACT_FRACTION = 0.25
+#: rows moved out of canonical place (counted since the last copy, relative to the rows held)
+#: at which :meth:`Particles.group_by_patch` copies every field into canonical order. Measured
+#: (10⁶ 2D CPDI particles, ``bench --speed 100``, ~0.8 % of the rows changing patch per step,
+#: 120 steps, one core): the same P2G and G2P times with the copy at 25 %, 50 % and 100 % (the
+#: misplaced rows come in runs), and the sort's share 4.9, 4.7 and 3.8 % (a copy: 60–130 ms)
+COMPACT_FRACTION = 1.0
+
+
+_NO_ORDER = np.zeros(0, np.uint64)
 
 
 def _room(n: int) -> int:

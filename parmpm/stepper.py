@@ -131,7 +131,7 @@ class Stepper:
         particle arrays (rebuilt per call: migration replaces the arrays)."""
         D, P = self.disc, self.P
         R = P.rows  # physical rows, visited in P.order(): no copy of the fields per step
-        boxes = Boxes(P.start, P.order(), D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3,
+        boxes = Boxes(P.start, P.lazy_order(), D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3,
                       D.inv_h3)
         fields = Fields(R.x, R.v, R.F, R.r0, R.lh0, R.mass, R.vol0, R.stress, R.dx, R.affine,
                         R.corners, R.rf)

@@ -193,6 +193,7 @@ def _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch):
     method, lcr, apic = how.code, how.lcr, how.apic
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
     affine = fields.affine
     gm, gmv, gf = out
@@ -203,7 +204,7 @@ def _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch):
     gf[:] = 0.0
     for p in range(start.size - 1):
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue
@@ -244,11 +245,12 @@ def _p2g_momentum_loop(how, dim, boxes, fields, gmv, err, scratch):
     method, lcr, apic = how.code, how.lcr, how.apic
     start, v, mass = boxes.start, fields.v, fields.mass
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     idx, w = scratch[7], scratch[8]
     gmv[:] = 0.0
     for p in range(start.size - 1):
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue
@@ -283,6 +285,7 @@ def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scra
     method, lcr, apic = how.code, how.lcr, how.apic
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     affine = fields.affine
     mat, params, damage = material
@@ -293,7 +296,7 @@ def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scra
     vmax = 0.0
     for p in range(start.size - 1):
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue
@@ -376,10 +379,11 @@ def _support_nodes_loop(how, boxes, fields, nodes, count, err, scratch):
     method, d, lcr = how.code, how.dim, how.lcr
     start, base, nloc, nglob = boxes.start, boxes.base, boxes.nloc, boxes.nglob
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     idx, w = scratch[7], scratch[8]
     for p in range(start.size - 1):
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue

@@ -22,6 +22,7 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
     the signature is the CPDI kernel's)."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     forced = bforce.shape[0] > 0
@@ -31,7 +32,7 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if jx < 0 or jy < 0:
@@ -65,6 +66,7 @@ def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum only, into ``gsum[..., 1:3]``."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, mass = fields.x, fields.v, fields.mass
     gsum[:, 1:3, :] = 0.0
     ox, oy, ihx, ihy, L0 = frame_2d(boxes)
@@ -72,7 +74,7 @@ def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if jx < 0 or jy < 0:
@@ -94,6 +96,7 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     updated."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     mat, params, damage = material
     loc, inv_ps, slot_patch, new_patch = locate
@@ -106,7 +109,7 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
         sp = slot_patch[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             xx, xy = x[i, 0], x[i, 1]
             jx, fx = hat_cell_of((xx - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((xy - oy) * ihy, by, jly, jhy)

@@ -41,6 +41,7 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
     unused: the signature is the CPDI kernel's)."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     C = fields.affine
@@ -53,7 +54,7 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             kx, ky, kz, tx, ty, tz = locate3(x, i, o, ih, boxes, p)
             if kx < 0 or ky < 0 or kz < 0:
                 if err[0] < 0:
@@ -108,6 +109,7 @@ def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only (FLIP or APIC)."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, mass = fields.x, fields.v, fields.mass
     C = fields.affine
     apic = C.shape[0] > 0
@@ -118,7 +120,7 @@ def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
     for p in range(start.size - 1):
         g = gsum[p]
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             kx, ky, kz, tx, ty, tz = locate3(x, i, o, ih, boxes, p)
             if kx < 0 or ky < 0 or kz < 0:
                 if err[0] < 0:
@@ -156,6 +158,7 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
     that left the grid."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, stress, dxs = fields.x, fields.v, fields.F, fields.stress, fields.dx
     C = fields.affine
     apic = C.shape[0] > 0
@@ -170,7 +173,7 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
         g = gnew[p]
         sp = slot_patch[p]
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             kx, ky, kz, tx, ty, tz = locate3(x, i, o, ih, boxes, p)
             if kx < 0 or ky < 0 or kz < 0:
                 if err[0] < 0:

@@ -149,6 +149,7 @@ def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, r0, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.r0, fields.mass,
                                        fields.vol0, fields.stress)
     forced = bforce.shape[0] > 0
@@ -158,7 +159,7 @@ def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
         g = gsum[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
             f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
             f20, f21, f22 = F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]
@@ -216,6 +217,7 @@ def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, r0, mass = fields.x, fields.v, fields.F, fields.r0, fields.mass
     gsum[:, 1:4, :] = 0.0
     ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
@@ -223,7 +225,7 @@ def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
         g = gsum[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             R00, R01, R02, R10, R11, R12, R20, R21, R22 = domain(
                 lcr, F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1], F[i, 1, 2],
                 F[i, 2, 0], F[i, 2, 1], F[i, 2, 2],
@@ -258,6 +260,7 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     ``c_p + |v_p|`` in the modes that update the stress."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, r0, stress, dx = fields.x, fields.v, fields.F, fields.r0, fields.stress, fields.dx
     mat, params, damage = material
     loc, inv_ps, slot_patch, new_patch = locate
@@ -270,7 +273,7 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
         sp = slot_patch[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
             f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
             f20, f21, f22 = F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]

@@ -142,6 +142,7 @@ def p2g_cpdi2(lcr, boxes, fields, bforce, gsum, err):
 def _p2g_loop(lcr, boxes, fields, bforce, gsum, err, sc, cells, fr):
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     c = fields.corners
@@ -152,7 +153,7 @@ def _p2g_loop(lcr, boxes, fields, bforce, gsum, err, sc, cells, fr):
     for p in range(start.size - 1):
         g = gsum[p]
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
             if code < 0:
                 note_error(err, i, code)
@@ -188,6 +189,7 @@ def p2g_momentum_cpdi2(lcr, boxes, fields, gsum, err):
 def _p2g_momentum_loop(lcr, boxes, fields, gsum, err, sc, cells, fr):
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, mass = fields.x, fields.v, fields.mass
     c = fields.corners
     gsum[:, 1:4, :] = 0.0
@@ -196,7 +198,7 @@ def _p2g_momentum_loop(lcr, boxes, fields, gsum, err, sc, cells, fr):
     for p in range(start.size - 1):
         g = gsum[p]
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
             if code < 0:
                 note_error(err, i, code)
@@ -223,6 +225,7 @@ def g2p_cpdi2(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
 def _g2p_loop(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate, sc, cells, fr, u):
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     c, rf = fields.corners, fields.rf
     mat, params, damage = material
@@ -236,7 +239,7 @@ def _g2p_loop(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate, s
         g = gnew[p]
         sp = slot_patch[p]
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
             if code < 0:
                 note_error(err, i, code)

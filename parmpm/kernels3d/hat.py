@@ -61,6 +61,7 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
     the signature is the CPDI kernel's)."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     forced = bforce.shape[0] > 0
@@ -70,7 +71,7 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
         g = gsum[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             jz, fz = hat_cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
@@ -107,6 +108,7 @@ def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, mass = fields.x, fields.v, fields.mass
     gsum[:, 1:4, :] = 0.0
     ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
@@ -114,7 +116,7 @@ def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
         g = gsum[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             jz, fz = hat_cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
@@ -137,6 +139,7 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
     updated."""
     start = boxes.start
     order = boxes.order
+    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     mat, params, damage = material
     loc, inv_ps, slot_patch, new_patch = locate
@@ -149,7 +152,7 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
         sp = slot_patch[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk]  # the physical row (Particles.order)
+            i = order[kk] if lazy else kk  # the physical row (Particles.order)
             xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
             jx, fx = hat_cell_of((xx - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((xy - oy) * ihy, by, jly, jhy)
