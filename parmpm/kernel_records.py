@@ -29,8 +29,9 @@ def kernel_lcr(lcr: float | None) -> float:
 #: whether transfers are affine (APIC, :mod:`parmpm.affine`) rather than FLIP/PIC
 Method = namedtuple("Method", ("code", "dim", "lcr", "apic"))
 #: a rank's patches in slot order: particle ranges ``start`` of the canonical ``order`` (slot
-#: ``s`` holds physical rows ``order[start[s]:start[s + 1]]``, :meth:`parmpm.particles.Particles.order`),
-#: node-box origins ``base``, usable cells ``jlo..jhi``, box and grid node counts, grid origin
+#: ``s`` holds physical rows ``order[start[s]:start[s + 1]]``; None: rows ``start[s]`` on, see
+#: :meth:`parmpm.particles.Particles.lazy_order`; the loops take it as an argument of its own so
+#: that numba prunes the branch on None), node-box origins ``base``, usable cells ``jlo..jhi``, box and grid node counts, grid origin
 #: and ``1/Δx`` (3-axis padded)
 Boxes = namedtuple("Boxes", ("start", "order", "base", "jlo", "jhi", "nloc", "nglob", "origin",
                              "inv_h"))

@@ -93,8 +93,10 @@ class Stepper:
         self._bforce = np.zeros((0, particles.dim))
         #: hand-specialised (p2g, p2g_momentum, g2p) for this dimension and method, if any
         self.kernels = None
+        self._empty_boxes = False
         self.use_kernels("specialised")
         self._patches_changed(force=True)
+        self._compile_lazy_order()
 
     def use_kernels(self, kind: str) -> None:
         """``"specialised"``: the hand-specialised 2D/3D kernels where this dimension and method
@@ -108,6 +110,21 @@ class Stepper:
             self.kernels = None
         else:
             raise ValueError(f'kernels: expected "specialised" or "generic", got {kind!r}')
+
+    def _compile_lazy_order(self) -> None:
+        """Compile (or load from numba's cache) the transfers' variant for a lazy particle order
+        (:meth:`parmpm.particles.Particles.lazy_order`: an index array instead of None) now, with
+        no patch slot to visit, rather than in the middle of the run when particles first change
+        patch."""
+        self._empty_boxes = True
+        try:
+            self._p2g(self._bforce[:0])
+            self._p2g_momentum()
+            self._g2p(G2P_USL, 0.0)
+        finally:
+            self._empty_boxes = False
+            self._located = None
+            self.err[:] = -1
 
     # --- patch set ------------------------------------------------------------------------------
     def _patches_changed(self, force: bool = False) -> None:
@@ -133,6 +150,8 @@ class Stepper:
         R = P.rows  # physical rows, visited in P.order(): no copy of the fields per step
         boxes = Boxes(P.start, P.lazy_order(), D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3,
                       D.inv_h3)
+        if self._empty_boxes:  # no slot, an index order: see _compile_lazy_order
+            boxes = boxes._replace(start=np.zeros(1, np.int64), order=np.zeros(0, np.uint64))
         fields = Fields(R.x, R.v, R.F, R.r0, R.lh0, R.mass, R.vol0, R.stress, R.dx, R.affine,
                         R.corners, R.rf)
         return Method(D.method, D.dim, D.lcr, self.apic), boxes, fields
@@ -184,7 +203,7 @@ class Stepper:
     def _p2g(self, bforce: np.ndarray) -> None:
         how, boxes, fields = self.records()
         if self.kernels is not None:
-            self.kernels[0](how.lcr, boxes, fields, bforce, self.gsum_block, self.err)
+            self.kernels[0](how.lcr, boxes, boxes.order, fields, bforce, self.gsum_block, self.err)
         else:
             p2g(how, boxes, fields, bforce, (self.gm, self.gmv, self.gf), self.err)
         self._check("p2g")
@@ -192,7 +211,7 @@ class Stepper:
     def _p2g_momentum(self) -> None:
         how, boxes, fields = self.records()
         if self.kernels is not None:
-            self.kernels[1](how.lcr, boxes, fields, self.gsum_block, self.err)
+            self.kernels[1](how.lcr, boxes, boxes.order, fields, self.gsum_block, self.err)
         else:
             p2g_momentum(how, boxes, fields, self.gmv, self.err)
         self._check("p2g")
@@ -207,8 +226,9 @@ class Stepper:
             if self._new_patch.size != P.n:
                 self._new_patch = np.zeros(P.n, np.int64)
             locate = Locate(self._loc, self._inv_psize, self.patches.local_ids, self._new_patch)
-            vmax, moved, first_out = self.kernels[2](mode, how.lcr, boxes, dt, self.flip, fields,
-                                                     material, self.gnew_block, self.err, locate)
+            vmax, moved, first_out = self.kernels[2](mode, how.lcr, boxes, boxes.order, dt,
+                                                     self.flip, fields, material,
+                                                     self.gnew_block, self.err, locate)
             if mode != G2P_MUSL_MOTION:
                 self._located = (first_out, moved)
             return vmax

@@ -183,17 +183,15 @@ def p2g(how, boxes, fields, bforce, out, err):
     scratch = _scratch(boxes.nloc, d)
     for dim in literal_unroll(DIMS):
         if dim == d:
-            _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch)
+            _p2g_loop(how, dim, boxes, boxes.order, fields, bforce, out, err, scratch)
 
 
 @loop_kernel
-def _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch):
+def _p2g_loop(how, dim, boxes, order, fields, bforce, out, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
     method, lcr, apic = how.code, how.lcr, how.apic
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
     affine = fields.affine
     gm, gmv, gf = out
@@ -204,7 +202,10 @@ def _p2g_loop(how, dim, boxes, fields, bforce, out, err, scratch):
     gf[:] = 0.0
     for p in range(start.size - 1):
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue
@@ -235,22 +236,23 @@ def p2g_momentum(how, boxes, fields, gmv, err):
     scratch = _scratch(boxes.nloc, d)
     for dim in literal_unroll(DIMS):
         if dim == d:
-            _p2g_momentum_loop(how, dim, boxes, fields, gmv, err, scratch)
+            _p2g_momentum_loop(how, dim, boxes, boxes.order, fields, gmv, err, scratch)
 
 
 @loop_kernel
-def _p2g_momentum_loop(how, dim, boxes, fields, gmv, err, scratch):
+def _p2g_momentum_loop(how, dim, boxes, order, fields, gmv, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
     method, lcr, apic = how.code, how.lcr, how.apic
     start, v, mass = boxes.start, fields.v, fields.mass
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     idx, w = scratch[7], scratch[8]
     gmv[:] = 0.0
     for p in range(start.size - 1):
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue
@@ -274,18 +276,17 @@ def g2p(mode, how, boxes, dt, flip, fields, material, grid, err):
     vmax = 0.0
     for dim in literal_unroll(DIMS):
         if dim == d:
-            vmax = _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scratch)
+            vmax = _g2p_loop(mode, how, dim, boxes, boxes.order, dt, flip, fields, material, grid,
+                             err, scratch)
     return vmax
 
 
 @loop_kernel
-def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scratch):
+def _g2p_loop(mode, how, dim, boxes, order, dt, flip, fields, material, grid, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
     method, lcr, apic = how.code, how.lcr, how.apic
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     affine = fields.affine
     mat, params, damage = material
@@ -296,7 +297,10 @@ def _g2p_loop(mode, how, dim, boxes, dt, flip, fields, material, grid, err, scra
     vmax = 0.0
     for p in range(start.size - 1):
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue
@@ -371,19 +375,21 @@ def max_speed(d, v, F, mat, params):
 def support_nodes(how, boxes, fields, nodes, count, err):
     """Global flat ids of the nodes each particle touches with nonzero weight (for separation
     detection: particles sharing no node exchange no momentum). ``nodes`` is (N, K)."""
-    _support_nodes_loop(how, boxes, fields, nodes, count, err, _scratch(boxes.nloc, how.dim))
+    _support_nodes_loop(how, boxes, boxes.order, fields, nodes, count, err,
+                        _scratch(boxes.nloc, how.dim))
 
 
 @loop_kernel
-def _support_nodes_loop(how, boxes, fields, nodes, count, err, scratch):
+def _support_nodes_loop(how, boxes, order, fields, nodes, count, err, scratch):
     method, d, lcr = how.code, how.dim, how.lcr
     start, base, nloc, nglob = boxes.start, boxes.base, boxes.nloc, boxes.nglob
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     idx, w = scratch[7], scratch[8]
     for p in range(start.size - 1):
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n < 0:
                 continue

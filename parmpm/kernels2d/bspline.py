@@ -36,12 +36,10 @@ def spline_of(xi, base, jlo, jhi):
 
 
 @loop_kernel
-def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
+def p2g_bspline(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum (FLIP or APIC) and force of every patch slot from its particles (``lcr``
     unused: the signature is the CPDI kernel's)."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     C = fields.affine
@@ -54,7 +52,10 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             kx, tx = spline_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             ky, ty = spline_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if kx < 0 or ky < 0:
@@ -98,11 +99,9 @@ def p2g_bspline(lcr, boxes, fields, bforce, gsum, err):
 
 
 @loop_kernel
-def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
+def p2g_momentum_bspline(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum only (FLIP or APIC), into ``gsum[..., 1:3]``."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, mass = fields.x, fields.v, fields.mass
     C = fields.affine
     apic = C.shape[0] > 0
@@ -113,7 +112,10 @@ def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             kx, tx = spline_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             ky, ty = spline_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             if kx < 0 or ky < 0:
@@ -144,13 +146,11 @@ def p2g_momentum_bspline(lcr, boxes, fields, gsum, err):
 
 
 @loop_kernel
-def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
+def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes (FLIP/PIC blend or APIC); returns the largest
     ``c_p + |v_p|`` when the stress is updated, the particles that changed patch and the first
     that left the grid."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, stress, dxs = fields.x, fields.v, fields.F, fields.stress, fields.dx
     C = fields.affine
     apic = C.shape[0] > 0
@@ -165,7 +165,10 @@ def g2p_bspline(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate)
         sp = slot_patch[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             xx, xy = x[i, 0], x[i, 1]
             kx, tx = spline_of((xx - ox) * ihx, bx, jlx, jhx)
             ky, ty = spline_of((xy - oy) * ihy, by, jly, jhy)

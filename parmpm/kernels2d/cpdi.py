@@ -127,11 +127,9 @@ def gather4(g, L0, jx, jy, fx, fy):
 
 
 @loop_kernel
-def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
+def p2g_cpdi(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, r0, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.r0, fields.mass,
                                        fields.vol0, fields.stress)
     forced = bforce.shape[0] > 0
@@ -141,7 +139,10 @@ def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             r1x, r1y, r2x, r2y = domain(lcr, f00, f01, f10, f11,
                                         r0[i, 0, 0], r0[i, 0, 1], r0[i, 1, 0], r0[i, 1, 1])
@@ -168,11 +169,9 @@ def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
 
 
 @loop_kernel
-def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
+def p2g_momentum_cpdi(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2) of ``gsum`` only."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, r0, mass = fields.x, fields.v, fields.F, fields.r0, fields.mass
     gsum[:, 1:3, :] = 0.0
     ox, oy, ihx, ihy, L0 = frame_2d(boxes)
@@ -180,7 +179,10 @@ def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             r1x, r1y, r2x, r2y = domain(lcr, F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1],
                                         r0[i, 0, 0], r0[i, 0, 1], r0[i, 1, 0], r0[i, 1, 1])
             (jx0, jx1, jx2, jx3, jy0, jy1, jy2, jy3, fx0, fx1, fx2, fx3, fy0, fy1, fy2, fy3,
@@ -199,13 +201,11 @@ def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
 
 
 @loop_kernel
-def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
+def g2p_cpdi(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v_x, v_y, Δv_x, Δv_y)`` rows; returns the largest ``c_p + |v_p|`` in the
     modes that update the stress."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, r0, stress, dx = fields.x, fields.v, fields.F, fields.r0, fields.stress, fields.dx
     mat, params, damage = material
     loc, inv_ps, slot_patch, new_patch = locate
@@ -218,7 +218,10 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
         sp = slot_patch[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             r1x, r1y, r2x, r2y = domain(lcr, f00, f01, f10, f11,
                                         r0[i, 0, 0], r0[i, 0, 1], r0[i, 1, 0], r0[i, 1, 1])

@@ -94,11 +94,9 @@ def note_error(err, i, code):
 
 
 @loop_kernel
-def p2g_cpdi2(lcr, boxes, fields, bforce, gsum, err):
+def p2g_cpdi2(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     c = fields.corners
@@ -109,7 +107,10 @@ def p2g_cpdi2(lcr, boxes, fields, bforce, gsum, err):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             x0, y0, x1, y1, x2, y2, x3, y3 = quad(lcr, c, i)
             wf0, wf1, wf2, wf3, g0x, g0y, g1x, g1y, V = weights(x0, y0, x1, y1, x2, y2, x3, y3)
             if not V > 0.0:
@@ -141,11 +142,9 @@ def p2g_cpdi2(lcr, boxes, fields, bforce, gsum, err):
 
 
 @loop_kernel
-def p2g_momentum_cpdi2(lcr, boxes, fields, gsum, err):
+def p2g_momentum_cpdi2(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2) of ``gsum`` only."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, mass = fields.x, fields.v, fields.mass
     c = fields.corners
     gsum[:, 1:3, :] = 0.0
@@ -154,7 +153,10 @@ def p2g_momentum_cpdi2(lcr, boxes, fields, gsum, err):
         g = gsum[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             x0, y0, x1, y1, x2, y2, x3, y3 = quad(lcr, c, i)
             wf0, wf1, wf2, wf3, _, _, _, _, V = weights(x0, y0, x1, y1, x2, y2, x3, y3)
             if not V > 0.0:
@@ -174,13 +176,11 @@ def p2g_momentum_cpdi2(lcr, boxes, fields, gsum, err):
 
 
 @loop_kernel
-def g2p_cpdi2(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
+def g2p_cpdi2(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation), moving the tracked
     corners in the modes that move the particle; returns the largest ``c_p + |v_p|`` in the
     modes that update the stress."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     c, rf = fields.corners, fields.rf
     mat, params, damage = material
@@ -194,7 +194,10 @@ def g2p_cpdi2(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
         sp = slot_patch[p]
         bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             x0, y0, x1, y1, x2, y2, x3, y3 = quad(lcr, c, i)
             wf0, wf1, wf2, wf3, g0x, g0y, g1x, g1y, V = weights(x0, y0, x1, y1, x2, y2, x3, y3)
             xx, xy = x[i, 0], x[i, 1]

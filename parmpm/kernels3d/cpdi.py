@@ -145,11 +145,9 @@ def sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gx, gy, gz):
 
 
 @loop_kernel
-def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
+def p2g_cpdi(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, r0, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.r0, fields.mass,
                                        fields.vol0, fields.stress)
     forced = bforce.shape[0] > 0
@@ -159,7 +157,10 @@ def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
         g = gsum[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
             f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
             f20, f21, f22 = F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]
@@ -213,11 +214,9 @@ def p2g_cpdi(lcr, boxes, fields, bforce, gsum, err):
 
 
 @loop_kernel
-def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
+def p2g_momentum_cpdi(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, r0, mass = fields.x, fields.v, fields.F, fields.r0, fields.mass
     gsum[:, 1:4, :] = 0.0
     ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
@@ -225,7 +224,10 @@ def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
         g = gsum[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             R00, R01, R02, R10, R11, R12, R20, R21, R22 = domain(
                 lcr, F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1], F[i, 1, 2],
                 F[i, 2, 0], F[i, 2, 1], F[i, 2, 2],
@@ -254,13 +256,11 @@ def p2g_momentum_cpdi(lcr, boxes, fields, gsum, err):
 
 
 @loop_kernel
-def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
+def g2p_cpdi(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v, Δv)`` rows (the deformation mode reads only ``v``); returns the largest
     ``c_p + |v_p|`` in the modes that update the stress."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, r0, stress, dx = fields.x, fields.v, fields.F, fields.r0, fields.stress, fields.dx
     mat, params, damage = material
     loc, inv_ps, slot_patch, new_patch = locate
@@ -273,7 +273,10 @@ def g2p_cpdi(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
         sp = slot_patch[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
             f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
             f20, f21, f22 = F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]

@@ -132,17 +132,15 @@ def prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr):
 
 
 @kernel
-def p2g_cpdi2(lcr, boxes, fields, bforce, gsum, err):
+def p2g_cpdi2(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
     sc, cells, fr = _scratch()
-    _p2g_loop(lcr, boxes, fields, bforce, gsum, err, sc, cells, fr)
+    _p2g_loop(lcr, boxes, order, fields, bforce, gsum, err, sc, cells, fr)
 
 
 @loop_kernel
-def _p2g_loop(lcr, boxes, fields, bforce, gsum, err, sc, cells, fr):
+def _p2g_loop(lcr, boxes, order, fields, bforce, gsum, err, sc, cells, fr):
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     c = fields.corners
@@ -153,7 +151,10 @@ def _p2g_loop(lcr, boxes, fields, bforce, gsum, err, sc, cells, fr):
     for p in range(start.size - 1):
         g = gsum[p]
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
             if code < 0:
                 note_error(err, i, code)
@@ -179,17 +180,15 @@ def _p2g_loop(lcr, boxes, fields, bforce, gsum, err, sc, cells, fr):
 
 
 @kernel
-def p2g_momentum_cpdi2(lcr, boxes, fields, gsum, err):
+def p2g_momentum_cpdi2(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
     sc, cells, fr = _scratch()
-    _p2g_momentum_loop(lcr, boxes, fields, gsum, err, sc, cells, fr)
+    _p2g_momentum_loop(lcr, boxes, order, fields, gsum, err, sc, cells, fr)
 
 
 @loop_kernel
-def _p2g_momentum_loop(lcr, boxes, fields, gsum, err, sc, cells, fr):
+def _p2g_momentum_loop(lcr, boxes, order, fields, gsum, err, sc, cells, fr):
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, mass = fields.x, fields.v, fields.mass
     c = fields.corners
     gsum[:, 1:4, :] = 0.0
@@ -198,7 +197,10 @@ def _p2g_momentum_loop(lcr, boxes, fields, gsum, err, sc, cells, fr):
     for p in range(start.size - 1):
         g = gsum[p]
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
             if code < 0:
                 note_error(err, i, code)
@@ -211,21 +213,20 @@ def _p2g_momentum_loop(lcr, boxes, fields, gsum, err, sc, cells, fr):
 
 
 @kernel
-def g2p_cpdi2(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
+def g2p_cpdi2(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes, moving the tracked corners in USL and MUSL's deformation
     pass; returns (largest ``c_p + |v_p|`` when the stress is updated, particles that changed
     patch, first particle off the grid)."""
     sc, cells, fr = _scratch()
     u = np.zeros((8, 6))
-    return _g2p_loop(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate, sc, cells,
-                     fr, u)
+    return _g2p_loop(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate,
+                     sc, cells, fr, u)
 
 
 @loop_kernel
-def _g2p_loop(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate, sc, cells, fr, u):
+def _g2p_loop(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate, sc, cells, fr,
+              u):
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     c, rf = fields.corners, fields.rf
     mat, params, damage = material
@@ -239,7 +240,10 @@ def _g2p_loop(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate, s
         g = gnew[p]
         sp = slot_patch[p]
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
             if code < 0:
                 note_error(err, i, code)

@@ -56,12 +56,10 @@ def scatter_node(g, e, a, t):
 
 
 @loop_kernel
-def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
+def p2g_hat(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` unused:
     the signature is the CPDI kernel's)."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
                                    fields.stress)
     forced = bforce.shape[0] > 0
@@ -71,7 +69,10 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
         g = gsum[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             jz, fz = hat_cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
@@ -104,11 +105,9 @@ def p2g_hat(lcr, boxes, fields, bforce, gsum, err):
 
 
 @loop_kernel
-def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
+def p2g_momentum_hat(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, mass = fields.x, fields.v, fields.mass
     gsum[:, 1:4, :] = 0.0
     ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
@@ -116,7 +115,10 @@ def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
         g = gsum[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
             jz, fz = hat_cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
@@ -134,12 +136,10 @@ def p2g_momentum_hat(lcr, boxes, fields, gsum, err):
 
 
 @loop_kernel
-def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
+def g2p_hat(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
     updated."""
     start = boxes.start
-    order = boxes.order
-    lazy = order.size > 0  # empty while the rows lie in canonical order
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     mat, params, damage = material
     loc, inv_ps, slot_patch, new_patch = locate
@@ -152,7 +152,10 @@ def g2p_hat(mode, lcr, boxes, dt, flip, fields, material, gnew, err, locate):
         sp = slot_patch[p]
         bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i = order[kk] if lazy else kk  # the physical row (Particles.order)
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
             xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
             jx, fx = hat_cell_of((xx - ox) * ihx, bx, jlx, jhx)
             jy, fy = hat_cell_of((xy - oy) * ihy, by, jly, jhy)
