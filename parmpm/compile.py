@@ -213,6 +213,7 @@ def warm_up(dim: int, method: str, update: str) -> float:
     try:
         with _only_compile_messages():
             sim = Simulation(scene, tmp, quiet=True, comm=SerialComm(), stage_compile=False)
+            sim.stepper.compile_lazy_order()
             sim.run()
             sim.domain_corners()  # the figure's (2D; the tiny run draws none)
             sim.state.comm = ClaimsTwoRanks()

@@ -96,7 +96,6 @@ class Stepper:
         self._empty_boxes = False
         self.use_kernels("specialised")
         self._patches_changed(force=True)
-        self._compile_lazy_order()
 
     def use_kernels(self, kind: str) -> None:
         """``"specialised"``: the hand-specialised 2D/3D kernels where this dimension and method
@@ -111,11 +110,14 @@ class Stepper:
         else:
             raise ValueError(f'kernels: expected "specialised" or "generic", got {kind!r}')
 
-    def _compile_lazy_order(self) -> None:
+    def compile_lazy_order(self) -> None:
         """Compile (or load from numba's cache) the transfers' variant for a lazy particle order
         (:meth:`parmpm.particles.Particles.lazy_order`: an index array instead of None) now, with
-        no patch slot to visit, rather than in the middle of the run when particles first change
-        patch."""
+        no patch slot to visit, rather than when particles first change patch. The benchmark's
+        and ``parmpm compile``'s warm-up runs call it (a timed step must not compile); a run
+        that needs the variant loads it from the cache then, and one that never does (no
+        particle changes patch) loads nothing (with every stepper calling it, the test suite's
+        fresh-clone run took 14 min 19 s instead of 10 min 10 s)."""
         self._empty_boxes = True
         try:
             self._p2g(self._bforce[:0])
@@ -150,7 +152,7 @@ class Stepper:
         R = P.rows  # physical rows, visited in P.order(): no copy of the fields per step
         boxes = Boxes(P.start, P.lazy_order(), D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3,
                       D.inv_h3)
-        if self._empty_boxes:  # no slot, an index order: see _compile_lazy_order
+        if self._empty_boxes:  # no slot, an index order: see compile_lazy_order
             boxes = boxes._replace(start=np.zeros(1, np.int64), order=np.zeros(0, np.uint64))
         fields = Fields(R.x, R.v, R.F, R.r0, R.lh0, R.mass, R.vol0, R.stress, R.dx, R.affine,
                         R.corners, R.rf)
