@@ -316,11 +316,11 @@ class Stepper:
                        f"{math.hypot(*R.v[bad]):.4g} m/s ({grid_extent(D)}); enlarge grid.cells "
                        "or move grid.origin, or check what drives it (gravity, velocities)")
         if moved == 0 and not parallel:  # nothing to regroup, nothing to send
-            return None, None, None, None
+            return None, None, None
         if moved == 0:  # every particle stays in its patch, so on this rank
             keep, received = (exchange(P.raw_fields(), None, self.comm, ps.peers) if parallel
                               else (None, None))
-            return new, None, keep, received
+            return new, keep, received
         dest = ps.rank_of[new]
         lost = dest < 0
         if np.any(lost):  # moved past a neighbour patch in one step (CFL > 1): stay, and stop
@@ -330,15 +330,15 @@ class Stepper:
                        "in one step; reduce time.cfl")
             new[lost] = R.patch[lost]
             dest[lost] = ps.rank
-        keep, received, fields = None, None, None
+        keep, received = None, None
         if parallel:
             self.migrated += int(np.count_nonzero(dest != ps.rank))
             fields = P.raw_fields()
             fields["patch"] = new
             keep, received = exchange(fields, dest, self.comm, ps.peers)
-        return new, fields, keep, received
+        return new, keep, received
 
-    def regroup(self, new, fields, keep, received) -> None:
+    def regroup(self, new, keep, received) -> None:
         """Sort the particles into (patch, id) order after :meth:`locate_and_send` (merging the
         kept and received rows after an exchange); notes whether a patch became (un)occupied."""
         P, ps = self.P, self.patches
@@ -347,8 +347,7 @@ class Stepper:
             return
         occupied_before = np.diff(P.start) > 0
         if keep is not None or received is not None:  # some left or came
-            P.group_by_patch(new, ps.slot_of, ps.n_local,
-                             keep=np.arange(P.n) if keep is None else keep, received=received)
+            P.group_by_patch(new, ps.slot_of, ps.n_local, keep=keep, received=received)
             self._new_patch = np.zeros(0, np.int64)  # P's patch rows may lie in it now
         else:
             old = P.rows.patch
