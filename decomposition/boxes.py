@@ -29,6 +29,13 @@ def owned_box(coords, psize, patches, nodes):
     return lo, np.where(coords == patches - 1, nodes, lo + psize)
 
 
+def patch_cells(coords, psize, cells):
+    """Cells ``[lo, hi)`` per axis of the patch at ``coords``: ``[k·P, min((k+1)·P, cells))``, the
+    cells whose points :func:`patch_of_coordinate` gives patch ``k`` (``⌊u⌋`` in the range)."""
+    lo = coords * psize
+    return lo, np.minimum(lo + psize, cells)
+
+
 def patches_holding_node(i, psize, ghost, patches):
     """``(lo, hi)``, inclusive: the patches along one axis whose local box (owned nodes and
     ghosts, ``k·P − g … (k+1)·P + g``) holds global node ``i``."""

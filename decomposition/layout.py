@@ -108,6 +108,10 @@ class PatchLayout:
         lo = self.local_base(coords)
         return lo, lo + self.local_nodes3
 
+    def patch_cells(self, coords) -> tuple[np.ndarray, np.ndarray]:
+        """Cells ``[lo, hi)`` of the patches at ``(..., 3)`` ``coords`` (the points they own)."""
+        return boxes.patch_cells(np.asarray(coords, dtype=np.int64), self.psize3, self.cells3)
+
     def locator(self) -> tuple[np.ndarray, np.ndarray]:
         """``(loc, inv_psize)`` for :func:`decomposition.boxes.patch_of_point_2d` and kin: rows
         cells, patch size and patches per axis (3-axis padded), and 1 / patch size."""

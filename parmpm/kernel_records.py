@@ -31,7 +31,8 @@ Method = namedtuple("Method", ("code", "dim", "lcr", "apic"))
 #: a rank's patches in slot order: particle ranges ``start`` of the canonical ``order`` (slot
 #: ``s`` holds physical rows ``order[start[s]:start[s + 1]]``; None: rows ``start[s]`` on, see
 #: :meth:`parmpm.particles.Particles.lazy_order`; the loops take it as an argument of its own so
-#: that numba prunes the branch on None), node-box origins ``base``, usable cells ``jlo..jhi``, box and grid node counts, grid origin
+#: that numba prunes the branch on None; the stepper hands the generic loops an index always),
+#: node-box origins ``base``, usable cells ``jlo..jhi``, box and grid node counts, grid origin
 #: and ``1/Δx`` (3-axis padded)
 Boxes = namedtuple("Boxes", ("start", "order", "base", "jlo", "jhi", "nloc", "nglob", "origin",
                              "inv_h"))
@@ -41,8 +42,10 @@ Fields = namedtuple("Fields", ("x", "v", "F", "r0", "lh0", "mass", "vol0", "stre
                                "affine", "corners", "rf"))
 #: the material state G2P updates: material row per particle, parameter table, damage
 Material = namedtuple("Material", ("mat", "params", "damage"))
-#: what the specialised G2P kernels need to find each particle's next patch (and write it)
-Locate = namedtuple("Locate", ("loc", "inv_ps", "slot_patch", "new_patch"))
+#: what the specialised G2P kernels need to find each particle's next patch (and write it);
+#: ``inside[s]``: rows lo, hi of slot ``s``'s patch cells in grid coordinates (float, 3-axis
+#: padded), so a particle that stays needs no patch arithmetic
+Locate = namedtuple("Locate", ("loc", "inv_ps", "slot_patch", "new_patch", "inside"))
 #: the nodes a rank's grid update visits: per-slot owned node ranges ``own_lo..own_hi`` in the
 #: node box at ``base`` of ``nloc`` nodes, and the global nodes of the physical faces
 OwnedNodes = namedtuple("OwnedNodes", ("own_lo", "own_hi", "base", "nloc", "face_lo", "face_hi"))

@@ -142,6 +142,9 @@ class Stepper:
         self.gm, self.gmv, self.gf = (self.gsum[:, :, :1], self.gsum[:, :, 1:1 + d],
                                       self.gsum[:, :, 1 + d:])
         self.gvel, self.gdv = self.gnew[:, :, :d], self.gnew[:, :, d:]
+        # each slot's patch cells in grid coordinates, for G2P's stay-in-patch test (Locate)
+        lo, hi = D.layout.patch_cells(D.layout.patch_coords()[ps.local_ids])
+        self._inside = np.stack([lo, hi], axis=1).astype(np.float64)
         P.group_by_patch(P.rows.patch, ps.slot_of, n, force=True)  # no copy: see _reslot
 
     # --- the step -------------------------------------------------------------------------------
@@ -150,7 +153,11 @@ class Stepper:
         particle arrays (rebuilt per call: migration replaces the arrays)."""
         D, P = self.disc, self.P
         R = P.rows  # physical rows, visited in P.order(): no copy of the fields per step
-        boxes = Boxes(P.start, P.lazy_order(), D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3,
+        # the specialised loops are compiled twice, for rows in canonical order (None: no index
+        # load) and for a lazy order; the generic ones, slower anyway, once (an index always):
+        # every compile of a generic loop is seconds, and a fresh clone's tests pay each
+        order = P.lazy_order() if self.kernels is not None else P.order()
+        boxes = Boxes(P.start, order, D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3,
                       D.inv_h3)
         if self._empty_boxes:  # no slot, an index order: see compile_lazy_order
             boxes = boxes._replace(start=np.zeros(1, np.int64), order=np.zeros(0, np.uint64))
@@ -227,7 +234,8 @@ class Stepper:
         if self.kernels is not None:
             if self._new_patch.size != P.n:
                 self._new_patch = np.zeros(P.n, np.int64)
-            locate = Locate(self._loc, self._inv_psize, self.patches.local_ids, self._new_patch)
+            locate = Locate(self._loc, self._inv_psize, self.patches.local_ids, self._new_patch,
+                            self._inside)
             vmax, moved, first_out = self.kernels[2](mode, how.lcr, boxes, boxes.order, dt,
                                                      self.flip, fields, material,
                                                      self.gnew_block, self.err, locate)

@@ -101,34 +101,29 @@ def _cli(*args: str, cache: Path, cwd: Path, launcher=()) -> subprocess.Complete
 
 
 @pytest.mark.slow
-def test_compile_fills_the_cache_and_the_run_then_compiles_nothing(tmp_path):
+def test_a_cold_cache_is_compiled_once_by_rank_0_then_every_run_loads_it(tmp_path, mpirun):
+    """One cold cache, four commands (each cold compile costs about a minute, so the checks share
+    it): two ranks on the empty cache, where rank 0 runs the tiny scene while rank 1 waits and the
+    run itself then compiles nothing (not even the separation count's kernels that only several
+    ranks call); ``parmpm compile`` of the same case then finds every kernel cached (the run's
+    warm-up and the command compile the same set), twice; and a one-rank run compiles nothing."""
     cache = tmp_path / "cache"
-    first = _cli("compile", "--dim", "1", "--methods", "mpm", "--update", "musl",
-                 cache=cache, cwd=tmp_path)
-    assert first.returncode == 0, first.stderr
-    assert first.stderr.count("compiling kernels (first run") == 1
-    assert str(cache) in first.stderr and "kernels compiled" in first.stderr
-    again = _cli("compile", "--dim", "1", "--methods", "mpm", "--update", "musl",
-                 cache=cache, cwd=tmp_path)
-    assert again.returncode == 0, again.stderr
-    assert "compiling kernels" not in again.stderr and "every kernel was cached" in again.stderr
-    run = _cli("run", "hanging_bar_1d", "--set", "method.interpolator=mpm", "--set",
-               "time.steps=3", "-o", "out", "-v", cache=cache, cwd=tmp_path)  # auto: musl
-    assert run.returncode == 0, run.stderr
-    assert "compiling kernels" not in run.stderr and "compiled " not in run.stderr
-
-
-@pytest.mark.slow
-def test_two_ranks_on_a_cold_cache_compile_once(tmp_path, mpirun):
-    """Rank 0 runs the tiny scene while rank 1 waits; after it the run itself compiles nothing
-    (not even the separation count's kernels that only several ranks call)."""
-    cache = tmp_path / "cache"
-    proc = _cli("run", "hanging_bar_1d", "--set", "method.interpolator=mpm", "--set",
-                "time.steps=3", "-o", "out", "-v", cache=cache, cwd=tmp_path,
-                launcher=(mpirun, "-n", "2"))
+    case = ("--dim", "1", "--methods", "mpm", "--update", "musl")
+    run_args = ("run", "hanging_bar_1d", "--set", "method.interpolator=mpm", "--set",
+                "time.steps=3", "-v")  # auto: musl
+    proc = _cli(*run_args, "-o", "out2", cache=cache, cwd=tmp_path, launcher=(mpirun, "-n", "2"))
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr.count("compiling kernels (first run") == 1
+    assert str(cache) in proc.stderr
     after = proc.stderr.split("rank 0 warmed up the kernels")[1]
     late = [line.split("compiled ")[1].split()[0] for line in after.splitlines()
             if "DEBUG parmpm.compile: compiled " in line]
     assert late == []
+    for _ in range(2):
+        again = _cli("compile", *case, cache=cache, cwd=tmp_path)
+        assert again.returncode == 0, again.stderr
+        assert "compiling kernels" not in again.stderr and "every kernel was cached" in again.stderr
+    run = _cli(*run_args, "-o", "out1", cache=cache, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    assert "compiling kernels" not in run.stderr and "compiled " not in run.stderr
+

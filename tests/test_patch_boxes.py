@@ -12,7 +12,9 @@ import pytest
 
 from decomposition import PatchLayout, boxes
 from parmpm.particles import locate_patches
-from parmpm.patch_index import patch_id1, patch_id2, patch_id3, patch_index, patches_holding_node
+from parmpm.kernel_records import Locate
+from parmpm.patch_index import (next_patch_2d, next_patch_3d, patch_id1, patch_id2, patch_id3,
+                                 patch_index, patches_holding_node)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -129,6 +131,29 @@ def test_patch_of_point_matches_floor_division_compiled_and_plain(cells, psize):
                                   lay.patches_per_axis, current, out)
     np.testing.assert_array_equal(out, np.where(ref < 0, 7, ref))
     assert first == np.flatnonzero(ref < 0)[0] and moved == np.sum((ref >= 0) & (ref != 7))
+
+
+@pytest.mark.parametrize("cells,psize", LOC_CASES[1:])
+def test_next_patch_answers_patch_id_from_every_patch(cells, psize):
+    """G2P's stay-in-patch test (:func:`next_patch_2d`, ``_3d``) gives :func:`patch_id2`'s answer
+    whichever patch the particle was in: points on patch edges, one ulp below them, on the far
+    face, outside, NaN."""
+    lay = PatchLayout(cells, psize, 2)
+    x, origin, inv_h = _points(lay, np.random.default_rng(5), n=3000)
+    u = (x - origin[:lay.dim]) * inv_h[:lay.dim]
+    edges = np.nextafter(u, -np.inf)  # just below whatever edge a node point sits on
+    x = np.concatenate([x, origin[:lay.dim] + edges / inv_h[:lay.dim], np.full((2, lay.dim), np.nan)])
+    loc, inv_ps = lay.locator()
+    ref = _reference_ids(lay, x, origin, inv_h)
+    coords = lay.patch_coords()
+    lo, hi = lay.patch_cells(coords)
+    inside = np.stack([lo, hi], axis=1).astype(np.float64)
+    locate = Locate(loc, inv_ps, np.arange(lay.n_patches), np.zeros(0, np.int64), inside)
+    fn = next_patch_2d if lay.dim == 2 else next_patch_3d
+    for p in range(lay.n_patches):
+        got = [fn(*xi, origin, inv_h, locate, p, p) for xi in x]
+        np.testing.assert_array_equal(got, ref)
+    assert np.unique(ref[ref >= 0]).size == lay.n_patches  # each patch's fast path answers
 
 
 def test_locator_rows():

@@ -18,7 +18,7 @@ from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import frame_2d, note_patch, slot_2d
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.kinematics import det_2d, flip_pic
-from parmpm.patch_index import patch_id2
+from parmpm.patch_index import next_patch_2d
 from parmpm.shapes.bspline import nearest_node, spline_weights
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
@@ -94,8 +94,12 @@ def p2g_bspline(lcr, boxes, order, fields, bforce, gsum, err):
                     g[0, node] += mS
                     g[1, node] += mS * ux
                     g[2, node] += mS * uy
-                    g[3, node] += bfx * S - (t00 * gx + t01 * gy)
-                    g[4, node] += bfy * S - (t10 * gx + t11 * gy)
+                    if forced:  # no 0·φ terms when unforced: the same sums
+                        g[3, node] += bfx * S - (t00 * gx + t01 * gy)
+                        g[4, node] += bfy * S - (t10 * gx + t11 * gy)
+                    else:
+                        g[3, node] -= t00 * gx + t01 * gy
+                        g[4, node] -= t10 * gx + t11 * gy
 
 
 @loop_kernel
@@ -155,7 +159,7 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
     C = fields.affine
     apic = C.shape[0] > 0
     mat, params, damage = material
-    loc, inv_ps, slot_patch, new_patch = locate
+    slot_patch, new_patch = locate.slot_patch, locate.new_patch
     vmax = 0.0
     moved = 0
     first_out = -1
@@ -225,7 +229,7 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
             else:
                 x[i, 0] = xx + dxs[i, 0]
                 x[i, 1] = xy + dxs[i, 1]
-            pid = patch_id2(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, loc, inv_ps)
+            pid = next_patch_2d(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, locate, p, sp)
             moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
             f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
             vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l10, dt * l11),

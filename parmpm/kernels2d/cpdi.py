@@ -21,7 +21,7 @@ from parmpm.kernel_records import NO_SCALING
 from parmpm.kernels2d.cells import cells_of4, frame_2d, note_patch, slot_2d
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.kinematics import det_2d, flip_pic
-from parmpm.patch_index import patch_id2
+from parmpm.patch_index import next_patch_2d
 from parmpm.shapes.cpdi import cofactor_2d
 from parmpm.shapes.scaling import cap_2d
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
@@ -208,7 +208,7 @@ def g2p_cpdi(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, loc
     start = boxes.start
     x, v, F, r0, stress, dx = fields.x, fields.v, fields.F, fields.r0, fields.stress, fields.dx
     mat, params, damage = material
-    loc, inv_ps, slot_patch, new_patch = locate
+    slot_patch, new_patch = locate.slot_patch, locate.new_patch
     vmax = 0.0
     moved = 0
     first_out = -1
@@ -254,7 +254,7 @@ def g2p_cpdi(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, loc
                 x[i, 0] = xx + dx[i, 0]
                 x[i, 1] = xy + dx[i, 1]
             # where it goes next
-            pid = patch_id2(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, loc, inv_ps)
+            pid = next_patch_2d(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, locate, p, sp)
             moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
             # L = (1/V) Σ v(x_α) ⊗ g_α with g = −ga, gb, −gb, ga for corners 0..3
             gax, gay, gbx, gby, det = corner_gradients(r1x, r1y, r2x, r2y)

@@ -30,7 +30,7 @@ from parmpm.kernels2d.cells import cells_of4, frame_2d, note_patch, slot_2d
 from parmpm.kernels2d.cpdi import gather4, scatter5, scatter_momentum
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.kinematics import det_2d, flip_pic
-from parmpm.patch_index import patch_id2
+from parmpm.patch_index import next_patch_2d
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
 
@@ -131,14 +131,15 @@ def p2g_cpdi2(lcr, boxes, order, fields, bforce, gsum, err):
             # −V_p σ wg_α: corner 0 and 1, their opposites 3 and 2 with the other sign
             tax, tay = q * (t00 * g0x + t01 * g0y), q * (t10 * g0x + t11 * g0y)
             tbx, tby = q * (t00 * g1x + t01 * g1y), q * (t10 * g1x + t11 * g1y)
-            scatter5(g, L0, jx0, jy0, fx0, fy0, m * wf0, m * wf0 * vx, m * wf0 * vy,
-                     bfx * wf0 - tax, bfy * wf0 - tay)
-            scatter5(g, L0, jx1, jy1, fx1, fy1, m * wf1, m * wf1 * vx, m * wf1 * vy,
-                     bfx * wf1 - tbx, bfy * wf1 - tby)
-            scatter5(g, L0, jx2, jy2, fx2, fy2, m * wf2, m * wf2 * vx, m * wf2 * vy,
-                     bfx * wf2 + tbx, bfy * wf2 + tby)
-            scatter5(g, L0, jx3, jy3, fx3, fy3, m * wf3, m * wf3 * vx, m * wf3 * vy,
-                     bfx * wf3 + tax, bfy * wf3 + tay)
+            if forced:
+                f0x, f0y, f1x, f1y = bfx * wf0 - tax, bfy * wf0 - tay, bfx * wf1 - tbx, bfy * wf1 - tby
+                f2x, f2y, f3x, f3y = bfx * wf2 + tbx, bfy * wf2 + tby, bfx * wf3 + tax, bfy * wf3 + tay
+            else:  # no 0·φ terms: the same sums
+                f0x, f0y, f1x, f1y, f2x, f2y, f3x, f3y = -tax, -tay, -tbx, -tby, tbx, tby, tax, tay
+            scatter5(g, L0, jx0, jy0, fx0, fy0, m * wf0, m * wf0 * vx, m * wf0 * vy, f0x, f0y)
+            scatter5(g, L0, jx1, jy1, fx1, fy1, m * wf1, m * wf1 * vx, m * wf1 * vy, f1x, f1y)
+            scatter5(g, L0, jx2, jy2, fx2, fy2, m * wf2, m * wf2 * vx, m * wf2 * vy, f2x, f2y)
+            scatter5(g, L0, jx3, jy3, fx3, fy3, m * wf3, m * wf3 * vx, m * wf3 * vy, f3x, f3y)
 
 
 @loop_kernel
@@ -184,7 +185,7 @@ def g2p_cpdi2(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, lo
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     c, rf = fields.corners, fields.rf
     mat, params, damage = material
-    loc, inv_ps, slot_patch, new_patch = locate
+    slot_patch, new_patch = locate.slot_patch, locate.new_patch
     vmax = 0.0
     moved = 0
     first_out = -1
@@ -242,7 +243,7 @@ def g2p_cpdi2(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, lo
                 c[i, 2, 1] += dt * (u2y - uy)
                 c[i, 3, 0] += dt * (u3x - ux)
                 c[i, 3, 1] += dt * (u3y - uy)
-            pid = patch_id2(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, loc, inv_ps)
+            pid = next_patch_2d(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, locate, p, sp)
             moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
             # L = Σ v(x_α) ⊗ wg_α, wg = (g0, g1, −g1, −g0)/V
             wax, way = u0x - u3x, u0y - u3y

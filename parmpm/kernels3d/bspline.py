@@ -14,7 +14,7 @@ from parmpm.kernels2d.cells import note_patch
 from parmpm.kernels3d.cells import frame_3d, slot_3d
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.kinematics import det_3d, flip_pic
-from parmpm.patch_index import patch_id3
+from parmpm.patch_index import next_patch_3d
 from parmpm.shapes.bspline import spline_weights
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
@@ -100,9 +100,14 @@ def p2g_bspline(lcr, boxes, order, fields, bforce, gsum, err):
                         g[1, node] += mS * ux
                         g[2, node] += mS * uy
                         g[3, node] += mS * uz
-                        g[4, node] += bfx * S - (t00 * gx + t01 * gy + t02 * gz)
-                        g[5, node] += bfy * S - (t10 * gx + t11 * gy + t12 * gz)
-                        g[6, node] += bfz * S - (t20 * gx + t21 * gy + t22 * gz)
+                        if forced:  # no 0·φ terms when unforced: the same sums
+                            g[4, node] += bfx * S - (t00 * gx + t01 * gy + t02 * gz)
+                            g[5, node] += bfy * S - (t10 * gx + t11 * gy + t12 * gz)
+                            g[6, node] += bfz * S - (t20 * gx + t21 * gy + t22 * gz)
+                        else:
+                            g[4, node] -= t00 * gx + t01 * gy + t02 * gz
+                            g[5, node] -= t10 * gx + t11 * gy + t12 * gz
+                            g[6, node] -= t20 * gx + t21 * gy + t22 * gz
 
 
 @loop_kernel
@@ -163,7 +168,7 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
     C = fields.affine
     apic = C.shape[0] > 0
     mat, params, damage = material
-    loc, inv_ps, slot_patch, new_patch = locate
+    slot_patch, new_patch = locate.slot_patch, locate.new_patch
     vmax = 0.0
     moved = 0
     first_out = -1
@@ -251,7 +256,8 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
                 x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
             else:
                 x[i, 0], x[i, 1], x[i, 2] = xx + dxs[i, 0], xy + dxs[i, 1], xz + dxs[i, 2]
-            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, loc, inv_ps)
+            pid = next_patch_3d(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, locate, p,
+                                sp)
             moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
             vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
                                              dt * l12, dt * l20, dt * l21, dt * l22),

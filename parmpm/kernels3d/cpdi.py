@@ -25,7 +25,7 @@ from parmpm.kernels2d.cells import note_patch
 from parmpm.kernels3d.cells import cells_of8, frame_3d, slot_3d
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.kinematics import det_3d, flip_pic
-from parmpm.patch_index import patch_id3
+from parmpm.patch_index import next_patch_3d
 from parmpm.shapes.cpdi import cofactor_3d
 from parmpm.shapes.scaling import cap_3d
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
@@ -263,7 +263,7 @@ def g2p_cpdi(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, loc
     start = boxes.start
     x, v, F, r0, stress, dx = fields.x, fields.v, fields.F, fields.r0, fields.stress, fields.dx
     mat, params, damage = material
-    loc, inv_ps, slot_patch, new_patch = locate
+    slot_patch, new_patch = locate.slot_patch, locate.new_patch
     vmax = 0.0
     moved = 0
     first_out = -1
@@ -328,7 +328,8 @@ def g2p_cpdi(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, loc
                     dx[i, 0], dx[i, 1], dx[i, 2] = dt * vx, dt * vy, dt * vz
                     continue
                 x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
-            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, loc, inv_ps)
+            pid = next_patch_3d(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, locate, p,
+                                sp)
             moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             # Δt L = Δt/V Σ v(x_α) ⊗ g_α, opposite corners paired (g: see p2g_cpdi)
             gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = corner_gradients(

@@ -23,7 +23,7 @@ from parmpm.kernels3d.cells import frame_3d, slot_3d
 from parmpm.kernels3d.cpdi import gather6, scatter7, scatter_momentum
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.kinematics import det_3d, flip_pic
-from parmpm.patch_index import patch_id3
+from parmpm.patch_index import next_patch_3d
 from parmpm.shapes.cpdi2 import GAUSS, SCRATCH_SHAPE, WF, WG, cap_corners, corner_shape
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
@@ -230,7 +230,7 @@ def _g2p_loop(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, lo
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     c, rf = fields.corners, fields.rf
     mat, params, damage = material
-    loc, inv_ps, slot_patch, new_patch = locate
+    slot_patch, new_patch = locate.slot_patch, locate.new_patch
     vmax = 0.0
     moved = 0
     first_out = -1
@@ -287,7 +287,8 @@ def _g2p_loop(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, lo
                     c[i, a, 0] += dt * (u[a, 0] - vx)
                     c[i, a, 1] += dt * (u[a, 1] - vy)
                     c[i, a, 2] += dt * (u[a, 2] - vz)
-            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, loc, inv_ps)
+            pid = next_patch_3d(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, locate, p,
+                                sp)
             moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
             vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
                                              dt * l12, dt * l20, dt * l21, dt * l22),

@@ -14,7 +14,7 @@ from parmpm.kernels2d.cells import hat_cell_of, note_patch
 from parmpm.kernels3d.cells import frame_3d, slot_3d
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.kinematics import det_3d, flip_pic
-from parmpm.patch_index import patch_id3
+from parmpm.patch_index import next_patch_3d
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
 
 
@@ -40,9 +40,10 @@ def nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz):
 
 
 @inline_kernel
-def scatter_node(g, e, a, t):
+def scatter_node(g, e, a, t, forced):
     """P2G into one node ``e = (node, φ, ∇φ)`` of ``a = (m, m v, m b)`` and ``t = V σ`` (row by
-    row): ``φ m``, ``φ m v``, ``φ m b − t ∇φ``."""
+    row): ``φ m``, ``φ m v``, ``φ m b − t ∇φ`` (``− t ∇φ`` alone unless ``forced``: the same sums
+    without the ``0·φ`` terms)."""
     node, S, gx, gy, gz = e
     m, mvx, mvy, mvz, bfx, bfy, bfz = a
     t00, t01, t02, t10, t11, t12, t20, t21, t22 = t
@@ -50,9 +51,14 @@ def scatter_node(g, e, a, t):
     g[1, node] += mvx * S
     g[2, node] += mvy * S
     g[3, node] += mvz * S
-    g[4, node] += bfx * S - (t00 * gx + t01 * gy + t02 * gz)
-    g[5, node] += bfy * S - (t10 * gx + t11 * gy + t12 * gz)
-    g[6, node] += bfz * S - (t20 * gx + t21 * gy + t22 * gz)
+    if forced:
+        g[4, node] += bfx * S - (t00 * gx + t01 * gy + t02 * gz)
+        g[5, node] += bfy * S - (t10 * gx + t11 * gy + t12 * gz)
+        g[6, node] += bfz * S - (t20 * gx + t21 * gy + t22 * gz)
+    else:
+        g[4, node] -= t00 * gx + t01 * gy + t02 * gz
+        g[5, node] -= t10 * gx + t11 * gy + t12 * gz
+        g[6, node] -= t20 * gx + t21 * gy + t22 * gz
 
 
 @loop_kernel
@@ -94,14 +100,14 @@ def p2g_hat(lcr, boxes, order, fields, bforce, gsum, err):
             a = (m, m * v[i, 0], m * v[i, 1], m * v[i, 2], bfx, bfy, bfz)
             n0 = jx + L0 * jy + L01 * jz
             e0, e1, e2, e3, e4, e5, e6, e7 = nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz)
-            scatter_node(g, e0, a, t)
-            scatter_node(g, e1, a, t)
-            scatter_node(g, e2, a, t)
-            scatter_node(g, e3, a, t)
-            scatter_node(g, e4, a, t)
-            scatter_node(g, e5, a, t)
-            scatter_node(g, e6, a, t)
-            scatter_node(g, e7, a, t)
+            scatter_node(g, e0, a, t, forced)
+            scatter_node(g, e1, a, t, forced)
+            scatter_node(g, e2, a, t, forced)
+            scatter_node(g, e3, a, t, forced)
+            scatter_node(g, e4, a, t, forced)
+            scatter_node(g, e5, a, t, forced)
+            scatter_node(g, e6, a, t, forced)
+            scatter_node(g, e7, a, t, forced)
 
 
 @loop_kernel
@@ -142,7 +148,7 @@ def g2p_hat(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, loca
     start = boxes.start
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     mat, params, damage = material
-    loc, inv_ps, slot_patch, new_patch = locate
+    slot_patch, new_patch = locate.slot_patch, locate.new_patch
     vmax = 0.0
     moved = 0
     first_out = -1
@@ -196,7 +202,8 @@ def g2p_hat(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, loca
                 x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
             else:
                 x[i, 0], x[i, 1], x[i, 2] = xx + dx[i, 0], xy + dx[i, 1], xz + dx[i, 2]
-            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, loc, inv_ps)
+            pid = next_patch_3d(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, locate, p,
+                                sp)
             moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
             vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
                                              dt * l12, dt * l20, dt * l21, dt * l22),
