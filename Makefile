@@ -6,7 +6,8 @@
 #
 #   make run                      the default scene (2D hanging bar, cpdi, l_cr = 2dx) on NP=2 ranks
 #   make run NP=4 RUN_ARGS='run vibrating_bar --quiet'
-#   make test                     the linter (ruff) and the test suite; pytest options with
+#   make test                     the linter (ruff) and the test suite on PYTEST_WORKERS=2 worker
+#                                 processes (pytest-xdist; 0: one process); pytest options with
 #                                 PYTEST_ARGS='-k cli -x' (-m "not slow": no studies)
 #   make lint                     only the linter
 #   make figures                  run_scripts/make_figures.py, where it exists (the only target
@@ -20,6 +21,10 @@ VENV ?= .venv
 NP ?= 2
 RUN_ARGS ?=
 PYTEST_ARGS ?=
+# two pytest workers: a fresh clone's suite is mostly numba compiling, one kernel per process at a
+# time, so two workers on two cores take 9 min where one takes 12.5 (more would oversubscribe the
+# mpirun tests' ranks, which spin while they wait)
+PYTEST_WORKERS ?= 2
 
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
@@ -51,7 +56,7 @@ run: $(STAMP)
 	$(BIN)/mpirun -n $(NP) $(BIN)/python -m parmpm $(RUN_ARGS)
 
 test: lint
-	$(BIN)/python -m pytest -q $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) $(PYTEST_ARGS)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
