@@ -40,7 +40,7 @@ DIMS = (1, 2, 3)
 METHODS = tuple(INTERPOLATORS)
 #: the updates a tiny run is made for: "auto" is one of these two
 COMPILED_UPDATES = ("usl", "musl")
-NOTICE = "compiling kernels (first run: about 30 s; cached afterwards in {where})"
+NOTICE = "compiling kernels (first run: about a minute; cached afterwards in {where})"
 
 
 # --- the notice ---------------------------------------------------------------------------------
