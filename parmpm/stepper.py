@@ -111,8 +111,9 @@ class Stepper:
             raise ValueError(f'kernels: expected "specialised" or "generic", got {kind!r}')
 
     def compile_lazy_order(self) -> None:
-        """Compile (or load from numba's cache) the transfers' variant for a lazy particle order
-        (:meth:`parmpm.particles.Particles.lazy_order`: an index array instead of None) now, with
+        """Compile (or load from numba's cache) the specialised transfers' variant for a lazy
+        particle order (:meth:`parmpm.particles.Particles.lazy_order`: an index array instead of
+        None; the generic loops always take an index, see :meth:`records`) now, with
         no patch slot to visit, rather than when particles first change patch. The benchmark's
         and ``parmpm compile``'s warm-up runs call it (a timed step must not compile); a run
         that needs the variant loads it from the cache then, and one that never does (no
