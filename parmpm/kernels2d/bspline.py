@@ -16,6 +16,7 @@ import numpy as np
 
 from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import frame_2d, note_patch, slot_2d
+from parmpm.kernels2d.hat import add_force
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.kinematics import det_2d, flip_pic
 from parmpm.patch_index import next_patch_2d
@@ -94,12 +95,7 @@ def p2g_bspline(lcr, boxes, order, fields, bforce, gsum, err):
                     g[0, node] += mS
                     g[1, node] += mS * ux
                     g[2, node] += mS * uy
-                    if forced:  # no 0·φ terms when unforced: the same sums
-                        g[3, node] += bfx * S - (t00 * gx + t01 * gy)
-                        g[4, node] += bfy * S - (t10 * gx + t11 * gy)
-                    else:
-                        g[3, node] -= t00 * gx + t01 * gy
-                        g[4, node] -= t10 * gx + t11 * gy
+                    add_force(g, node, S, gx, gy, bfx, bfy, (t00, t01, t10, t11), forced)
 
 
 @loop_kernel

@@ -8,12 +8,26 @@ gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇�
 """
 import numpy as np
 
-from parmpm.jit import loop_kernel
+from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.cells import frame_2d, hat_cell_of, note_patch, slot_2d
 from parmpm.kernels2d.material import update_F_stress
 from parmpm.kinematics import det_2d, flip_pic
 from parmpm.patch_index import next_patch_2d
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_USL
+
+
+@inline_kernel
+def add_force(g, node, S, gx, gy, bfx, bfy, t, forced):
+    """P2G's force rows of one node: ``φ m b − V σ ∇φ`` (``t = V σ``, row by row), or ``− V σ ∇φ``
+    alone when no body force acts (``forced`` False): the same sums without the ``0·φ`` terms,
+    which strict IEEE arithmetic keeps (15 % of 2D MPM's P2G)."""
+    t00, t01, t10, t11 = t
+    if forced:
+        g[3, node] += bfx * S - (t00 * gx + t01 * gy)
+        g[4, node] += bfy * S - (t10 * gx + t11 * gy)
+    else:
+        g[3, node] -= t00 * gx + t01 * gy
+        g[4, node] -= t10 * gx + t11 * gy
 
 
 @loop_kernel
@@ -58,12 +72,7 @@ def p2g_hat(lcr, boxes, order, fields, bforce, gsum, err):
                 g[0, node] += m * S
                 g[1, node] += mvx * S
                 g[2, node] += mvy * S
-                if forced:  # no 0·φ terms when unforced (15 % of P2G): the same sums
-                    g[3, node] += bfx * S - (t00 * gx + t01 * gy)
-                    g[4, node] += bfy * S - (t10 * gx + t11 * gy)
-                else:
-                    g[3, node] -= t00 * gx + t01 * gy
-                    g[4, node] -= t10 * gx + t11 * gy
+                add_force(g, node, S, gx, gy, bfx, bfy, (t00, t01, t10, t11), forced)
 
 
 @loop_kernel

@@ -12,6 +12,7 @@ from parmpm.jit import inline_kernel, loop_kernel
 from parmpm.kernels2d.bspline import spline_of
 from parmpm.kernels2d.cells import note_patch
 from parmpm.kernels3d.cells import frame_3d, slot_3d
+from parmpm.kernels3d.hat import add_force
 from parmpm.kernels3d.material import update_F_stress
 from parmpm.kinematics import det_3d, flip_pic
 from parmpm.patch_index import next_patch_3d
@@ -100,14 +101,8 @@ def p2g_bspline(lcr, boxes, order, fields, bforce, gsum, err):
                         g[1, node] += mS * ux
                         g[2, node] += mS * uy
                         g[3, node] += mS * uz
-                        if forced:  # no 0·φ terms when unforced: the same sums
-                            g[4, node] += bfx * S - (t00 * gx + t01 * gy + t02 * gz)
-                            g[5, node] += bfy * S - (t10 * gx + t11 * gy + t12 * gz)
-                            g[6, node] += bfz * S - (t20 * gx + t21 * gy + t22 * gz)
-                        else:
-                            g[4, node] -= t00 * gx + t01 * gy + t02 * gz
-                            g[5, node] -= t10 * gx + t11 * gy + t12 * gz
-                            g[6, node] -= t20 * gx + t21 * gy + t22 * gz
+                        add_force(g, node, S, gx, gy, gz, (bfx, bfy, bfz),
+                                  (t00, t01, t02, t10, t11, t12, t20, t21, t22), forced)
 
 
 @loop_kernel

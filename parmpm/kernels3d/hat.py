@@ -40,17 +40,12 @@ def nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz):
 
 
 @inline_kernel
-def scatter_node(g, e, a, t, forced):
-    """P2G into one node ``e = (node, φ, ∇φ)`` of ``a = (m, m v, m b)`` and ``t = V σ`` (row by
-    row): ``φ m``, ``φ m v``, ``φ m b − t ∇φ`` (``− t ∇φ`` alone unless ``forced``: the same sums
-    without the ``0·φ`` terms)."""
-    node, S, gx, gy, gz = e
-    m, mvx, mvy, mvz, bfx, bfy, bfz = a
+def add_force(g, node, S, gx, gy, gz, bf, t, forced):
+    """P2G's force rows of one node: ``φ m b − t ∇φ`` with ``bf = m b`` and ``t = V σ`` (row by
+    row), or ``− t ∇φ`` alone when no body force acts (``forced`` False): the same sums without
+    the ``0·φ`` terms, which strict IEEE arithmetic keeps."""
+    bfx, bfy, bfz = bf
     t00, t01, t02, t10, t11, t12, t20, t21, t22 = t
-    g[0, node] += m * S
-    g[1, node] += mvx * S
-    g[2, node] += mvy * S
-    g[3, node] += mvz * S
     if forced:
         g[4, node] += bfx * S - (t00 * gx + t01 * gy + t02 * gz)
         g[5, node] += bfy * S - (t10 * gx + t11 * gy + t12 * gz)
@@ -59,6 +54,19 @@ def scatter_node(g, e, a, t, forced):
         g[4, node] -= t00 * gx + t01 * gy + t02 * gz
         g[5, node] -= t10 * gx + t11 * gy + t12 * gz
         g[6, node] -= t20 * gx + t21 * gy + t22 * gz
+
+
+@inline_kernel
+def scatter_node(g, e, a, t, forced):
+    """P2G into one node ``e = (node, φ, ∇φ)`` of ``a = (m, m v, m b)`` and ``t = V σ`` (row by
+    row): ``φ m``, ``φ m v`` and :func:`add_force`."""
+    node, S, gx, gy, gz = e
+    m, mvx, mvy, mvz, bfx, bfy, bfz = a
+    g[0, node] += m * S
+    g[1, node] += mvx * S
+    g[2, node] += mvy * S
+    g[3, node] += mvz * S
+    add_force(g, node, S, gx, gy, gz, (bfx, bfy, bfz), t, forced)
 
 
 @loop_kernel
