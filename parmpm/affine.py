@@ -21,6 +21,19 @@ the particles'
 and a symmetric stress exerts no torque on the grid, so ``l`` changes only by round-off (tested
 on the spinning disk). For the linear hat ``D_p`` is singular on a node, and for the domain
 methods it depends on the domain: APIC is offered with ``bspline`` only.
+
+MLS-MPM (``transfer = "mls"``; Hu, Fang, Ge, Qu, Zhu, Pradhana & Jiang 2018) keeps APIC's
+transfers and replaces the weight gradient by the moving-least-squares one,
+``∇̃φ_ip = φ_ip D_p⁻¹ (x_i − x_p)``, everywhere the gradient appears:
+
+    force      f_i = −Σ_p V_p σ_p ∇̃φ_ip = −Σ_p φ_ip V_p σ_p D⁻¹ (x_i − x_p),
+    gradient   L_p = Σ_i v_i ⊗ ∇̃φ_ip = C_p   (the affine matrix itself).
+
+``Σ_i φ_ip r ⊗ r = D`` makes ``∇̃φ`` reproduce linear fields (``L_p`` is exact for an affine
+grid velocity) and the force torque-free (``Σ_i r × σ D⁻¹ r φ = ε : σᵀ = 0`` for a symmetric
+``σ``), so angular momentum is kept as under APIC. The force has the momentum's weights, so P2G
+adds ``Δt f_i`` to the scattered momentum and the grid carries ``(m, mv + Δt f)`` only: per node
+three sums in 2D instead of five, the saving the method is used for (docs/mls.md).
 """
 from __future__ import annotations
 
@@ -29,18 +42,20 @@ import numpy as np
 from parmpm.shapes import BSPLINE
 
 #: the transfer schemes of ``method.transfer``
-TRANSFERS = ("flip", "apic")
-#: interpolators whose ``D_p`` is a constant diagonal (what APIC needs here)
+TRANSFERS = ("flip", "apic", "mls")
+#: the transfers that carry the affine matrix ``C_p`` on the particle
+AFFINE_TRANSFERS = ("apic", "mls")
+#: interpolators whose ``D_p`` is a constant diagonal (what APIC and MLS need here)
 APIC_INTERPOLATORS = ("bspline",)
 
 
-def inertia_diagonal(method: int, h: np.ndarray, apic: bool) -> np.ndarray:
-    """``diag D_p`` (physical units, per axis) of an APIC run; zeros under FLIP (so the affine
-    term of the angular momentum vanishes)."""
+def inertia_diagonal(method: int, h: np.ndarray, affine: bool) -> np.ndarray:
+    """``diag D_p`` (physical units, per axis) of an APIC or MLS run; zeros under FLIP (so the
+    affine term of the angular momentum vanishes)."""
     h = np.asarray(h, float)
-    if not apic:
+    if not affine:
         return np.zeros(h.size)
     if method != BSPLINE:
-        raise ValueError("APIC needs the bspline interpolator")
+        raise ValueError("APIC and MLS need the bspline interpolator")
     return 0.25 * h * h
 

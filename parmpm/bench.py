@@ -69,7 +69,7 @@ def build_bench_scene(dim: int, method: str = "cpdi", particles: int = 1_000_000
                       steps: int = 10, patch_size: int | None = None, speed: float = 1.0,
                       update: str = "auto", transfer: str = "flip") -> Scene:
     """The benchmark block holding ``(n·ppc)^dim ≈ particles`` particles, n cells per axis;
-    ``transfer``: "flip" or "apic" (bspline only)."""
+    ``transfer``: "flip", "apic" or "mls" (bspline only)."""
     if dim not in (1, 2, 3):
         raise ParmpmError(f"bench: --dim must be 1, 2 or 3, got {dim}")
     if update not in UPDATES:
@@ -171,8 +171,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--update", choices=UPDATES, default="auto",
                         help="USL or MUSL (default auto: usl for cpdi, musl for the others)")
     parser.add_argument("--transfer", choices=TRANSFERS, default="flip",
-                        help="FLIP/PIC or APIC (affine; --method bspline only) transfers "
-                             "(default flip)")
+                        help="FLIP/PIC, APIC or MLS (affine; --method bspline only) "
+                             "transfers (default flip)")
     parser.add_argument("--particles", type=_particle_count, default=1_000_000, metavar="N",
                         help="about how many particles (default 1e6)")
     parser.add_argument("--ppc", type=_positive(int), default=2, help="particles per cell per axis (default 2)")

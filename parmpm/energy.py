@@ -64,7 +64,7 @@ def energy_totals(comm, patch_ids, P, params, g) -> np.ndarray:
 
 
 @kernel
-def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew):
+def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fused):
     """Per patch slot: (work of internal and body forces, work of gravity, damping dissipation,
     work of the boundary constraints) of one grid update, over the slot's owned nodes.
 
@@ -76,7 +76,9 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew):
     ``Σ ½m(|v_new|² − |v|²) = W_f + W_g − D_c + W_bc``: ``W_f = Δt Σ f·v̄``,
     ``W_g = Δt Σ m g·v̄``, ``D_c = cΔt Σ m v⁺·v̄`` over free components, and
     ``W_bc = −Σ ½m v²`` over constrained ones (the momentum a support takes out; a held node
-    does not move, so the forces on it do no work)."""
+    does not move, so the forces on it do no work). Under MLS (``fused``: the momentum rows hold
+    ``mv + Δt f``, the force rows ``f`` for this account alone) ``v = (mv + Δt f − Δt f)/m``,
+    equal to the grid's up to round-off, and every node with mass takes its force."""
     own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
     bc, regions, normal, ranges, origin, h = constraints
     out = np.zeros((gsum.shape[0], 4))
@@ -109,9 +111,11 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew):
                         _apply_bc(d, gidx, face_lo, face_hi, bc, free)
                     if nreg and _near_region(gidx[0], gidx[1], gidx[2], ranges):
                         _apply_regions(d, gidx, origin, h, regions, normal, free)
-                    heavy = m > mass_eps
+                    heavy = fused or m > mass_eps
                     for a in range(d):
                         vold = G[1 + a, node] / m
+                        if fused:
+                            vold = (G[1 + a, node] - dt * G[1 + d + a, node]) / m
                         if free[a] == 0.0:
                             wbc -= 0.5 * m * vold * vold
                             continue
@@ -147,7 +151,8 @@ class EnergyLedger:
         """Add one grid update's work (collective: every rank calls it in the same step)."""
         nodes, constraints = stepper.grid_records()
         per_patch = grid_work(stepper.disc.dim, nodes, constraints, dt, gravity, stepper.damping,
-                              stepper.mass_eps, stepper.gsum_block, stepper.gnew_block)
+                              stepper.mass_eps, stepper.gsum_block, stepper.gnew_block,
+                              stepper.mls)
         step = ordered_sum(stepper.comm, stepper.patches.local_ids, per_patch)
         self.totals += step
         power = -float(step[0]) / dt  # power stored by the internal forces in this step

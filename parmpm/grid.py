@@ -19,6 +19,11 @@ mass below ``mass_eps`` get no force term (``f/m`` is unbounded as ``m → 0``) 
 ``v = (mv)/m``, a mean of their particles' velocities (all weights are ≥ 0): a GIMP domain that
 overlaps a node by ``δ`` gives it ``φ ∝ δ²`` but ``∇φ ∝ δ``, so zeroing its velocity stressed a
 rigidly translating body. Only empty nodes get ``v = 0``. Ghost nodes are left to ``fill``.
+
+Under MLS (``fused``, :mod:`parmpm.affine`) P2G has already added ``Δt f_i`` to the momentum rows,
+so ``v_old = (mv + Δt f)/m`` and ``v_new = [v_old + Δt g]/(1 + cΔt)``; the force rows are not
+added (they are zero, or the energy ledger's copy of ``f``). Its force carries the weights of the
+mass, so ``f/m`` stays bounded as ``m → 0`` and no node is exempt.
 """
 import numpy as np
 from numba import literal_unroll, literally
@@ -142,10 +147,12 @@ def _near_region(gi0, gi1, gi2, ranges):
 
 
 @kernel
-def grid_update(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, from_momentum_only):
+def grid_update(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, from_momentum_only,
+                fused):
     """Owned-node update from the P2G block ``gsum[slot] = (m, mv, f)`` rows into the block
     ``gnew[slot] = (v, Δv)`` rows (:func:`grid_block` layout). With ``from_momentum_only`` (the
-    MUSL re-map) only ``v = mv/m`` with boundary conditions is formed. Constraints are applied
+    MUSL re-map) only ``v = mv/m`` with boundary conditions is formed; ``fused``: MLS momentum
+    rows that already hold ``Δt f`` (module doc). Constraints are applied
     only on nodes of a constrained face (at or beyond the global node indices ``face_lo``,
     ``face_hi`` of the physical faces) or near a region (``ranges``). The node loop is
     compiled once per dimension (as :mod:`parmpm.transfer`'s loops), without reference counting."""
@@ -163,18 +170,19 @@ def grid_update(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, 
     for dim in literal_unroll(DIMS):
         if dim == d:
             _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
-                       from_momentum_only, vold, vnew, gidx, face, mirror, gref)
+                       from_momentum_only, fused, vold, vnew, gidx, face, mirror, gref)
 
 
 @loop_kernel
 def _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
-               from_momentum_only, vold, vnew, gidx, face, mirror, gref):
+               from_momentum_only, fused, vold, vnew, gidx, face, mirror, gref):
     literally(dim)
     d = dim * 1
     own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
     bc, regions, normal, ranges, origin, h = constraints
     L0, L1 = nloc[0], nloc[1]
     nreg = ranges.shape[0]
+    forced = not fused  # MLS: Δt f is in the momentum rows already
     for p in range(gsum.shape[0]):
         G = gsum[p]
         W = gnew[p]
@@ -194,7 +202,7 @@ def _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
                         for a in range(d):
                             vold[a] = G[1 + a, node] / m
                             if not from_momentum_only:
-                                fm = G[1 + d + a, node] / m if m > mass_eps else 0.0
+                                fm = G[1 + d + a, node] / m if forced and m > mass_eps else 0.0
                                 vnew[a] = ((vold[a] + dt * (fm + gvec[a]))
                                            / (1.0 + damping * dt))
                     else:
@@ -209,7 +217,7 @@ def _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
                                 and beyond_mirror(d, gidx, face_lo, face_hi, bc)):
                             reflected_gravity(d, gidx, face_lo, face_hi, bc, gvec, gref)
                             for a in range(d):
-                                fm = G[1 + d + a, node] / m if m > mass_eps else 0.0
+                                fm = G[1 + d + a, node] / m if forced and m > mass_eps else 0.0
                                 vnew[a] = ((vold[a] + dt * (fm + gref[a]))
                                            / (1.0 + damping * dt))
                         _apply_bc(d, gidx, face_lo, face_hi, bc, vold)

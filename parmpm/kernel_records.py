@@ -25,9 +25,11 @@ def kernel_lcr(lcr: float | None) -> float:
         raise ValueError(f"l_cr must be positive or None, got {lcr!r}")
     return lcr
 
-#: the interpolator code, the dimension, ``l_cr`` (:data:`NO_SCALING`: no domain scaling) and
-#: whether transfers are affine (APIC, :mod:`parmpm.affine`) rather than FLIP/PIC
-Method = namedtuple("Method", ("code", "dim", "lcr", "apic"))
+#: the interpolator code, the dimension, ``l_cr`` (:data:`NO_SCALING`: no domain scaling),
+#: whether transfers are affine (APIC or MLS, :mod:`parmpm.affine`) rather than FLIP/PIC, and
+#: whether the weight gradient is MLS's (force and ``L`` from ``φ D⁻¹ r``, ``Δt f`` folded into
+#: the momentum)
+Method = namedtuple("Method", ("code", "dim", "lcr", "apic", "mls"))
 #: a rank's patches in slot order: particle ranges ``start`` of the canonical ``order`` (slot
 #: ``s`` holds physical rows ``order[start[s]:start[s + 1]]``; None: rows ``start[s]`` on, see
 #: :meth:`parmpm.particles.Particles.lazy_order`; the loops take it as an argument of its own so

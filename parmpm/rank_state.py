@@ -21,6 +21,7 @@ import numpy as np
 
 from decomposition import PatchSet, allreduce_max, ranks_on_this_node
 from parmpm import manufactured
+from parmpm.affine import AFFINE_TRANSFERS
 from parmpm.collective import agree
 from parmpm.discretisation import Discretisation, exterior_cells
 from parmpm.energy import EnergyWatch
@@ -93,9 +94,9 @@ class RankState:
 
 def carried_fields(data: dict) -> tuple[str, ...]:
     """The optional particle fields (:data:`parmpm.particles.OPTIONAL_FIELDS`) a resolved scene
-    needs: ``affine`` under APIC, ``corners`` under cpdi2."""
+    needs: ``affine`` under APIC and MLS, ``corners`` under cpdi2."""
     method = data["method"]
-    return tuple(k for k, used in (("affine", method["transfer"] == "apic"),
+    return tuple(k for k, used in (("affine", method["transfer"] in AFFINE_TRANSFERS),
                                    ("corners", INTERPOLATORS[method["interpolator"]].code == CPDI2))
                  if used)
 

@@ -50,8 +50,8 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   cell count or 64 cells, whichever is more; default "2dx" for cpdi and cpdi2,
   "none" otherwise, and any other value is an error with another interpolator), ``update``
   ("auto" | "usl" | "musl", default "auto": USL for cpdi and cpdi2, whose domains then keep tiling the body exactly, MUSL for the others, which USL destabilises through nearly empty nodes — see README), ``flip`` (0..1, default 1.0;
-  not with APIC), ``transfer`` ("flip" | "apic", default "flip"; "apic" needs "bspline":
-  :mod:`parmpm.affine`).
+  not with APIC or MLS), ``transfer`` ("flip" | "apic" | "mls", default "flip"; "apic" and
+  "mls" need "bspline": :mod:`parmpm.affine`).
 * ``[gravity]``: ``g`` (default 0), ``ramp_time`` (>= 0 s, default 0: applied suddenly).
 * ``[damping]``: ``coefficient`` (>= 0 1/s, default 0).
 * ``[boundary]``: ``x_min`` ... ``z_max`` for the scene's axes only: "fixed" | "slip" |

@@ -20,7 +20,7 @@ import math
 import re
 from typing import Any
 
-from parmpm.affine import APIC_INTERPOLATORS, TRANSFERS
+from parmpm.affine import AFFINE_TRANSFERS, APIC_INTERPOLATORS, TRANSFERS
 from parmpm.materials import MODELS, SOFTENING, lame
 from parmpm.metrics import metric_names, separation_kinds
 from parmpm.scene_bodies import (  # noqa: F401
@@ -251,19 +251,20 @@ def _method(c: _Checker, raw: Any, min_dx: float, max_cells: float = math.inf) -
     if not isinstance(lcr, str):
         lcr = float(lcr)
     transfer = c.choice("method.transfer", t.get("transfer", "flip"), TRANSFERS)
-    if transfer == "apic" and interp not in APIC_INTERPOLATORS:
-        c.fail("method.transfer", f'"apic" needs interpolator "bspline" (its D_p = Δx²/4 is a '
-                                  f'constant), got interpolator "{interp}"')
-    if transfer == "apic" and "flip" in t:
-        c.fail("method.flip", f'{show(t["flip"])} has no meaning with method.transfer = "apic" '
-                              '(APIC replaces the FLIP/PIC blend): leave it out')
+    if transfer in AFFINE_TRANSFERS and interp not in APIC_INTERPOLATORS:
+        c.fail("method.transfer", f'"{transfer}" needs interpolator "bspline" (its D_p = Δx²/4 '
+                                  f'is a constant), got interpolator "{interp}"')
+    if transfer in AFFINE_TRANSFERS and "flip" in t:
+        c.fail("method.flip", f'{show(t["flip"])} has no meaning with method.transfer = '
+                              f'"{transfer}" (its affine transfer replaces the FLIP/PIC blend): '
+                              'leave it out')
     out = {
         "interpolator": interp,
         "lcr": lcr,
         "update": c.choice("method.update", t.get("update", "auto"), UPDATES),
         "transfer": transfer,
     }
-    if transfer == "flip":  # APIC has no blend: its resolved scene has no flip key
+    if transfer == "flip":  # APIC/MLS have no blend: their resolved scene has no flip key
         out["flip"] = c.number("method.flip", t.get("flip", 1.0), "a number with 0 <= flip <= 1",
                                lambda x: 0 <= x <= 1)
     return out

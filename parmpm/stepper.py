@@ -19,13 +19,13 @@ import time
 import numpy as np
 
 from decomposition import PatchSet, accumulate, allreduce_max, exchange, fill, is_parallel, migrate
-from parmpm.affine import inertia_diagonal
+from parmpm.affine import AFFINE_TRANSFERS, inertia_diagonal
 from parmpm.collective import agree
 from parmpm.discretisation import Discretisation
 from parmpm.errors import SimulationError
 from parmpm.grid import grid_block, grid_update, region_node_ranges
 from parmpm.kernel_records import Boxes, Constraints, Fields, Locate, Material, Method, OwnedNodes
-from parmpm.kernels2d import KERNELS_2D
+from parmpm.kernels2d import KERNELS_2D, MLS_KERNELS_2D
 from parmpm.kernels3d import KERNELS_3D
 from parmpm.materials import COL_DAMAGE
 from parmpm.particles import Particles, locate_patches
@@ -39,6 +39,8 @@ from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 
 #: dimension → {interpolator code → (p2g, p2g_momentum, g2p)} of the hand-specialised kernels
 SPECIALISED = {2: KERNELS_2D, 3: KERNELS_3D}
+#: dimension → the MLS transfers' (p2g, p2g_momentum, g2p) (bspline; its P2G takes the step)
+SPECIALISED_MLS = {2: MLS_KERNELS_2D}
 
 PHASES = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "sort", "reduce")
 #: the phases in which a rank only computes (the others exchange with, or wait for, other ranks)
@@ -57,8 +59,10 @@ class Stepper:
         self.region_normal = (np.full(regions.shape[0], -1, np.int64) if region_normal is None
                               else np.asarray(region_normal, np.int64))
         self.update, self.flip, self.damping = update, flip, damping
-        #: affine transfers (APIC, :mod:`parmpm.affine`) instead of FLIP/PIC
-        self.apic = transfer == "apic"
+        #: affine transfers (APIC or MLS, :mod:`parmpm.affine`) instead of FLIP/PIC
+        self.apic = transfer in AFFINE_TRANSFERS
+        #: MLS: the moving-least-squares gradient, Δt f folded into P2G's momentum
+        self.mls = transfer == "mls"
         #: diag D_p of the affine transfers (zeros under FLIP): the affine angular momentum
         self.inertia = inertia_diagonal(disc.method, disc.h, self.apic)
         self.region_ranges = region_node_ranges(regions, disc.origin3, disc.h3, disc.dim)
@@ -102,9 +106,12 @@ class Stepper:
         have them (the default); ``"generic"``: the dimension-generic ones of
         :mod:`parmpm.transfer` (the reference the specialised ones are tested against)."""
         if kind == "specialised":
-            # APIC runs are bspline runs (the scene and inertia_diagonal refuse others), whose
-            # kernels see the affine field
-            self.kernels = SPECIALISED.get(self.disc.dim, {}).get(self.disc.method)
+            # APIC and MLS runs are bspline runs (the scene and inertia_diagonal refuse
+            # others), whose kernels see the affine field; MLS has kernels of its own (2D)
+            if self.mls:
+                self.kernels = SPECIALISED_MLS.get(self.disc.dim)
+            else:
+                self.kernels = SPECIALISED.get(self.disc.dim, {}).get(self.disc.method)
         elif kind == "generic":
             self.kernels = None
         else:
@@ -121,7 +128,7 @@ class Stepper:
         fresh-clone run took 14 min 19 s instead of 10 min 10 s)."""
         self._empty_boxes = True
         try:
-            self._p2g(self._bforce[:0])
+            self._p2g(self._bforce[:0], 0.0)
             self._p2g_momentum()
             self._g2p(G2P_USL, 0.0)
         finally:
@@ -164,7 +171,7 @@ class Stepper:
             boxes = boxes._replace(start=np.zeros(1, np.int64), order=np.zeros(0, np.uint64))
         fields = Fields(R.x, R.v, R.F, R.r0, R.lh0, R.mass, R.vol0, R.stress, R.dx, R.affine,
                         R.corners, R.rf)
-        return Method(D.method, D.dim, D.lcr, self.apic), boxes, fields
+        return Method(D.method, D.dim, D.lcr, self.apic, self.mls), boxes, fields
 
     def _fail(self, i: int, message: str) -> None:
         """Note the first problem of this step (particle ``i``); :meth:`finish` raises it."""
@@ -192,7 +199,7 @@ class Stepper:
         D = self.disc
         nodes, constraints = self.grid_records()
         grid_update(D.dim, nodes, constraints, dt, gravity, self.damping, self.mass_eps,
-                    self.gsum_block, self.gnew_block, momentum_only)
+                    self.gsum_block, self.gnew_block, momentum_only, self.mls)
 
     def _fold(self, momentum_only: bool) -> None:
         """Mirror faces: fold the mirror images into this rank's partial sums (all rows, or the
@@ -210,12 +217,17 @@ class Stepper:
         self.timers[phase] += t - t0
         return t
 
-    def _p2g(self, bforce: np.ndarray) -> None:
+    def _p2g(self, bforce: np.ndarray, dt: float) -> None:
+        """P2G of the step ``dt`` (MLS folds ``Δt f`` into the momentum; its specialised kernel
+        writes the force rows only for the energy ledger)."""
         how, boxes, fields = self.records()
-        if self.kernels is not None:
+        if self.kernels is not None and self.mls:
+            self.kernels[0](dt, self.ledger is not None, boxes, boxes.order, fields, bforce,
+                            self.gsum_block, self.err)
+        elif self.kernels is not None:
             self.kernels[0](how.lcr, boxes, boxes.order, fields, bforce, self.gsum_block, self.err)
         else:
-            p2g(how, boxes, fields, bforce, (self.gm, self.gmv, self.gf), self.err)
+            p2g(how, boxes, fields, bforce, dt, (self.gm, self.gmv, self.gf), self.err)
         self._check("p2g")
 
     def _p2g_momentum(self) -> None:
@@ -257,7 +269,7 @@ class Stepper:
                 self._bforce = np.zeros((P.n, P.dim))
             bforce = self._bforce
             self.forcing(time_now, P.rows, bforce)  # per physical row, as P2G reads it
-        self._p2g(bforce)
+        self._p2g(bforce, dt)
         self._fold(momentum_only=False)
         t = self._lap("p2g", t)
         accumulate(plan, self.gsum)

@@ -16,6 +16,11 @@ Under APIC (``how.apic``, :mod:`parmpm.affine`) the momentum scattered is the pa
 field at the node, ``m_p φ_ip (v_p + C_p (x_i − x_p))``, and G2P sets ``v_p = Σ φ v_i`` and
 ``C_p = Σ φ v_i ⊗ (x_i − x_p) D_p⁻¹`` with the B-spline's ``D_p⁻¹ = diag(4/Δx_k²)``.
 
+Under MLS (``how.mls``, :mod:`parmpm.affine`) the transfers are APIC's and the weight gradient is
+``∇̃φ_ip = φ_ip D_p⁻¹ (x_i − x_p)``: P2G adds ``Δt f_i`` (the step's, ``dt``) to the momentum and
+still writes ``f_i`` (the grid update skips it, the energy ledger reads it), and G2P's velocity
+gradient is ``L_p = C_p``.
+
 Under cpdi2 (:mod:`parmpm.shapes.cpdi2`) G2P also moves the particle's tracked corners with the
 grid, after the particle's motion: ``c_α ← c_α + Δt (v(x_p + ĉ_α) − v_move)``, ``v(y) = Σ_i S_i(y)
 v_i`` the linear hat of the grid velocity, ``ĉ_α`` the corner as interpolated (after the ``l_cr``
@@ -101,6 +106,16 @@ def _affine_scatter(d, n, m, vi, Ci, gmv, p, scratch):
 
 
 @helper_kernel
+def _mls_gradients(d, n, inv_h, scratch):
+    """MLS: replace the entries' weight gradients by ``φ D⁻¹ r`` (``D⁻¹ = diag(4/Δx²)``, the
+    offsets ``r`` from :func:`_offsets`)."""
+    w, g, r = scratch[8], scratch[9], scratch[12]
+    for e in range(n):
+        for b in range(d):
+            g[e, b] = w[e] * (4.0 * inv_h[b] * inv_h[b]) * r[e, b]
+
+
+@helper_kernel
 def _affine_gather(d, n, gvel, p, inv_h, vi, Ci, scratch):
     """APIC G2P: ``v_p = Σ φ v_i``, ``C_p = Σ φ v_i ⊗ r · D⁻¹`` with the B-spline's
     ``D⁻¹ = diag(4/Δx²)`` (:mod:`parmpm.affine`)."""
@@ -176,21 +191,22 @@ def _frozen(d, rf):
 
 
 @kernel
-def p2g(how, boxes, fields, bforce, out, err):
+def p2g(how, boxes, fields, bforce, dt, out, err):
     """``out = (gm, gmv, gf)`` (node-major views of this rank's patch slots) from the particles;
-    ``how``, ``boxes``, ``fields``: :mod:`parmpm.kernel_records`."""
+    ``how``, ``boxes``, ``fields``: :mod:`parmpm.kernel_records`; ``dt``: the step (MLS folds
+    ``Δt f`` into the momentum; unused otherwise)."""
     d = how.dim
     scratch = _scratch(boxes.nloc, d)
     for dim in literal_unroll(DIMS):
         if dim == d:
-            _p2g_loop(how, dim, boxes, boxes.order, fields, bforce, out, err, scratch)
+            _p2g_loop(how, dim, boxes, boxes.order, fields, bforce, dt, out, err, scratch)
 
 
 @loop_kernel
-def _p2g_loop(how, dim, boxes, order, fields, bforce, out, err, scratch):
+def _p2g_loop(how, dim, boxes, order, fields, bforce, dt, out, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
-    method, lcr, apic = how.code, how.lcr, how.apic
+    method, lcr, apic, mls = how.code, how.lcr, how.apic, how.mls
     start = boxes.start
     v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
     affine = fields.affine
@@ -214,6 +230,8 @@ def _p2g_loop(how, dim, boxes, order, fields, bforce, out, err, scratch):
             if apic:
                 _offsets(d, boxes, p, n, scratch)
                 _affine_scatter(d, n, m, v[i], affine[i], gmv, p, scratch)
+                if mls:
+                    _mls_gradients(d, n, boxes.inv_h, scratch)
             for e in range(n):
                 node = idx[e]
                 mw = m * w[e]
@@ -227,6 +245,9 @@ def _p2g_loop(how, dim, boxes, order, fields, bforce, out, err, scratch):
                     gf[p, node, a] -= V * s
                     if forced:
                         gf[p, node, a] += mw * bforce[i, a]
+                    if mls:  # the grid update's Δt f, folded in (module doc)
+                        fa = mw * bforce[i, a] - V * s if forced else -V * s
+                        gmv[p, node, a] += dt * fa
 
 
 @kernel
@@ -285,7 +306,7 @@ def g2p(mode, how, boxes, dt, flip, fields, material, grid, err):
 def _g2p_loop(mode, how, dim, boxes, order, dt, flip, fields, material, grid, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
-    method, lcr, apic = how.code, how.lcr, how.apic
+    method, lcr, apic, mls = how.code, how.lcr, how.apic, how.mls
     start = boxes.start
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     affine = fields.affine
@@ -337,12 +358,20 @@ def _g2p_loop(mode, how, dim, boxes, order, dt, flip, fields, material, grid, er
                               boxes.inv_h, corners[i], scratch)
             if mode == G2P_MUSL_MOTION:
                 continue
-            for a in range(d):
-                for b in range(d):
-                    s = 0.0
-                    for e in range(n):
-                        s += gvel[p, idx[e], a] * g[e, b]
-                    Lg[a, b] = s
+            if mls and mode == G2P_USL:  # L = C, gathered above
+                for a in range(d):
+                    for b in range(d):
+                        Lg[a, b] = affine[i, a, b]
+            elif mls:  # the re-mapped field's C, not stored: the particle keeps the motion's
+                _offsets(d, boxes, p, n, scratch)
+                _affine_gather(d, n, gvel, p, boxes.inv_h, vm, Lg, scratch)
+            else:
+                for a in range(d):
+                    for b in range(d):
+                        s = 0.0
+                        for e in range(n):
+                            s += gvel[p, idx[e], a] * g[e, b]
+                        Lg[a, b] = s
             update_F(d, dt, Lg, Fi, Fn)
             if mode == G2P_MUSL_DEFORM:
                 for a in range(d):

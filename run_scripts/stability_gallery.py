@@ -132,7 +132,7 @@ class Method:
         if self.interpolator not in ("cpdi", "cpdi2"):
             name = {"mpm": "MPM", "ugimp": "uGIMP", "cpgimp": "cpGIMP",
                     "bspline": "B-spline"}[self.interpolator]
-            return name + (" + APIC" if self.transfer == "apic" else "")
+            return name + (f" + {self.transfer.upper()}" if self.transfer != "flip" else "")
         name = self.interpolator.upper()
         if self.lcr == "none":
             return f"{name}, unscaled"
@@ -150,6 +150,7 @@ METHODS = (
     Method("cpdi_lcr2dx", "cpdi", "2dx"),
     Method("bspline", "bspline", "none"),
     Method("bspline_apic", "bspline", "none", "apic"),
+    Method("bspline_mls", "bspline", "none", "mls"),
     Method("cpdi2", "cpdi2", "none"),
     Method("cpdi2_lcr2dx", "cpdi2", "2dx"),
 )

@@ -42,7 +42,7 @@ class Method:
     order ``method.update = "auto"`` gives it, and how the charts draw it."""
     key: str            # the study's name for it: CSV ``method`` column, case ids, ``--methods``
     interpolator: str   # ``method.interpolator``
-    transfer: str       # ``method.transfer``: "flip" | "apic"
+    transfer: str       # ``method.transfer``: "flip" | "apic" | "mls"
     update: str         # what ``method.update = "auto"`` resolves to (parmpm.simulation)
     label: str
     colour: str
@@ -63,6 +63,7 @@ METHODS = {m.key: m for m in (
     Method("cpdi", "cpdi", "flip", "usl", "CPDI", "tab:blue", "o"),
     Method("bspline", "bspline", "flip", "musl", "B-spline", "tab:purple", "v"),
     Method("bspline_apic", "bspline", "apic", "musl", "B-spline APIC", "tab:red", "P"),
+    Method("bspline_mls", "bspline", "mls", "musl", "B-spline MLS", "tab:brown", "*"),
     Method("cpdi2", "cpdi2", "flip", "usl", "CPDI2", "tab:cyan", "X"),
 )}
 METHOD_KEYS = tuple(METHODS)

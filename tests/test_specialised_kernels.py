@@ -1,6 +1,7 @@
 """The hand-specialised kernels (:mod:`parmpm.kernels2d`, :mod:`parmpm.kernels3d`) against the
 dimension-generic ones (:mod:`parmpm.transfer`), for every entry of the kernel registry
-(:data:`parmpm.stepper.SPECIALISED`) in 2D and 3D.
+(:data:`parmpm.stepper.SPECIALISED`, and the MLS kernels of :data:`parmpm.stepper.SPECIALISED_MLS`)
+in 2D and 3D.
 
 On the hanging bar with several patches and a randomly deformed, moving, stressed particle state,
 P2G sums, the MUSL momentum re-map and every G2P mode (positions, velocities, F, stress, the CFL
@@ -24,7 +25,7 @@ from parmpm.particles import locate_patches
 from parmpm.shapes import BSPLINE, CPDI, CPDI2, INTERPOLATORS
 from parmpm.shapes.cpdi2 import affine_corners
 from parmpm.simulation import Simulation
-from parmpm.stepper import SPECIALISED
+from parmpm.stepper import SPECIALISED, SPECIALISED_MLS
 from parmpm.transfer import stress_pass as generic_stress_pass
 from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 
@@ -38,12 +39,14 @@ MODES = [G2P_USL, G2P_MUSL_MOTION, G2P_MUSL_DEFORM]
 
 def _cases():
     """(dim, interpolator name, l_cr) for every registered specialised kernel; for bspline the
-    "l_cr" ``"apic"`` means APIC transfers (its kernels read the affine field)."""
+    "l_cr" ``"apic"`` means APIC transfers (its kernels read the affine field), ``"mls"`` MLS
+    (kernels of their own)."""
     out = []
     for dim, kernels in sorted(SPECIALISED.items()):
         for code in sorted(kernels):
+            spline = ["none", "apic"] + (["mls"] if dim in SPECIALISED_MLS else [])
             lcrs = (["none", LCR[dim]] if code in (CPDI, CPDI2) else
-                    ["none", "apic"] if code == BSPLINE else ["none"])
+                    spline if code == BSPLINE else ["none"])
             out += [pytest.param(dim, NAME[code], lcr, id=f"{dim}d-{NAME[code]}-lcr={lcr}")
                     for lcr in lcrs]
     return out
@@ -83,8 +86,8 @@ def deformed_stepper(dim, method, lcr, model="neo_hookean", seed=1, tmp=None):
                     f'materials.bar.model="{model}"']
     if method in ("cpdi", "cpdi2"):
         over.append(f"method.lcr={lcr}")
-    if lcr == "apic":
-        over.append("method.transfer=apic")
+    if lcr in ("apic", "mls"):
+        over.append(f"method.transfer={lcr}")
     sim = Simulation(parmpm.load_scene(SCENE[dim], over), tmp, quiet=True)
     st, P = sim.stepper, sim.stepper.P
     rng = np.random.default_rng(seed)
@@ -113,6 +116,11 @@ def close(a, b, rtol=1e-12):
     np.testing.assert_allclose(a, b, rtol=0, atol=rtol * scale)
 
 
+def _registered(dim, st):
+    """The kernels the stepper should have picked."""
+    return SPECIALISED_MLS[dim] if st.mls else SPECIALISED[dim][st.disc.method]
+
+
 def test_registry_names_registered_interpolators():
     assert DIMS == [2, 3]
     for kernels in SPECIALISED.values():
@@ -133,14 +141,19 @@ def test_lcr_engages_on_some_domains(dim, tmp_path):
 @pytest.mark.parametrize("forced", [False, True])
 def test_p2g_matches_generic(dim, method, lcr, forced, tmp_path):
     sim, st, P = deformed_stepper(dim, method, lcr, tmp=tmp_path)
-    assert st.kernels is SPECIALISED[dim][st.disc.method]
+    assert st.kernels is _registered(dim, st)
     bforce = (np.random.default_rng(2).normal(0, 5.0, (P.n, dim)) if forced
               else np.zeros((0, dim)))
-    st._p2g(bforce)
+    dt = 1e-4
+    if st.mls:  # its force rows are written for the energy ledger alone
+        st._p2g(bforce, dt)
+        assert not np.any(st.gf) and np.any(st.gmv)
+        st.ledger = sim.energy.ledger
+    st._p2g(bforce, dt)
     fast = st.gsum.copy()
     st.use_kernels("generic")
     assert st.kernels is None
-    st._p2g(bforce)
+    st._p2g(bforce, dt)
     assert np.max(st.gsum[:, :, 0]) > 0 and st.error is None
     close(fast, st.gsum)
     st.use_kernels("specialised")
@@ -194,7 +207,7 @@ def test_reach_past_ghost_layer_is_caught_like_generic(dim, tmp_path):
     for kind in ("specialised", "generic"):
         st.use_kernels(kind)
         st.err[0] = -1
-        st._p2g(np.zeros((0, dim)))
+        st._p2g(np.zeros((0, dim)), 1e-4)
         assert st.err[0] == -1 and st.error is not None and "reaches" in st.error
         assert f"particle {P.gid[7]} " in st.error
         st.error = None
@@ -242,18 +255,18 @@ def test_kernels_through_py_func(dim, method, lcr, tmp_path, monkeypatch):
     """The kernels' Python bodies (``.py_func``, put in the registry) give the compiled results:
     P2G sums, the momentum re-map, and G2P's particles, speed and next patches."""
     sim, st, P = deformed_stepper(dim, method, lcr, tmp=tmp_path)
-    code = st.disc.method
-    compiled = SPECIALISED[dim][code]
+    registry, key = (SPECIALISED_MLS, dim) if st.mls else (SPECIALISED[dim], st.disc.method)
+    compiled = registry[key]
     rng = np.random.default_rng(4)
     gnew = rng.normal(0.0, 1.0, st.gnew.shape)
     before, out = snapshot(P), []
     for kernels in (compiled, tuple(k.py_func for k in compiled)):
-        monkeypatch.setitem(SPECIALISED[dim], code, kernels)
+        monkeypatch.setitem(registry, key, kernels)
         st.use_kernels("specialised")
         assert st.kernels is kernels
         restore(P, before)
         st.err[0] = -1
-        st._p2g(np.zeros((0, dim)))
+        st._p2g(np.zeros((0, dim)), 1e-4)
         sums = st.gsum.copy()
         st._p2g_momentum()
         momentum = st.gmv.copy()

@@ -161,8 +161,8 @@ def format_summary(summary: dict) -> str:
     meth = f"method      {_fmt(method)}"
     if scheme is not None:
         meth += f" / {scheme}"
-    if summary.get("transfer") == "apic":
-        meth += " / apic"
+    if summary.get("transfer") in ("apic", "mls"):
+        meth += f" / {summary['transfer']}"
     if lcr is not None:
         meth += f", l_cr = {_fmt(lcr)}"
     if ranks is not None:

@@ -18,6 +18,7 @@ from parmpm.kernels2d.bspline import g2p_bspline, p2g_bspline, p2g_momentum_bspl
 from parmpm.kernels2d.cpdi import g2p_cpdi, p2g_cpdi, p2g_momentum_cpdi
 from parmpm.kernels2d.cpdi2 import g2p_cpdi2, p2g_cpdi2, p2g_momentum_cpdi2
 from parmpm.kernels2d.hat import g2p_hat, p2g_hat, p2g_momentum_hat
+from parmpm.kernels2d.mls import g2p_mls, p2g_mls
 from parmpm.shapes import BSPLINE, CPDI, CPDI2, MPM
 
 #: interpolator code → (p2g, p2g_momentum, g2p) specialised for 2D
@@ -28,4 +29,8 @@ KERNELS_2D = {
     CPDI2: (p2g_cpdi2, p2g_momentum_cpdi2, g2p_cpdi2),
 }
 
-__all__ = ["KERNELS_2D"]
+#: bspline with ``method.transfer = "mls"``: (p2g, p2g_momentum, g2p); its P2G takes the step and
+#: an ``account`` flag first (:mod:`parmpm.kernels2d.mls`)
+MLS_KERNELS_2D = (p2g_mls, p2g_momentum_bspline, g2p_mls)
+
+__all__ = ["KERNELS_2D", "MLS_KERNELS_2D"]

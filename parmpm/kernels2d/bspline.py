@@ -10,7 +10,8 @@ P2G scatters ``φ m_p``, the momentum ``φ m_p v_p`` (APIC: ``φ m_p (v_p + C_p 
 ``L_p = Σ v_i ⊗ ∇φ`` (:mod:`parmpm.transfer` and :mod:`parmpm.affine` have the equations).
 
 APIC is on when the particles carry the affine field (``fields.affine`` has rows): the kernels
-need no extra argument and FLIP runs pay one branch per particle.
+need no extra argument and FLIP runs pay one branch per particle. MLS (:mod:`parmpm.kernels2d.mls`)
+shares this G2P with ``L_p = C_p`` in place of the gradient sums.
 """
 import numpy as np
 
@@ -150,6 +151,13 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
     """G2P in one of the three modes (FLIP/PIC blend or APIC); returns the largest
     ``c_p + |v_p|`` when the stress is updated, the particles that changed patch and the first
     that left the grid."""
+    return g2p_spline(mode, boxes, order, dt, flip, fields, material, gnew, err, locate, False)
+
+
+@loop_kernel
+def g2p_spline(mode, boxes, order, dt, flip, fields, material, gnew, err, locate, mls):
+    """:func:`g2p_bspline`'s loop; ``mls``: the velocity gradient is the affine matrix of the
+    field G2P reads, ``L_p = Σ φ v_i ⊗ r D⁻¹`` (:mod:`parmpm.affine`), not ``Σ v_i ⊗ ∇φ``."""
     start = boxes.start
     x, v, F, stress, dxs = fields.x, fields.v, fields.F, fields.stress, fields.dx
     C = fields.affine
@@ -194,10 +202,11 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
                 sy = wx0 * w0 + wx1 * w1 + wx2 * w2
                 vx += wy * sx
                 vy += wy * sy
-                l00 += wy * (dx0 * u0 + dx1 * u1 + dx2 * u2)
-                l10 += wy * (dx0 * w0 + dx1 * w1 + dx2 * w2)
-                l01 += dy * sx
-                l11 += dy * sy
+                if not mls:
+                    l00 += wy * (dx0 * u0 + dx1 * u1 + dx2 * u2)
+                    l10 += wy * (dx0 * w0 + dx1 * w1 + dx2 * w2)
+                    l01 += dy * sx
+                    l11 += dy * sy
                 if apic:
                     ry = wy * (b - 1 - ty)
                     bx0 += wy * (wr0 * u0 + wr1 * u1 + wr2 * u2)
@@ -207,11 +216,15 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
                 else:
                     dvx += wy * (wx0 * g[2, n] + wx1 * g[2, n + 1] + wx2 * g[2, n + 2])
                     dvy += wy * (wx0 * g[3, n] + wx1 * g[3, n + 1] + wx2 * g[3, n + 2])
+            c00, c01 = 4.0 * ihx * bx0, 4.0 * ihy * bx1
+            c10, c11 = 4.0 * ihx * by0, 4.0 * ihy * by1
+            if mls:
+                l00, l01, l10, l11 = c00, c01, c10, c11
             if mode != G2P_MUSL_DEFORM:
                 if apic:
                     v[i, 0], v[i, 1] = vx, vy
-                    C[i, 0, 0], C[i, 0, 1] = 4.0 * ihx * bx0, 4.0 * ihy * bx1
-                    C[i, 1, 0], C[i, 1, 1] = 4.0 * ihx * by0, 4.0 * ihy * by1
+                    C[i, 0, 0], C[i, 0, 1] = c00, c01
+                    C[i, 1, 0], C[i, 1, 1] = c10, c11
                 else:
                     v[i, 0] = flip_pic(flip, v[i, 0], dvx, vx)
                     v[i, 1] = flip_pic(flip, v[i, 1], dvy, vy)

@@ -1,0 +1,71 @@
+"""MLS-MPM transfers (``method.transfer = "mls"``, :mod:`parmpm.affine`) at the kernel level, on
+the 2D specialised kernels and the dimension-generic ones (1D, 3D and the reference): the MLS
+velocity gradient is exact for an affine grid velocity, and P2G folds exactly ``Δt f`` into the
+momentum. Angular momentum, the energy account, checkpoints and rank independence are in
+``test_apic.py``; specialised against generic on random states in ``test_specialised_kernels.py``.
+"""
+import numpy as np
+import pytest
+
+from parmpm.update_order import G2P_USL
+from test_specialised_kernels import deformed_stepper
+
+#: (dimension, kernels): the specialised MLS kernels exist in 2D; every dimension has the generic
+KINDS = [(2, "specialised"), (2, "generic"), (3, "generic")]
+
+
+def _node_positions(st):
+    """(slots, nodes, d) positions of every node of every patch slot's box (ghosts included)."""
+    D = st.disc
+    d = D.dim
+    nloc = np.asarray(D.nloc)
+    loc = np.arange(st.gnew.shape[1])
+    idx = np.stack([loc % nloc[0], (loc // nloc[0]) % nloc[1], loc // (nloc[0] * nloc[1])], 1)
+    glob = D.base[:, None, :] + idx[None, :, :]
+    return (np.asarray(D.origin3)[None, None, :] + glob * np.asarray(D.h3)[None, None, :])[..., :d]
+
+
+@pytest.mark.parametrize("dim,kind", KINDS)
+def test_the_mls_gradient_is_exact_for_an_affine_grid_velocity(dim, kind, tmp_path):
+    """``v_i = A x_i + b`` on every node: G2P gives ``C_p = L_p = A`` and ``v_p = A x_p + b``
+    (``Σ φ r ⊗ r = D`` and ``Σ φ r = 0``), so ``F ← (I + Δt A) F`` and ``x ← x + Δt v``."""
+    sim, st, P = deformed_stepper(dim, "bspline", "mls", tmp=tmp_path)
+    st.use_kernels(kind)
+    assert (st.kernels is None) == (kind == "generic")
+    rng = np.random.default_rng(5)
+    A, b = rng.normal(0.0, 2.0, (dim, dim)), rng.normal(0.0, 1.0, dim)
+    xn = _node_positions(st)
+    st.gnew[:] = 0.0
+    st.gnew[:, :, :dim] = xn @ A.T + b
+    x0, F0 = P.x.copy(), P.F.copy()
+    dt = 1e-4
+    st._g2p(G2P_USL, dt)
+    assert st.error is None
+    scale = np.abs(A).max() * np.abs(xn).max()
+    np.testing.assert_allclose(P.affine, np.broadcast_to(A, P.affine.shape), rtol=0,
+                               atol=1e-12 * scale)
+    np.testing.assert_allclose(P.v, x0 @ A.T + b, rtol=0, atol=1e-13 * scale)
+    np.testing.assert_allclose(P.x, x0 + dt * P.v, rtol=0, atol=1e-15 * np.abs(x0).max())
+    np.testing.assert_allclose(P.F, (np.eye(dim) + dt * A) @ F0, rtol=0, atol=1e-13)
+
+
+@pytest.mark.parametrize("dim,kind", KINDS)
+@pytest.mark.parametrize("forced", [False, True])
+def test_p2g_folds_dt_times_the_force_into_the_momentum(dim, kind, forced, tmp_path):
+    """With the energy ledger on (the force rows written), the momentum of a step ``Δt`` is the
+    momentum of ``Δt = 0`` plus ``Δt f``, body force included; the mass does not depend on Δt."""
+    sim, st, P = deformed_stepper(dim, "bspline", "mls", tmp=tmp_path)
+    st.use_kernels(kind)
+    st.ledger = sim.energy.ledger
+    bforce = (np.random.default_rng(6).normal(0, 5.0, (P.n, dim)) if forced
+              else np.zeros((0, dim)))
+    st._p2g(bforce, 0.0)
+    m0, mv0, f0 = st.gm.copy(), st.gmv.copy(), st.gf.copy()
+    dt = 1e-3
+    st._p2g(bforce, dt)
+    assert st.error is None and np.abs(f0).max() > 0
+    np.testing.assert_array_equal(st.gm, m0)
+    np.testing.assert_array_equal(st.gf, f0)
+    scale = np.abs(mv0).max() + dt * np.abs(f0).max()
+    np.testing.assert_allclose(st.gmv, mv0 + dt * f0, rtol=0, atol=1e-13 * scale)
+    assert np.abs(st.gmv - mv0).max() > 1e-6 * scale  # the force is there to be folded
