@@ -26,7 +26,7 @@ from parmpm.errors import SimulationError
 from parmpm.grid import grid_block, grid_update, region_node_ranges
 from parmpm.kernel_records import Boxes, Constraints, Fields, Locate, Material, Method, OwnedNodes
 from parmpm.kernels2d import KERNELS_2D, MLS_KERNELS_2D
-from parmpm.kernels3d import KERNELS_3D
+from parmpm.kernels3d import KERNELS_3D, MLS_KERNELS_3D
 from parmpm.materials import COL_DAMAGE
 from parmpm.particles import Particles, locate_patches
 from parmpm.reach import fmt_vec, grid_extent, inverted_message, reach_message
@@ -40,7 +40,7 @@ from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 #: dimension → {interpolator code → (p2g, p2g_momentum, g2p)} of the hand-specialised kernels
 SPECIALISED = {2: KERNELS_2D, 3: KERNELS_3D}
 #: dimension → the MLS transfers' (p2g, p2g_momentum, g2p) (bspline; its P2G takes the step)
-SPECIALISED_MLS = {2: MLS_KERNELS_2D}
+SPECIALISED_MLS = {2: MLS_KERNELS_2D, 3: MLS_KERNELS_3D}
 
 PHASES = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "sort", "reduce")
 #: the phases in which a rank only computes (the others exchange with, or wait for, other ranks)
@@ -107,7 +107,7 @@ class Stepper:
         :mod:`parmpm.transfer` (the reference the specialised ones are tested against)."""
         if kind == "specialised":
             # APIC and MLS runs are bspline runs (the scene and inertia_diagonal refuse
-            # others), whose kernels see the affine field; MLS has kernels of its own (2D)
+            # others), whose kernels see the affine field; MLS has kernels of its own
             if self.mls:
                 self.kernels = SPECIALISED_MLS.get(self.disc.dim)
             else:
@@ -272,13 +272,15 @@ class Stepper:
         self._p2g(bforce, dt)
         self._fold(momentum_only=False)
         t = self._lap("p2g", t)
-        accumulate(plan, self.gsum)
+        # MLS without an energy ledger has no force rows to add (Δt f is in the momentum)
+        accumulate(plan, self.gsum[:, :, :1 + P.dim] if self.mls and self.ledger is None
+                   else self.gsum)
         t = self._lap("accumulate", t)
         self._grid_update(dt, gravity, momentum_only=False)
         if self.ledger is not None:
             self.ledger.add(self, dt, gravity)
         t = self._lap("grid", t)
-        fill(plan, self.gnew)
+        fill(plan, self.gvel if self.apic else self.gnew)  # APIC and MLS read no Δv
         t = self._lap("fill", t)
         if self.update == "usl":
             vmax = self._g2p(G2P_USL, dt)

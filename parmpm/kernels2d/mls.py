@@ -1,14 +1,15 @@
-"""2D MLS-MPM transfers (quadratic B-splines; Hu et al. 2018): APIC's momentum with the force
-folded in, so P2G scatters three sums per node instead of five.
+"""2D MLS-MPM transfers (quadratic B-splines; Hu et al. 2018): APIC's momentum with the
+force folded in, so P2G scatters three sums per node instead of five.
 
 With ``r = x_i − x_p``, ``D⁻¹ = diag(4/Δx², 4/Δy²)`` and the MLS gradient ``∇̃φ = φ D⁻¹ r``
 (:mod:`parmpm.affine`), the momentum the grid update would form is
 
-    (mv)_i + Δt f_i = Σ_p φ_ip [m_p (v_p + Δt b_p) + A_p r],   A_p = m_p C_p − Δt V_p σ_p D⁻¹,
+    (mv)_i + Δt f_i = Σ_p φ_ip [m_p (v_p + Δt b_p) + A_p r],
+    A_p = m_p C_p − Δt V_p σ_p D⁻¹,
 
-one affine field per particle, scattered like APIC's. The force rows ``f_i = Σ φ (m b − V σ D⁻¹
-r)`` are written only when ``account`` is set (the energy ledger reads them; the grid update does
-not). G2P is :func:`parmpm.kernels2d.bspline.g2p_spline` with ``L_p = C_p``, and the MUSL
+one affine field per particle, scattered like APIC's. The force rows
+``f_i = Σ φ (m b − V σ D⁻¹ r)`` are written only when ``account`` is set (the energy ledger reads
+them; the grid update does not). G2P is :func:`parmpm.kernels2d.bspline.g2p_spline` with ``L_p = C_p``, and the MUSL
 re-map is APIC's (:func:`~parmpm.kernels2d.bspline.p2g_momentum_bspline`).
 """
 import numpy as np
@@ -29,7 +30,10 @@ def p2g_mls(dt, account, boxes, order, fields, bforce, gsum, err):
                                    fields.stress)
     C = fields.affine
     forced = bforce.shape[0] > 0
-    gsum[:] = 0.0
+    if account:
+        gsum[:] = 0.0
+    else:  # the force rows are neither written nor read (nor exchanged: the stepper)
+        gsum[:, :3, :] = 0.0
     ox, oy, ihx, ihy, L0 = frame_2d(boxes)
     hx, hy = 1.0 / ihx, 1.0 / ihy
     dx4, dy4 = 4.0 * ihx * ihx, 4.0 * ihy * ihy
@@ -51,7 +55,7 @@ def p2g_mls(dt, account, boxes, order, fields, bforce, gsum, err):
             wy0, wy1, wy2, _, _, _ = spline_weights(ty, ihy)
             V = det_2d(F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]) * vol0[i]
             m = mass[i]
-            # the force's affine field −V σ D⁻¹ and the momentum's A = m C + Δt (−V σ D⁻¹)
+            # the force's affine field K = −V σ D⁻¹ and the momentum's A = m C + Δt K
             k00, k01 = -V * stress[i, 0, 0] * dx4, -V * stress[i, 0, 1] * dy4
             k10, k11 = -V * stress[i, 1, 0] * dx4, -V * stress[i, 1, 1] * dy4
             a00, a01 = m * C[i, 0, 0] + dt * k00, m * C[i, 0, 1] + dt * k01

@@ -18,6 +18,7 @@ from parmpm.kernels3d.bspline import g2p_bspline, p2g_bspline, p2g_momentum_bspl
 from parmpm.kernels3d.cpdi import g2p_cpdi, p2g_cpdi, p2g_momentum_cpdi
 from parmpm.kernels3d.cpdi2 import g2p_cpdi2, p2g_cpdi2, p2g_momentum_cpdi2
 from parmpm.kernels3d.hat import g2p_hat, p2g_hat, p2g_momentum_hat
+from parmpm.kernels3d.mls import g2p_mls, p2g_mls
 from parmpm.shapes import BSPLINE, CPDI, CPDI2, MPM
 
 #: interpolator code → (p2g, p2g_momentum, g2p) specialised for 3D
@@ -28,4 +29,8 @@ KERNELS_3D = {
     CPDI2: (p2g_cpdi2, p2g_momentum_cpdi2, g2p_cpdi2),
 }
 
-__all__ = ["KERNELS_3D"]
+#: bspline with ``method.transfer = "mls"``: (p2g, p2g_momentum, g2p); its P2G takes the step and
+#: an ``account`` flag first (:mod:`parmpm.kernels3d.mls`)
+MLS_KERNELS_3D = (p2g_mls, p2g_momentum_bspline, g2p_mls)
+
+__all__ = ["KERNELS_3D", "MLS_KERNELS_3D"]

@@ -4,7 +4,8 @@ The 3D counterpart of :mod:`parmpm.kernels2d.bspline` (same per-axis weights and
 :func:`parmpm.kernels2d.bspline.spline_of` and :func:`parmpm.shapes.bspline.spline_weights`), on the
 3D grid rows ``gsum[s, :, node] = (m, mv, f)`` and ``gnew[s, :, node] = (v, Δv)`` with
 ``node = i0 + L0 (i1 + L1 i2)``. APIC (``C_p`` in ``fields.affine``, :mod:`parmpm.affine`) is on
-when the particles carry the affine field.
+when the particles carry the affine field. MLS (:mod:`parmpm.kernels3d.mls`) shares this G2P with
+``L_p = C_p`` in place of the gradient sums.
 """
 import numpy as np
 
@@ -158,6 +159,13 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
     """G2P in one of the three modes (FLIP/PIC blend or APIC); returns the largest
     ``c_p + |v_p|`` when the stress is updated, the particles that changed patch and the first
     that left the grid."""
+    return g2p_spline(mode, boxes, order, dt, flip, fields, material, gnew, err, locate, False)
+
+
+@loop_kernel
+def g2p_spline(mode, boxes, order, dt, flip, fields, material, gnew, err, locate, mls):
+    """:func:`g2p_bspline`'s loop; ``mls``: the velocity gradient is the affine matrix of the
+    field G2P reads, ``L_p = Σ φ v_i ⊗ r D⁻¹`` (:mod:`parmpm.affine`), not ``Σ v_i ⊗ ∇φ``."""
     start = boxes.start
     x, v, F, stress, dxs = fields.x, fields.v, fields.F, fields.stress, fields.dx
     C = fields.affine
@@ -209,15 +217,16 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
                     vx += wyz * sx
                     vy += wyz * sy
                     vz += wyz * sz
-                    l00 += wyz * (dx0 * u0 + dx1 * u1 + dx2 * u2)
-                    l10 += wyz * (dx0 * s0 + dx1 * s1 + dx2 * s2)
-                    l20 += wyz * (dx0 * q0 + dx1 * q1 + dx2 * q2)
-                    l01 += dyz * sx
-                    l11 += dyz * sy
-                    l21 += dyz * sz
-                    l02 += wdz * sx
-                    l12 += wdz * sy
-                    l22 += wdz * sz
+                    if not mls:
+                        l00 += wyz * (dx0 * u0 + dx1 * u1 + dx2 * u2)
+                        l10 += wyz * (dx0 * s0 + dx1 * s1 + dx2 * s2)
+                        l20 += wyz * (dx0 * q0 + dx1 * q1 + dx2 * q2)
+                        l01 += dyz * sx
+                        l11 += dyz * sy
+                        l21 += dyz * sz
+                        l02 += wdz * sx
+                        l12 += wdz * sy
+                        l22 += wdz * sz
                     if apic:
                         wry, wrz = wyz * ry, wyz * rz
                         b00 += wyz * (wr0 * u0 + wr1 * u1 + wr2 * u2)
@@ -234,13 +243,19 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
                         dvy += wyz * (wx0 * g[4, n] + wx1 * g[4, n + 1] + wx2 * g[4, n + 2])
                         dvz += wyz * (wx0 * g[5, n] + wx1 * g[5, n + 1] + wx2 * g[5, n + 2])
             xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
+            kx4, ky4, kz4 = 4.0 * ihx, 4.0 * ihy, 4.0 * ihz
+            c00, c01, c02 = kx4 * b00, ky4 * b01, kz4 * b02
+            c10, c11, c12 = kx4 * b10, ky4 * b11, kz4 * b12
+            c20, c21, c22 = kx4 * b20, ky4 * b21, kz4 * b22
+            if mls:
+                l00, l01, l02, l10, l11, l12 = c00, c01, c02, c10, c11, c12
+                l20, l21, l22 = c20, c21, c22
             if mode != G2P_MUSL_DEFORM:
                 if apic:
                     v[i, 0], v[i, 1], v[i, 2] = vx, vy, vz
-                    kx4, ky4, kz4 = 4.0 * ihx, 4.0 * ihy, 4.0 * ihz
-                    C[i, 0, 0], C[i, 0, 1], C[i, 0, 2] = kx4 * b00, ky4 * b01, kz4 * b02
-                    C[i, 1, 0], C[i, 1, 1], C[i, 1, 2] = kx4 * b10, ky4 * b11, kz4 * b12
-                    C[i, 2, 0], C[i, 2, 1], C[i, 2, 2] = kx4 * b20, ky4 * b21, kz4 * b22
+                    C[i, 0, 0], C[i, 0, 1], C[i, 0, 2] = c00, c01, c02
+                    C[i, 1, 0], C[i, 1, 1], C[i, 1, 2] = c10, c11, c12
+                    C[i, 2, 0], C[i, 2, 1], C[i, 2, 2] = c20, c21, c22
                 else:
                     v[i, 0] = flip_pic(flip, v[i, 0], dvx, vx)
                     v[i, 1] = flip_pic(flip, v[i, 1], dvy, vy)
