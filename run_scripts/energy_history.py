@@ -10,7 +10,7 @@ gravity, landing on a fixed floor) and draws its ``history.csv``: the energies (
 gravitational, their sum) and where the energy went (the floor's constraints, the particle–grid
 transfers, the integrator's residual; ``docs/energy.md``) in ``history.png`` (the scene as
 written: CPDI, FLIP). Then the same scene with every method of ``--methods`` (default: all of
-:data:`study.METHODS`, each at its default update; B-splines with FLIP and with APIC) side by
+:data:`study.METHODS`, each at its default update; B-splines with FLIP, APIC and MLS) side by
 side in ``history_methods.png``: the total K + Ψ + U_g, the transfer dissipation D_t, the
 integrator residual R and the kinetic energy K, with one summary line per method and
 ``history_methods.csv`` (one row per method; also the angular momentum about the origin at the
@@ -22,8 +22,9 @@ and ends at 91.1 (mpm), 89.4 (uGIMP, cpGIMP), 89.3 (bspline FLIP), 67.3 (CPDI) a
 (bspline APIC). With FLIP the transfer term D_t ends negative for every method but mpm
 (uGIMP −21.7, cpGIMP −11.3, CPDI −70.2, bspline −119.8 J) and the floor takes the balance
 (−W_bc 57.5, 52.4, 81.3, 137.2 J; mpm: D_t +38.9 J, −W_bc 36.0 J); APIC's transfers dissipate
-60.2 J and the floor takes 12.6 J: the impact's energy leaves through the transfers. The
-integrator residual's largest |R| is 2.7 % of the energy given with APIC, 4.7 % CPDI, 6.7 %
+60.2 J and the floor takes 12.6 J: the impact's energy leaves through the transfers (MLS: 24.4 J
+at the end, 58.9 J through the transfers, 12.5 J to the floor). The
+integrator residual's largest |R| is 2.4 % of the energy given with MLS, 2.7 % APIC, 4.7 % CPDI, 6.7 %
 bspline FLIP, 14–16 % uGIMP and cpGIMP, 30 % mpm.
 
 Runtime, one core: full (0.3 s, 6 runs, ~400 steps each) ~5 s; ``--quick`` (to 0.05 s, before

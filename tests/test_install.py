@@ -6,9 +6,10 @@ comes from PyPI as a wheel that looks for an MPI library only when ``mpi4py.MPI`
 On the development machine there is no system MPI, so in that venv ``import mpi4py.MPI`` **fails**
 (``RuntimeError: cannot load MPI library``; the test checks it fails exactly when
 ``ctypes.util.find_library("mpi")`` finds no library, and succeeds otherwise), and parmpm must
-run on one rank all the same: ``python -m parmpm run hanging_bar`` exits 0 and writes
-``summary.json`` (the figure is skipped with a warning: no matplotlib). The first run compiles
-the kernels into the new install's ``__pycache__``, so the test takes a minute or two.
+run on one rank all the same: ``python -m parmpm run hanging_bar_1d`` (with standard MPM: the
+kernels cheapest to compile, which is all the choice is about) exits 0 and writes ``summary.json``
+(the figure is skipped with a warning: no matplotlib). The first run compiles the kernels into
+the new install's ``__pycache__``, so the test takes a minute or two.
 
 pip needs an index (PyPI, or the one pip is configured with; its cache makes the downloads
 cheap): when it cannot reach one the test is skipped, not failed.
@@ -83,8 +84,9 @@ def test_pip_install_without_extras_runs_on_one_rank(tmp_path):
         assert probe.returncode == 0, probe.stderr
 
     out = tmp_path / "out"
-    run = subprocess.run([str(python), "-m", "parmpm", "run", "hanging_bar", "--set",
-                          "time.end=0.002", "--out", str(out)], cwd=tmp_path, env=_env(),
+    run = subprocess.run([str(python), "-m", "parmpm", "run", "hanging_bar_1d", "--set",
+                          "method.interpolator=mpm", "--set", "time.end=0.002", "--out",
+                          str(out)], cwd=tmp_path, env=_env(),
                          capture_output=True, text=True, timeout=1200)
     assert run.returncode == 0, run.stderr
     assert "Traceback" not in run.stderr
