@@ -9,11 +9,12 @@ under a second. Three things here deal with that first run:
   is never printed for a run that merely loads), naming the cache folder; with ``-v`` every
   compiled kernel and its time at DEBUG.
 * :func:`compile_kernels` (``parmpm compile``): one tiny run of each dimension × interpolator ×
-  USL/MUSL, in-process, two steps each, with everything a run switches on around the step
+  USL/MUSL × transfer the interpolator takes (FLIP; for ``bspline`` also APIC and MLS,
+  :mod:`parmpm.affine`), in-process, two steps each, with everything a run switches on around the step
   (damage and CPDI freeze, fixed and slip regions, gravity, metrics with the separation count,
   history with probes, snapshots with domains). A batch job runs it once before ``srun``.
-* :func:`compile_first`: under MPI, rank 0 runs the tiny run of the scene's dimension, method
-  and update first while the other ranks wait, so that P ranks do not compile the same kernels P
+* :func:`compile_first`: under MPI, rank 0 runs the tiny run of the scene's dimension, method,
+  update and transfer first while the other ranks wait, so that P ranks do not compile the same kernels P
   times at once (on an oversubscribed node that multiplies the start-up; with a warm cache it
   costs rank 0 a few tenths of a second). The other ranks wait in a polled, non-blocking barrier:
   MPICH's blocking one spins and would take the cores rank 0 compiles on.
@@ -30,6 +31,7 @@ import shutil
 import tempfile
 import time
 
+from parmpm.affine import AFFINE_TRANSFERS, APIC_INTERPOLATORS, TRANSFERS
 from parmpm.log import get_logger
 from parmpm.scene_schema import UPDATES
 from parmpm.shapes import INTERPOLATORS
@@ -105,14 +107,21 @@ def _vec(values) -> str:
     return "[" + ", ".join(f"{v:g}" for v in values) + "]"
 
 
-def tiny_scene_toml(dim: int, method: str, update: str) -> str:
+def transfers_of(method: str) -> tuple[str, ...]:
+    """The transfers ``method`` can run with: FLIP always, APIC and MLS with the B-spline."""
+    return TRANSFERS if method in APIC_INTERPOLATORS else ("flip",)
+
+
+def tiny_scene_toml(dim: int, method: str, update: str, transfer: str = "flip") -> str:
     """A scene of a few hundred particles that takes every path of a step around the kernels:
     a damageable neo-Hookean block (damage never starts, but the CPDI freeze check runs) and a
     linear-elastic one, moving fast enough to cross a patch face, under gravity, between a fixed
     and a slip face (and a symmetry face in 2D and 3D), with a fixed and a slip region, hanging-bar metrics (the separation count),
     a history with probes and snapshots with domains."""
-    if dim not in DIMS or method not in METHODS or update not in UPDATES:
-        raise ValueError(f"tiny scene: dim {dim}, method {method!r}, update {update!r}")
+    if (dim not in DIMS or method not in METHODS or update not in UPDATES
+            or transfer not in transfers_of(method)):
+        raise ValueError(f"tiny scene: dim {dim}, method {method!r}, update {update!r}, "
+                         f"transfer {transfer!r}")
     zeros, cells = [0.0] * dim, [10] * dim
     lo_a, hi_a = [0.2] * dim, [0.5] * dim
     lo_b, hi_b = [0.2] * (dim - 1) + [0.6], [0.5] * (dim - 1) + [0.8]
@@ -121,8 +130,10 @@ def tiny_scene_toml(dim: int, method: str, update: str) -> str:
     faces = "x_min = \"fixed\"\n" + ("y_min = \"slip\"\ny_max = \"symmetry\"\n" if dim > 1
                                       else "x_max = \"slip\"\n")
     lcr = "" if method in ("cpdi", "cpdi2") else 'lcr = "none"\n'
+    if transfer in AFFINE_TRANSFERS:
+        lcr += f'transfer = "{transfer}"\n'
     return f"""\
-name = "compile_{dim}d_{method}_{update}"
+name = "compile_{dim}d_{method}_{update}_{transfer}"
 dim = {dim}
 [grid]
 origin = {_vec(zeros)}
@@ -192,9 +203,9 @@ def _only_compile_messages():
         own.setLevel(saved[1])
 
 
-def warm_up(dim: int, method: str, update: str) -> float:
-    """Run the tiny scene of (dim, method, update) on this process alone (two steps, output in
-    a temporary folder, removed); returns its wall time in seconds."""
+def warm_up(dim: int, method: str, update: str, transfer: str = "flip") -> float:
+    """Run the tiny scene of (dim, method, update, transfer) on this process alone (two steps,
+    output in a temporary folder, removed); returns its wall time in seconds."""
     from decomposition import SerialComm
     from parmpm.measures import components
     from parmpm.scene import scene_from_toml
@@ -207,7 +218,8 @@ def warm_up(dim: int, method: str, update: str) -> float:
         def Get_size(self) -> int:
             return 2
 
-    scene = scene_from_toml(tiny_scene_toml(dim, method, update), f"compile-{dim}d-{method}")
+    scene = scene_from_toml(tiny_scene_toml(dim, method, update, transfer),
+                            f"compile-{dim}d-{method}")
     tmp = tempfile.mkdtemp(prefix="parmpm-compile-")
     t0 = time.perf_counter()
     try:
@@ -223,26 +235,32 @@ def warm_up(dim: int, method: str, update: str) -> float:
     return time.perf_counter() - t0
 
 
-def compile_kernels(dims=DIMS, methods=METHODS, updates=COMPILED_UPDATES) -> list[dict]:
-    """Fill numba's cache for every (dim, method, update) given; one row per case (seconds,
-    kernels compiled: 0 when all came from the cache)."""
+def compile_kernels(dims=DIMS, methods=METHODS, updates=COMPILED_UPDATES,
+                    transfers=TRANSFERS) -> list[dict]:
+    """Fill numba's cache for every (dim, method, update, transfer) given (the transfers a
+    method does not take are skipped); one row per case (seconds, kernels compiled: 0 when all
+    came from the cache)."""
     rows = []
     with compile_notice() as notice:
         for dim in dims:
             for method in methods:
                 for update in updates:
-                    before = notice.kernels
-                    seconds = warm_up(dim, method, update)
-                    rows.append({"dim": dim, "method": method, "update": update,
-                                 "seconds": seconds, "compiled": notice.kernels - before})
-                    log.info("%dD %-6s %-4s  %5.1f s  %s", dim, method, update, seconds,
-                             f"{rows[-1]['compiled']} kernels compiled" if rows[-1]["compiled"]
-                             else "all cached")
+                    for transfer in (t for t in transfers if t in transfers_of(method)):
+                        before = notice.kernels
+                        seconds = warm_up(dim, method, update, transfer)
+                        rows.append({"dim": dim, "method": method, "update": update,
+                                     "transfer": transfer, "seconds": seconds,
+                                     "compiled": notice.kernels - before})
+                        log.info("%dD %-7s %-4s %-4s  %5.1f s  %s", dim, method, update,
+                                 transfer, seconds,
+                                 f"{rows[-1]['compiled']} kernels compiled"
+                                 if rows[-1]["compiled"] else "all cached")
     return rows
 
 
 # --- rank 0 first -------------------------------------------------------------------------------
-#: (dim, method, update) warmed up in this process already: staged once, then never again
+#: (dim, method, update, transfer) warmed up in this process already: staged once, then never
+#: again
 _WARMED: set = set()
 
 
@@ -255,11 +273,12 @@ def wait_for_all(comm, poll: float = 0.01) -> None:
 
 
 def compile_first(data: dict, comm) -> None:
-    """Collective: rank 0 runs the tiny run of the scene's dimension, interpolator and update
-    (compiling what is not cached) while the other ranks wait; then they all load from the
+    """Collective: rank 0 runs the tiny run of the scene's dimension, interpolator, update and
+    transfer (compiling what is not cached) while the other ranks wait; then they all load from the
     cache. Once per process and case; a failed warm-up is only a debug message (the run then
     compiles as before). ``data``: the resolved scene."""
-    key = (data["dim"], data["method"]["interpolator"], data["method"]["update"])
+    m = data["method"]
+    key = (data["dim"], m["interpolator"], m["update"], m.get("transfer", "flip"))
     if comm is None or comm.Get_size() == 1 or key in _WARMED:
         return
     _WARMED.add(key)
@@ -284,6 +303,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"interpolators (default: all: {' '.join(METHODS)})")
     parser.add_argument("--update", nargs="+", choices=COMPILED_UPDATES,
                         default=list(COMPILED_UPDATES), help="USL, MUSL or both (default both)")
+    parser.add_argument("--transfer", nargs="+", choices=TRANSFERS, default=list(TRANSFERS),
+                        help="transfers, where the method takes them (default all: FLIP for "
+                             "every method, APIC and MLS for bspline)")
     parser.add_argument("-q", "--quiet", action="store_true", help="no info messages")
     parser.add_argument("-v", "--verbose", action="store_true",
                         help="debug messages (every kernel compiled, and its time)")
@@ -297,7 +319,8 @@ def run_compile(args: argparse.Namespace, comm) -> int:
     try:
         if rank == 0:
             t0 = time.perf_counter()
-            rows = compile_kernels(args.dim, args.methods, args.update)
+            rows = compile_kernels(args.dim, args.methods, args.update,
+                                   getattr(args, "transfer", TRANSFERS))
             compiled = sum(r["compiled"] for r in rows)
             log.info("%d cases in %.0f s: %s", len(rows), time.perf_counter() - t0,
                      f"{compiled} kernels compiled" if compiled else "every kernel was cached")

@@ -25,10 +25,12 @@ TIMEOUT_S = 600
 @pytest.mark.parametrize("dim", comp.DIMS)
 def test_the_tiny_scenes_are_valid_scenes(dim):
     for method in comp.METHODS:
-        for update in (*comp.COMPILED_UPDATES, "auto"):
-            scene = scene_from_toml(comp.tiny_scene_toml(dim, method, update))
+        for update, transfer in [(u, t) for u in (*comp.COMPILED_UPDATES, "auto")
+                                 for t in comp.transfers_of(method)]:
+            scene = scene_from_toml(comp.tiny_scene_toml(dim, method, update, transfer))
             data = scene.data
             assert data["dim"] == dim and data["method"]["interpolator"] == method
+            assert data["method"]["transfer"] == transfer
             assert data["time"]["steps"] == 2 and data["metrics"]["kind"] == "hanging_bar"
             assert len(data["output"]["history"]["probes"]) == 2
 
@@ -67,7 +69,20 @@ def test_rank_0_compiles_first_once_per_case(warm_ups):
     comp.compile_first(_data(), comm)
     comp.compile_first(_data(), comm)  # the same case again in this process: nothing
     comp.compile_first(_data(3, "mpm"), comm)
-    assert warm_ups == [(2, "cpdi", "auto"), (3, "mpm", "auto")] and comm.barriers == 2
+    mls = _data(2, "bspline")
+    mls["method"]["transfer"] = "mls"  # its own kernels: a case of its own
+    comp.compile_first(mls, comm)
+    comp.compile_first(_data(2, "bspline"), comm)
+    assert warm_ups == [(2, "cpdi", "auto", "flip"), (3, "mpm", "auto", "flip"),
+                        (2, "bspline", "auto", "mls"), (2, "bspline", "auto", "flip")]
+    assert comm.barriers == 4
+
+
+def test_transfers_are_compiled_only_where_the_method_takes_them():
+    assert comp.transfers_of("bspline") == ("flip", "apic", "mls")
+    assert comp.transfers_of("cpdi") == ("flip",)
+    with pytest.raises(ValueError, match="transfer 'mls'"):
+        comp.tiny_scene_toml(2, "mpm", "usl", "mls")
 
 
 def test_the_other_ranks_only_wait(warm_ups):
