@@ -46,6 +46,7 @@ import math
 import numpy as np
 from numba import literal_unroll, literally
 
+from parmpm.affine_transfer import affine_gather, affine_scatter, mls_gradients, offsets
 from parmpm.jit import DIMS, helper_kernel, kernel, loop_kernel
 from parmpm.kinematics import det_d, flip_pic, update_F
 from parmpm.materials.damage import damage_update
@@ -75,61 +76,6 @@ def _scratch(nloc, d):
             np.zeros(K, np.int64), np.zeros(K), np.zeros((K, 3)),
             np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((K, 3)), np.zeros(SCRATCH_SHAPE),
             np.zeros(3))
-
-
-@helper_kernel
-def _offsets(d, boxes, p, n, scratch):
-    """``r[e] = x_i − x_p`` (physical units) of the ``n`` entries of the particle whose grid
-    coordinates are in the scratch's ``xi`` (APIC's affine terms)."""
-    xi, idx, r = scratch[2], scratch[7], scratch[12]
-    base, nloc, inv_h = boxes.base, boxes.nloc, boxes.inv_h
-    for e in range(n):
-        loc = idx[e]
-        r[e, 0] = (base[p, 0] + loc % nloc[0] - xi[0]) / inv_h[0]
-        if d > 1:
-            r[e, 1] = (base[p, 1] + (loc // nloc[0]) % nloc[1] - xi[1]) / inv_h[1]
-        if d > 2:
-            r[e, 2] = (base[p, 2] + loc // (nloc[0] * nloc[1]) - xi[2]) / inv_h[2]
-
-
-@helper_kernel
-def _affine_scatter(d, n, m, vi, Ci, gmv, p, scratch):
-    """APIC P2G momentum: ``(m v)_i += m φ_ip (v_p + C_p r_e)`` over the ``n`` entries."""
-    idx, w, r = scratch[7], scratch[8], scratch[12]
-    for e in range(n):
-        mw = m * w[e]
-        for a in range(d):
-            s = vi[a]
-            for b in range(d):
-                s += Ci[a, b] * r[e, b]
-            gmv[p, idx[e], a] += mw * s
-
-
-@helper_kernel
-def _mls_gradients(d, n, inv_h, scratch):
-    """MLS: replace the entries' weight gradients by ``φ D⁻¹ r`` (``D⁻¹ = diag(4/Δx²)``, the
-    offsets ``r`` from :func:`_offsets`)."""
-    w, g, r = scratch[8], scratch[9], scratch[12]
-    for e in range(n):
-        for b in range(d):
-            g[e, b] = w[e] * (4.0 * inv_h[b] * inv_h[b]) * r[e, b]
-
-
-@helper_kernel
-def _affine_gather(d, n, gvel, p, inv_h, vi, Ci, scratch):
-    """APIC G2P: ``v_p = Σ φ v_i``, ``C_p = Σ φ v_i ⊗ r · D⁻¹`` with the B-spline's
-    ``D⁻¹ = diag(4/Δx²)`` (:mod:`parmpm.affine`)."""
-    idx, w, r = scratch[7], scratch[8], scratch[12]
-    for a in range(d):
-        s = 0.0
-        for e in range(n):
-            s += w[e] * gvel[p, idx[e], a]
-        vi[a] = s
-        for b in range(d):
-            s = 0.0
-            for e in range(n):
-                s += w[e] * gvel[p, idx[e], a] * r[e, b]
-            Ci[a, b] = s * (4.0 * inv_h[b] * inv_h[b])
 
 
 @helper_kernel
@@ -228,10 +174,10 @@ def _p2g_loop(how, dim, boxes, order, fields, bforce, dt, out, err, scratch):
             m = mass[i]
             V = det_d(d, F[i]) * vol0[i]
             if apic:
-                _offsets(d, boxes, p, n, scratch)
-                _affine_scatter(d, n, m, v[i], affine[i], gmv, p, scratch)
+                offsets(d, boxes, p, n, scratch)
+                affine_scatter(d, n, m, v[i], affine[i], gmv, p, scratch)
                 if mls:
-                    _mls_gradients(d, n, boxes.inv_h, scratch)
+                    mls_gradients(d, n, boxes.inv_h, scratch)
             for e in range(n):
                 node = idx[e]
                 mw = m * w[e]
@@ -278,8 +224,8 @@ def _p2g_momentum_loop(how, dim, boxes, order, fields, gmv, err, scratch):
             if n < 0:
                 continue
             if apic:
-                _offsets(d, boxes, p, n, scratch)
-                _affine_scatter(d, n, mass[i], v[i], fields.affine[i], gmv, p, scratch)
+                offsets(d, boxes, p, n, scratch)
+                affine_scatter(d, n, mass[i], v[i], fields.affine[i], gmv, p, scratch)
                 continue
             for e in range(n):
                 mw = mass[i] * w[e]
@@ -327,8 +273,8 @@ def _g2p_loop(mode, how, dim, boxes, order, dt, flip, fields, material, grid, er
                 continue
             Fi = F[i]
             if apic and mode != G2P_MUSL_DEFORM:
-                _offsets(d, boxes, p, n, scratch)
-                _affine_gather(d, n, gvel, p, boxes.inv_h, v[i], affine[i], scratch)
+                offsets(d, boxes, p, n, scratch)
+                affine_gather(d, n, gvel, p, boxes.inv_h, v[i], affine[i], scratch)
                 for a in range(d):
                     if mode == G2P_USL:
                         x[i, a] += dt * v[i, a]
@@ -363,8 +309,8 @@ def _g2p_loop(mode, how, dim, boxes, order, dt, flip, fields, material, grid, er
                     for b in range(d):
                         Lg[a, b] = affine[i, a, b]
             elif mls:  # the re-mapped field's C, not stored: the particle keeps the motion's
-                _offsets(d, boxes, p, n, scratch)
-                _affine_gather(d, n, gvel, p, boxes.inv_h, vm, Lg, scratch)
+                offsets(d, boxes, p, n, scratch)
+                affine_gather(d, n, gvel, p, boxes.inv_h, vm, Lg, scratch)
             else:
                 for a in range(d):
                     for b in range(d):
