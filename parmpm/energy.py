@@ -117,9 +117,8 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fu
                         _apply_regions(d, gidx, origin, h, regions, normal, free)
                     heavy = fused or m > mass_eps
                     for a in range(d):
-                        vold = G[1 + a, node] / m
-                        if fused:
-                            vold = (G[1 + a, node] - dt * G[1 + d + a, node]) / m
+                        vold = ((G[1 + a, node] - dt * G[1 + d + a, node]) / m if fused
+                                else G[1 + a, node] / m)
                         if free[a] == 0.0:
                             wbc -= 0.5 * m * vold * vold
                             continue

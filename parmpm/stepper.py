@@ -201,15 +201,22 @@ class Stepper:
         grid_update(D.dim, nodes, constraints, dt, gravity, self.damping, self.mass_eps,
                     self.gsum_block, self.gnew_block, momentum_only, self.mls)
 
+    def _sum_rows(self) -> int:
+        """The P2G rows a step fills: mass, momentum and force, or under MLS without an energy
+        ledger mass and momentum alone (Δt f is in the momentum, and nothing reads the force)."""
+        d = self.disc.dim
+        return 1 + d if self.mls and self.ledger is None else 1 + 2 * d
+
     def _fold(self, momentum_only: bool) -> None:
-        """Mirror faces: fold the mirror images into this rank's partial sums (all rows, or the
-        momentum alone in a MUSL re-map) before the ghost accumulation (:mod:`parmpm.symmetry`)."""
+        """Mirror faces: fold the mirror images into this rank's partial sums (the rows P2G
+        filled, or the momentum alone in a MUSL re-map) before the ghost accumulation
+        (:mod:`parmpm.symmetry`)."""
         if self.symmetry is None:
             return
         D = self.disc
         d = D.dim
         fold_sums(d, D.nloc, D.base, D.face_lo3, D.face_hi3, self.symmetry, self._signs,
-                  1 if momentum_only else 0, 1 + d if momentum_only else 1 + 2 * d,
+                  1 if momentum_only else 0, 1 + d if momentum_only else self._sum_rows(),
                   self.gsum_block)
 
     def _lap(self, phase: str, t0: float) -> float:
@@ -272,9 +279,7 @@ class Stepper:
         self._p2g(bforce, dt)
         self._fold(momentum_only=False)
         t = self._lap("p2g", t)
-        # MLS without an energy ledger has no force rows to add (Δt f is in the momentum)
-        accumulate(plan, self.gsum[:, :, :1 + P.dim] if self.mls and self.ledger is None
-                   else self.gsum)
+        accumulate(plan, self.gsum[:, :, :self._sum_rows()])
         t = self._lap("accumulate", t)
         self._grid_update(dt, gravity, momentum_only=False)
         if self.ledger is not None:
