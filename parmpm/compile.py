@@ -32,6 +32,7 @@ import tempfile
 import time
 
 from parmpm.affine import AFFINE_TRANSFERS, APIC_INTERPOLATORS, TRANSFERS
+from parmpm.errors import ParmpmError
 from parmpm.log import get_logger
 from parmpm.scene_schema import UPDATES
 from parmpm.shapes import INTERPOLATORS
@@ -315,12 +316,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run_compile(args: argparse.Namespace, comm) -> int:
     """``parmpm compile``: rank 0 compiles, the other ranks (if launched under MPI) wait."""
+    transfers = getattr(args, "transfer", TRANSFERS)
+    if not any(t in transfers_of(m) for m in args.methods for t in transfers):
+        raise ParmpmError(f"compile: --transfer {' '.join(transfers)} applies to none of "
+                          f"--methods {' '.join(args.methods)} (APIC and MLS: bspline only)")
     rank = comm.Get_rank() if comm is not None else 0
     try:
         if rank == 0:
             t0 = time.perf_counter()
-            rows = compile_kernels(args.dim, args.methods, args.update,
-                                   getattr(args, "transfer", TRANSFERS))
+            rows = compile_kernels(args.dim, args.methods, args.update, transfers)
             compiled = sum(r["compiled"] for r in rows)
             log.info("%d cases in %.0f s: %s", len(rows), time.perf_counter() - t0,
                      f"{compiled} kernels compiled" if compiled else "every kernel was cached")

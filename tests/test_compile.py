@@ -85,6 +85,18 @@ def test_transfers_are_compiled_only_where_the_method_takes_them():
         comp.tiny_scene_toml(2, "mpm", "usl", "mls")
 
 
+def test_a_selection_with_no_case_is_a_one_line_error(warm_ups):
+    """``parmpm compile --methods cpdi --transfer mls`` compiles nothing: an error, not "0 cases"."""
+    import argparse
+
+    from parmpm.errors import ParmpmError
+
+    args = argparse.Namespace(dim=[2], methods=["cpdi", "mpm"], update=["usl"], transfer=["mls"])
+    with pytest.raises(ParmpmError, match="--transfer mls applies to none of --methods cpdi mpm"):
+        comp.run_compile(args, None)
+    assert warm_ups == []
+
+
 def test_the_other_ranks_only_wait(warm_ups):
     comm = FakeComm(1)
     comp.compile_first(_data(), comm)
