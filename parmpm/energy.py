@@ -85,14 +85,14 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fu
     equal to the grid's up to round-off, and every node with mass takes its force."""
     own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
     bc, regions, normal, ranges, origin, h = constraints
-    out = np.zeros((gsum.shape[0], 4))
+    out = np.zeros((gsum.shape[0], 5))
     L0, L1 = nloc[0], nloc[1]
     free = np.ones(3)
     gidx = np.zeros(3, np.int64)
     nreg = ranges.shape[0]
     for p in range(gsum.shape[0]):
         G = gsum[p]
-        wf = wg = dc = wbc = 0.0
+        wf = wg = dc = wbc = wx = 0.0
         for i2 in range(own_lo[p, 2], own_hi[p, 2]):
             for i1 in range(own_lo[p, 1], own_hi[p, 1]):
                 row0 = L0 * (i1 + L1 * i2)
@@ -127,9 +127,10 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fu
                         vbar = 0.5 * (vold + vnew)
                         if heavy:
                             wf += dt * G[1 + d + a, node] * vbar
+                            wx += dt * G[1 + d + a, node] * (vnew - vbar)
                         wg += dt * m * gvec[a] * vbar
                         dc += damping * dt * m * vnew * vbar
-        out[p, 0], out[p, 1], out[p, 2], out[p, 3] = wf, wg, dc, wbc
+        out[p, 0], out[p, 1], out[p, 2], out[p, 3], out[p, 4] = wf, wg, dc, wbc, wx
     return out
 
 
@@ -141,10 +142,10 @@ class EnergyLedger:
     is the same on any number of ranks. The stepper calls :meth:`add` after its force update
     when a history is written."""
 
-    FIELDS = ("forces", "gravity", "damping", "boundary")
+    FIELDS = ("forces", "gravity", "damping", "boundary", "increment")
 
     def __init__(self):
-        self.totals = np.zeros(4)
+        self.totals = np.zeros(len(self.FIELDS))
         self.baseline = None   # (K₀, Ψ₀, step) where the ledger started
         self.steps = 0
         self.power = None      # the last step's internal power −W_f/Δt
@@ -173,7 +174,9 @@ class EnergyLedger:
 
     def restore(self, state: dict | None) -> None:
         if state:
-            self.totals = np.array(state["totals"], float)
+            totals = np.array(state["totals"], float)
+            self.totals = np.zeros(len(self.FIELDS))
+            self.totals[:totals.size] = totals  # a checkpoint written before a column was added
             self.baseline = state["baseline"]
             self.steps = int(state["steps"])
             self.power, self.estimate = state["power"], float(state["estimate"])

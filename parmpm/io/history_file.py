@@ -16,7 +16,7 @@ import numpy as np
 UNITS = {"time": "s", "step": "1", "dt": "s", "kinetic": "J", "elastic": "J",
          "gravity_potential": "J", "work_gravity": "J", "work_forces": "J", "work_boundary": "J",
          "damping_dissipation": "J", "transfer_dissipation": "J", "energy_residual": "J",
-         "residual_estimate": "J",
+         "residual_estimate": "J", "increment_work": "J",
          "mass": "kg", "damaged": "1", "frozen": "1"}
 
 
