@@ -11,8 +11,8 @@
 
 Exit codes: 0 success; 2 a user error (bad scene, bad ``--set``, a run that cannot go on:
 every ``ParmpmError``), printed as one line ``parmpm: error: <message>`` without a traceback;
-130 interrupted (SIGINT or SIGTERM: inside the time loop after writing a checkpoint, named in the
-message; before it, at once); 1 a bug (full traceback; under MPI the job is aborted so that no
+130 interrupted (SIGINT, SIGTERM or SIGHUP: inside the time loop after writing a checkpoint,
+named in the message; before it, at once); 1 a bug (full traceback; under MPI the job is aborted so that no
 rank hangs). Options before any command mean ``run``: ``parmpm --quiet`` runs the default scene.
 
 Output folders are never taken from another run (:mod:`parmpm.io.run_folder`): the default
@@ -111,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
                      f"file (default: {DEFAULT_SCENE})")
     run.add_argument("-s", "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                      help="override a scene value (repeatable; applied after the scene file)")
-    run.add_argument("-o", "--out", type=Path, default=None, metavar="DIR",
+    run.add_argument("-o", "--out", type=_out_folder, default=None, metavar="DIR",
                      help=f"output folder (default: {DEFAULT_OUT}/<scene name>/)")
     run.add_argument("-q", "--quiet", action="store_true",
                      help="no progress bar, no info messages (warnings and errors still show)")
@@ -129,7 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
                          help="a checkpoint_<step>.h5 written by a run")
     restart.add_argument("-s", "--set", dest="overrides", action="append", default=[],
                          metavar="KEY=VALUE", help="override a value of the stored scene (repeatable)")
-    restart.add_argument("-o", "--out", type=Path, default=None, metavar="DIR",
+    restart.add_argument("-o", "--out", type=_out_folder, default=None, metavar="DIR",
                          help="output folder (default: restart_<step>/ beside the checkpoint)")
     restart.add_argument("-q", "--quiet", action="store_true",
                          help="no progress bar, no info messages (warnings and errors still show)")
@@ -167,6 +167,18 @@ def build_parser() -> argparse.ArgumentParser:
     from parmpm.compile import add_arguments as add_compile_arguments
     add_compile_arguments(compile_)
     return parser
+
+
+def _out_folder(text: str):
+    """``--out``: a Path; an empty one stays "" so that the run refuses it (it would otherwise
+    mean the current folder, written into without a word)."""
+    return Path(text) if text else ""
+
+
+def _check_out(args: argparse.Namespace) -> None:
+    if getattr(args, "out", None) == "":
+        raise ParmpmError("--out is empty: name the output folder (e.g. --out results; "
+                          "'--out .' is the current folder)")
 
 
 def _logging_arguments(parser: argparse.ArgumentParser) -> None:
@@ -208,9 +220,11 @@ def _cmd_show(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace, rank: int, comm) -> int:
-    from parmpm.scene import load_scene
+    from parmpm.scene_agreement import load_shared_scene
 
-    scene = load_scene(args.scene, overrides=args.overrides)  # before the heavy imports below
+    # read once by rank 0, shared, compared on every rank (parmpm.scene_agreement); before the
+    # heavy imports below
+    scene = load_shared_scene(comm, args.scene, overrides=args.overrides)
 
     from parmpm.compile import compile_notice
     from parmpm.io.summary import format_summary
@@ -255,18 +269,25 @@ def _cmd_compile(args: argparse.Namespace, rank: int, comm) -> int:
 
 
 def _interrupt_on_sigterm() -> None:
-    """SIGTERM (a batch system's time limit, ``timeout``, ``kill``) stops parmpm like Ctrl-C:
-    outside a running time loop, as KeyboardInterrupt (nothing is lost: there is nothing to save
-    yet, or the run has finished), exit code 130 and one line; inside it, the run's own handler
-    takes over and writes a checkpoint first (:meth:`parmpm.simulation.Simulation.run`)."""
+    """SIGTERM (a batch system's time limit, ``timeout``, ``kill``) and SIGHUP (a closed terminal,
+    unless ``nohup``) stop parmpm like Ctrl-C: outside a running time loop, as KeyboardInterrupt
+    (nothing is lost: there is nothing to save yet, or the run has finished), exit code 130 and
+    one line; inside it, the run's own handler takes over and writes a checkpoint first
+    (:meth:`parmpm.simulation.Simulation.run`; :mod:`parmpm.signals`)."""
     import signal
     import threading
 
+    from parmpm.signals import is_hangup, silence_hung_up_terminal, to_handle
+
     def interrupt(signum, frame):
+        if is_hangup(signum):  # a closed terminal: later writes to it must not fail
+            silence_hung_up_terminal()
         raise KeyboardInterrupt
 
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, interrupt)
+        for sig in to_handle():
+            if sig != signal.SIGINT:  # Ctrl-C raises KeyboardInterrupt already
+                signal.signal(sig, interrupt)
 
 
 def _setup_logging(args: argparse.Namespace, rank: int, size: int, comm) -> None:
@@ -310,6 +331,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
         if _launcher_rank() == 0:
             print(f"parmpm: error: {_one_line(exc)}", file=sys.stderr, flush=True)
         return 2
+    _interrupt_on_sigterm()  # again: MPI's start-up puts a SIGHUP handler of its own in place
     setup_logging(rank, size, quiet=args.quiet)
     # A private communicator for the error handshake, so that it can never match a collective
     # that other ranks are blocked in on COMM_WORLD. (Dup is collective: every rank is here.)
@@ -328,6 +350,7 @@ def _run_guarded(args: argparse.Namespace) -> int:
 
     try:
         _setup_logging(args, rank, size, comm)
+        _check_out(args)
         command = {"bench": _cmd_bench, "restart": _cmd_restart,
                    "compile": _cmd_compile}.get(args.command, _cmd_run)
         return command(args, rank, comm)

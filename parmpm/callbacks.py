@@ -13,7 +13,8 @@ callbacks at the same steps. :func:`standard_callbacks` gives the scene's set, i
     metrics      metrics.every_steps   a sample of the scene's metrics
     separation   metrics.every_steps   stop when the material has separated (if asked)
     output       output.every / every_steps, last step   snapshot, then the observers
-    interrupt    every step      a stop signal, agreed at the end of the step: checkpoint, stop
+    interrupt    every step      a stop signal (TERM, INT, HUP), agreed at the end of the step:
+                                 checkpoint, stop
     checkpoint   checkpoint.every / every_steps / wall_minutes / at_end
 
 A new output (a history writer, say) is one more callback: in this list for every run, or
@@ -42,6 +43,7 @@ from parmpm.io.checkpoint_gather import write_checkpoint
 from parmpm.log import get_logger
 from parmpm.measures import sample_metrics
 from parmpm.schedule import AnyOf, AtEnd, Schedule, WallTime
+from parmpm.signals import is_hangup, silence_hung_up_terminal, to_handle
 from parmpm.snapshot_fields import snapshot_fields
 
 log = get_logger(__name__)
@@ -175,7 +177,7 @@ def checkpoint(sim) -> None:
 
 
 def check_interrupt(sim) -> None:
-    """Some rank got SIGTERM/SIGINT (agreed at the end of the step): checkpoint, stop."""
+    """Some rank got a stop signal (agreed at the end of the step): checkpoint, stop."""
     if sim.stepper.stop_requested:
         raise interrupted(sim)
 
@@ -210,7 +212,7 @@ class Checkpoints:
 
 
 def stop_agreed(sim) -> bool:
-    """Whether any rank got SIGTERM/SIGINT (collective; outside the step loop)."""
+    """Whether any rank got a stop signal (collective; outside the step loop)."""
     flag = np.array([1.0 if sim.stepper.stop_flag else 0.0])
     return bool(allreduce_max(sim.comm, flag)[0] > 0)
 
@@ -226,16 +228,20 @@ def interrupted(sim) -> RunInterrupted:
 
 @contextmanager
 def stop_signals(stepper):
-    """SIGTERM/SIGINT (a batch system's time limit, Ctrl-C) only raise the stepper's flag while
-    the run is inside; the ranks agree on it at the end of a step (or at the next collective
-    check after the loop), write a checkpoint and stop together. Outside, the CLI's own handler
+    """SIGTERM/SIGINT/SIGHUP (a batch system's time limit, Ctrl-C, a closed terminal or dropped
+    ssh session: :mod:`parmpm.signals`) only raise the stepper's flag while the run is inside;
+    the ranks agree on it at the end of a step (or at the next collective check after the
+    loop), write a checkpoint and stop together. A hang-up also points the streams that were
+    the dead terminal at /dev/null, so that no later write fails. Outside, the CLI's own handler
     applies (:mod:`parmpm.__main__`)."""
     old = None
     if threading.current_thread() is threading.main_thread():
         def flag(signum, frame):
+            if is_hangup(signum):
+                silence_hung_up_terminal()
             stepper.stop_flag = True
 
-        old = {sig: signal.signal(sig, flag) for sig in (signal.SIGTERM, signal.SIGINT)}
+        old = {sig: signal.signal(sig, flag) for sig in to_handle()}
     try:
         yield
     finally:

@@ -12,7 +12,10 @@ under a second. Three things here deal with that first run:
   USL/MUSL × transfer the interpolator takes (FLIP; for ``bspline`` also APIC and MLS,
   :mod:`parmpm.affine`), in-process, two steps each, with everything a run switches on around the step
   (damage and CPDI freeze, fixed and slip regions, gravity, metrics with the separation count,
-  history with probes, snapshots with domains). A batch job runs it once before ``srun``.
+  history with probes, snapshots with domains), then what a rank of a multi-rank run does that
+  one rank alone does not: the separation count's shared pairs, a patch-set change, and a step
+  with no patch and no particle (the idle ranks of a run on more ranks than occupied patches).
+  A batch job runs it once before ``srun``; a run on any number of ranks then compiles nothing.
 * :func:`compile_first`: under MPI, rank 0 runs the tiny run of the scene's dimension, method,
   update and transfer first while the other ranks wait, so that P ranks do not compile the same kernels P
   times at once (on an oversubscribed node that multiplies the start-up; with a warm cache it
@@ -43,7 +46,10 @@ DIMS = (1, 2, 3)
 METHODS = tuple(INTERPOLATORS)
 #: the updates a tiny run is made for: "auto" is one of these two
 COMPILED_UPDATES = ("usl", "musl")
-NOTICE = "compiling kernels (first run: about a minute; cached afterwards in {where})"
+#: the cache is keyed to the sources (:mod:`parmpm.cache_key`): the first run after any edit or
+#: upgrade compiles too
+NOTICE = ("compiling kernels (first run of these sources: about a minute; cached afterwards "
+          "in {where})")
 
 
 # --- the notice ---------------------------------------------------------------------------------
@@ -231,9 +237,38 @@ def warm_up(dim: int, method: str, update: str, transfer: str = "flip") -> float
             sim.domain_corners()  # the figure's (2D; the tiny run draws none)
             sim.state.comm = ClaimsTwoRanks()
             components(sim.state)
+            sim.state.comm = SerialComm()
+            _patch_set_change(sim)
+            _idle_rank_step(sim)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return time.perf_counter() - t0
+
+
+def _patch_set_change(sim) -> None:
+    """What a rank does when its patches change but its particles stay (a patch became occupied
+    or empty, or a re-balance moved other ranks' patches): the particles' runs move to their
+    new slots (:meth:`parmpm.particles.Particles.group_by_patch`). The tiny grid's patches are
+    all active from the start, so its run never changes them."""
+    P, ps = sim.particles, sim.patches
+    P.group_by_patch(P.rows.patch, ps.slot_of, ps.n_local, force=True)
+
+
+def _idle_rank_step(sim) -> None:
+    """One step as a rank without work takes it (more ranks than patches holding particles): no
+    particle and no patch, so every array it hands the kernels is empty. numba types an empty
+    array as contiguous where a working rank's node-major grid views are strided: P2G, G2P and
+    the halo copies of other types, which every idle rank once compiled at its first step (the
+    stepper now gives such a rank views of spare slots; this step keeps anything else an idle
+    rank would compile in the cache too). Last: it empties the tiny run."""
+    import numpy as np
+
+    st, ps = sim.stepper, sim.patches
+    sim.particles.permute(np.zeros(0, np.int64))
+    ps.update(np.zeros(sim.disc.layout.n_patches, np.int64))  # nothing occupied: no patch
+    st._patches_changed()
+    dt = sim.last_dt or 1e-6
+    st.step(dt, sim.gravity(sim.t), sim.t)
 
 
 def compile_kernels(dims=DIMS, methods=METHODS, updates=COMPILED_UPDATES,

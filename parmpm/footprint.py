@@ -19,7 +19,9 @@ estimate counts what dominates, from the resolved scene alone:
 
 Per rank that is ``(particles + patches) / ranks`` plus the metrics' whole-scene share; the
 ranks on one node together must fit in ``MemAvailable`` (``/proc/meminfo``), or in the bytes
-``PARMPM_MEMORY_LIMIT`` gives (e.g. ``8G``; for batch jobs with a memory limit, and tests).
+``PARMPM_MEMORY_LIMIT`` gives (e.g. ``8G``; for batch jobs with a memory limit, and tests). Its
+units are binary, as a batch system's (Slurm's ``--mem=8G``): K, M, G, T are KiB, MiB, GiB, TiB
+(``8G``, ``8GB`` and ``8GiB`` all mean 8·2^30 bytes), and the messages say MiB and GiB too.
 The interpreter and compiled kernels are already resident when the check runs, so they are
 not counted.
 """
@@ -39,7 +41,8 @@ PEAK_FACTOR = 1.5
 #: 2.5e3 x 4e3 patch grid): counts, owners, slots
 #: and node boxes (decomposition.PatchLayout, PatchSet; parmpm.stepper.Discretisation)
 DENSE_PATCH_BYTES = 256
-#: the variable that overrides the memory available (bytes, or with a K, M, G or T suffix)
+#: the variable that overrides the memory available (bytes, or with a K, M, G or T suffix: binary
+#: units, KiB to TiB)
 LIMIT_VARIABLE = "PARMPM_MEMORY_LIMIT"
 _UNITS = {"": 1, "K": 1 << 10, "M": 1 << 20, "G": 1 << 30, "T": 1 << 40}
 
@@ -102,7 +105,7 @@ def estimate(data: dict, ghost: int, ranks: int = 1) -> dict:
 def available_bytes() -> float | None:
     """Memory this node can still give: ``PARMPM_MEMORY_LIMIT`` if set, else MemAvailable (None
     when neither is known)."""
-    text = os.environ.get(LIMIT_VARIABLE, "").strip().upper().removesuffix("B")
+    text = os.environ.get(LIMIT_VARIABLE, "").strip().upper().removesuffix("B").removesuffix("I")
     if text:
         unit = text[-1] if text[-1] in _UNITS and not text[-1].isdigit() else ""
         try:
@@ -111,7 +114,8 @@ def available_bytes() -> float | None:
             value = -1.0
         if not (math.isfinite(value) and value > 0):
             raise ParmpmError(f"{LIMIT_VARIABLE}={os.environ[LIMIT_VARIABLE]!r}: expected a "
-                              "number of bytes, optionally with K, M, G or T (e.g. 8G)")
+                              "number of bytes, optionally with K, M, G or T (binary: KiB, MiB, "
+                              "GiB, TiB; e.g. 8G)")
         return value
     try:
         with open("/proc/meminfo", encoding="ascii") as f:
@@ -124,7 +128,11 @@ def available_bytes() -> float | None:
 
 
 def _gb(n: float) -> str:
-    return f"{n / 1e9:.3g} GB" if n >= 1e9 else f"{n / 1e6:.3g} MB"
+    """Bytes in the binary units ``PARMPM_MEMORY_LIMIT`` is read in (8G shows as 8 GiB)."""
+    for unit in ("T", "G", "M"):
+        if n >= _UNITS[unit]:
+            return f"{n / _UNITS[unit]:.3g} {unit}iB"
+    return f"{n / _UNITS['K']:.3g} KiB"
 
 
 def check_memory(data: dict, ghost: int, ranks: int = 1, ranks_here: int = 1,

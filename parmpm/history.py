@@ -306,11 +306,13 @@ class HistoryOutput:
                             "%.4g J): a sign of instability (see history.csv; lower time.cfl, or "
                             "method.update = \"musl\")", sim.t, gained,
                             100 * gained / self.scale, self.scale)
-        self._check_residual(sim, r)
+        if gained < RESIDUAL_WARNING * self.scale:  # a gain is the warning above's business
+            self._check_residual(sim, r)
 
     def _check_residual(self, sim, r: dict) -> None:
         """Warn once when the residual ``R`` is further from its estimate than
-        ``RESIDUAL_WARNING`` of the largest energy given: the step's error is then not the smooth
+        ``RESIDUAL_WARNING`` of the largest energy given while the body has not gained energy (an
+        unstable run gets the growth warning alone): the step's error is then not the smooth
         ``½Δt dP/dt`` it estimates but an impact's, or that of grid velocity increments the
         particles do not receive, whose energy ``R`` and ``transfer_dissipation`` share
         (docs/energy.md: only their difference is then the net loss)."""
@@ -341,7 +343,7 @@ class HistoryOutput:
                     snapshots.write_table("history", columns, attrs)
                 else:
                     write_table_h5(sim.out_dir / "history.h5", "history", columns, attrs)
-                if sim.data["output"]["figure"] and len(self.file.rows) > 1:
+                if sim.data["output"]["figure"] and self.file.count > 1:
                     plot_history(columns, sim.out_dir / "history.png",
                                  f"{sim.data['name']} · {sim.interp.name} · energy history")
             except ParmpmError as exc:  # the snapshot writer's one line (a full disk)

@@ -15,8 +15,16 @@ contract is checked):
 * ``@loop_kernel``: a particle loop; its scratch comes from a ``@kernel`` wrapper;
 * ``@helper_kernel``: a per-particle helper, inlined by LLVM (``forceinline``) into its caller:
   compiled once, no call cost.
+
+Every one of them is cached on disk keyed to the whole source of the package
+(:mod:`parmpm.cache_key`): numba's own key is the kernel's file alone, and a kernel's machine code
+holds the helpers it calls from other modules.
 """
 from numba import njit
+
+from parmpm.cache_key import install as _key_cache_to_sources
+
+_key_cache_to_sources()  # before any kernel below is decorated
 
 #: the dimensions loops are compiled for, one specialisation each (``literal_unroll(DIMS)``)
 DIMS = (1, 2, 3)

@@ -200,4 +200,9 @@ def idle_ranks_warning(layout: PatchLayout, counts: np.ndarray, ranks: int, dim:
             return f"{head}; set grid.patch_size = {size} (gives {m} patches)"
         if busy > most:
             most, advice = busy, f" with grid.patch_size = {size} ({m} patches)"
-    return f"{head}; run on at most {most} rank{'s' if most != 1 else ''}{advice or ''}"
+    plural = "s" if most != 1 else ""
+    working = ranks - idle.size
+    if working > most:  # "at most 3" alone reads wrong when 4 ranks have work now
+        return (f"{head} ({working} of {ranks} do); every rank has work on {most} "
+                f"rank{plural}{advice or ''}")
+    return f"{head}; run on at most {most} rank{plural}{advice or ''}"

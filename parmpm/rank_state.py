@@ -22,6 +22,7 @@ import numpy as np
 from decomposition import PatchSet, allreduce_max, ranks_on_this_node
 from parmpm import manufactured
 from parmpm.affine import AFFINE_TRANSFERS
+from parmpm.body_overlaps import check_overlaps
 from parmpm.collective import agree
 from parmpm.discretisation import Discretisation, exterior_cells
 from parmpm.energy import EnergyWatch
@@ -31,6 +32,7 @@ from parmpm.footprint import check_memory
 from parmpm.grid import BC_CODES
 from parmpm.symmetry import check_blocks
 from parmpm.io.checkpoint_gather import load_patches, load_rows
+from parmpm.io.checkpoint import attrs_digest
 from parmpm.io.checkpoint_parts import CheckpointReader
 from parmpm.log import get_logger
 from parmpm.materials import PARAM, material_table
@@ -39,7 +41,9 @@ from parmpm.particles import Particles, locate_patches
 from parmpm.patch_size import (TARGET_PATCHES, auto_patch_size, covered_patches, floor_size,
                                idle_ranks_warning)
 from parmpm.reach import fmt_vec
+from parmpm.restart_keys import check_restart
 from parmpm.scene import scene_from_toml
+from parmpm.scene_agreement import check_same_scene
 from parmpm.scene_schema import DEFAULT_PATCH_SIZE
 from parmpm.schedule import Clock
 from parmpm.seeding import seed_bodies
@@ -166,11 +170,14 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
                       float(a["dt"]))
         state = checkpoint.state
         next_output = state.get("next_output")
+        changed = (scene.restart or {}).get("changed", {})
+        if "output.every" in changed or "output.every_steps" in changed:
+            next_output = None  # a new series from here, not the stored schedule's next time
         if metrics is not None and state.get("metrics"):
             metrics.restore(state["metrics"])
         energy.restore(state.get("energy"))
         continues = {"run_id": (state.get("run") or {}).get("id"),
-                     "checkpoint": str(checkpoint.path)}
+                     "checkpoint": str(checkpoint.path), "changed": changed}
     return RankState(scene, comm, interp, lcr, update, D, params, patches, P, stepper, n_total,
                      metrics, energy, clock, run_id, checkpoint is not None, continues,
                      next_output)
@@ -178,15 +185,40 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
 
 def open_checkpoint(path, overrides, comm):
     """(scene, reader) of the run saved in ``path``: its stored scene with ``overrides`` applied
-    (e.g. ``time.end=...``); the caller closes the reader."""
-    reader = CheckpointReader(path, warn=comm is None or comm.Get_rank() == 0)
+    (e.g. ``time.end=...``; only the keys :mod:`parmpm.restart_keys` allows, recorded in
+    ``scene.restart``); the caller closes the reader. Collective under ``comm``: a rank's problem
+    is raised on every rank, and the ranks must continue the same checkpoint with the same scene
+    (:func:`parmpm.scene_agreement.check_same_scene`)."""
+    reader, scene, problem = None, None, None
     try:
-        scene = scene_from_toml(str(reader.attrs["scene"]), f"{path}", overrides)
+        reader = CheckpointReader(path, warn=comm is None or comm.Get_rank() == 0)
+        text = str(reader.attrs["scene"])
+        stored = scene_from_toml(text, f"{path}")
+        scene = scene_from_toml(text, f"{path}", overrides)
         if scene.data["dim"] != int(reader.attrs["dim"]):
             raise ParmpmError(f"checkpoint '{path}' holds a {int(reader.attrs['dim'])}D run; "
                               f"dim cannot change on restart (got dim = {scene.data['dim']})")
+        check_restart(path, stored, scene, overrides, int(reader.attrs["step"]),
+                      float(reader.attrs["time"]))
+    except ParmpmError as exc:
+        if comm is None:
+            if reader is not None:
+                reader.close()
+            raise
+        problem = str(exc)
     except BaseException:
-        reader.close()
+        if reader is not None:
+            reader.close()
+        raise
+    try:
+        if comm is not None:
+            agree(comm, problem, root=None)
+            # the same checkpoint (its attributes' digest covers its data's) and the same scene
+            check_same_scene(comm, scene, f"step {int(reader.attrs['step'])}, attributes "
+                             f"{attrs_digest(reader.attrs)[:12]}", what=f"'{path}'")
+    except BaseException:
+        if reader is not None:
+            reader.close()
         raise
     return scene, reader
 
@@ -243,6 +275,7 @@ def _seeded(data, comm, D, params, names):
     _warn_idle_ranks(comm, D, counts, seeds)
     P = seeds.particles(params, seeds.members(D, patches.rank_of == comm.Get_rank()),
                         carried_fields(data))
+    check_overlaps(comm, data, seeds, P.gid, P.x0)  # bodies seeded twice: one warning each
     if man:
         manufactured.initialise(P, man["amplitude"], params)
         if "corners" in P.optional:  # the domains of the initial F

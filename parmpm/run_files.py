@@ -44,23 +44,27 @@ def _by_gid(members: list[dict]) -> dict:
 class RunFiles:
     """Where a run writes (``folder``), and its writes, collectively."""
 
-    def __init__(self, comm, folder: Path, explicit: bool, overwrite: bool):
+    def __init__(self, comm, folder: Path, explicit: bool, overwrite: bool, inputs=()):
         self.comm = comm
         self.root = comm.Get_rank() == 0
         self.folder = Path(folder)
         self.explicit, self.overwrite = explicit, overwrite
+        self.inputs = tuple(inputs)  # what the run starts from: --overwrite never deletes it
+        self._claim = None  # rank 0's claim of the folder (its lock: the run is alive)
         self.snapshots = None  # rank 0's series writer (the index, the history table)
         self._part = None  # a group lead's part writer (a series in parts)
         self.n_parts, self._group = 1, comm
 
     def claim(self, marker: dict) -> Path:
         """Claim the output folder before anything is written (a folder that cannot be written
-        or holds another run fails here) and clear temporary files a killed run left."""
+        or holds another run fails here) and clear temporary files a killed run left. Rank 0
+        holds the claim's lock until :meth:`release`."""
         folder, problem = None, None
         if self.root:
             try:
-                folder = claim(self.folder, marker, explicit=self.explicit,
-                               overwrite=self.overwrite)
+                self._claim = claim(self.folder, marker, explicit=self.explicit,
+                                    overwrite=self.overwrite, inputs=self.inputs)
+                folder = self._claim.folder
                 if folder != self.folder:
                     log.info("%s holds another run: writing to %s", self.folder, folder)
                 remove_stale_tmp(folder)
@@ -70,6 +74,13 @@ class RunFiles:
         agree(self.comm, problem)
         self.folder = folder
         return folder
+
+    def release(self) -> None:
+        """The run is over (ended, failed or interrupted): the marker says so and rank 0 drops
+        the lock; never raises, never communicates."""
+        held, self._claim = self._claim, None
+        if held is not None:
+            held.release()
 
     def open_snapshots(self, series: str, dim: int, ranks_per_file="auto") -> None:
         """Open the snapshot series (collective). The ranks form writer groups by the

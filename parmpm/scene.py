@@ -14,7 +14,8 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
 
 * top level: ``name`` (default: file stem / built-in name; 1 to 100 letters, digits, spaces,
   ``_ - . +``, starting with a letter or digit: it names the output files), ``description``
-  (default ""), ``dim`` (1, 2 or 3; required). A scene file is a regular file of at most 1 MiB.
+  (default ""), ``dim`` (1, 2 or 3; required). A scene file is a regular file of at most 1 MiB,
+  UTF-8 (a byte order mark is allowed); an integer has at most 4300 digits (Python's limit).
 * ``[grid]``: ``origin`` (default 0), ``cell_size`` (> 0, required), ``cells`` (ints > 0,
   required), ``patch_size`` ("auto" or ints > 0, default "auto": chosen from the scene
   alone, :mod:`parmpm.patch_size`; clipped to ``cells``),
@@ -100,6 +101,9 @@ Absent optional values (``time.end``, ``time.dt_max``, ``output.every``, ``bodie
 
 from __future__ import annotations
 
+import os
+import re
+import sys
 import tomllib
 from collections.abc import Iterable
 from importlib import resources
@@ -107,10 +111,11 @@ from pathlib import Path
 from typing import Any
 
 from parmpm.errors import SceneError
-from parmpm.scene_check import lcr_length, one_line, toml_key, toml_value
+from parmpm.scene_check import lcr_length, one_line, short_text, show, toml_key, toml_value
 from parmpm.scene_schema import resolve
 
-__all__ = ["Scene", "load_scene", "scene_from_toml", "builtin_scenes", "parse_lcr"]
+__all__ = ["Scene", "load_scene", "scene_from_toml", "builtin_scenes", "parse_lcr",
+           "read_scene_text", "scene_identity"]
 
 _SECTION_ORDER = ("grid", "materials", "bodies", "method", "gravity", "damping", "boundary",
                   "manufactured", "time", "output", "metrics", "decomposition", "checkpoint")
@@ -126,6 +131,9 @@ class Scene:
     def __init__(self, data: dict, source: str):
         self.data = data
         self.source = source
+        #: a restart's record (:func:`parmpm.restart_keys.check_restart`): the checkpoint, its
+        #: step and time, and the keys ``--set`` changed ({key: [stored, new]}); None otherwise
+        self.restart: dict | None = None
 
     @property
     def name(self) -> str:
@@ -151,6 +159,13 @@ class Scene:
     def to_toml(self) -> str:
         """The resolved scene as TOML text; ``scene_from_toml`` on it gives back ``data``."""
         lines = [f"# parmpm scene, resolved from {one_line(self.source)}"]
+        if self.restart:  # what ran: the stored scene continued, with these changes
+            r = self.restart
+            lines.append(f"# a restart: continues from step {r['step']} (t = {r['time']!r} s) "
+                         "of that checkpoint's run")
+            for key, (was, now) in r["changed"].items():
+                lines.append(f"# changed on restart: {key} = {toml_value(now)} (was "
+                             f"{toml_value(was)})")
         _emit_table(lines, [], {k: v for k, v in self.data.items() if k not in _SECTION_ORDER})
         for section in _SECTION_ORDER:
             if section in self.data:
@@ -225,11 +240,28 @@ def load_scene(source: str | Path, overrides: Iterable[str] = ()) -> Scene:
     ``overrides`` are ``"dotted.key=value"`` strings (the CLI's ``--set``) applied on top of the
     file before validation. Any problem raises a one-line ``SceneError``.
     """
+    body, label, default_name = read_scene_text(source)
+    return scene_from_toml(body, label, overrides, default_name=default_name)
+
+
+def scene_identity(source: str | Path) -> str:
+    """What ``source`` names, without reading it: ``"builtin:NAME"`` or the file's absolute path
+    (two ranks given the same identity read the same file: :mod:`parmpm.scene_agreement`)."""
+    text = str(source)
+    is_path = isinstance(source, Path) or text.endswith(".toml") or "/" in text or "\\" in text
+    if not is_path and text in builtin_scenes():
+        return f"builtin:{text}"
+    return os.path.abspath(text)
+
+
+def read_scene_text(source: str | Path) -> tuple[str, str, str]:
+    """(TOML text, source label, default name) of a built-in name or a scene file; a file that
+    cannot be read is a one-line ``SceneError``. A UTF-8 byte order mark is dropped."""
     text = str(source)
     is_path = isinstance(source, Path) or text.endswith(".toml") or "/" in text or "\\" in text
     if not is_path and text in builtin_scenes():
         body = (_scenes_dir() / f"{text}.toml").read_text(encoding="utf-8")
-        return scene_from_toml(body, f"builtin:{text}", overrides, default_name=text)
+        return body, f"builtin:{text}", text
     path = Path(text)
     if not is_path and not path.is_file():
         raise SceneError(one_line(
@@ -241,11 +273,11 @@ def load_scene(source: str | Path, overrides: Iterable[str] = ()) -> Scene:
         if path.stat().st_size > MAX_SCENE_BYTES:
             raise SceneError(one_line(f"scene '{text}': {path.stat().st_size} bytes; a scene "
                                       f"file is at most {MAX_SCENE_BYTES} bytes"))
-        body = path.read_text(encoding="utf-8")
+        body = path.read_text(encoding="utf-8-sig")  # an editor's byte order mark is no error
     except (OSError, UnicodeDecodeError) as exc:
         reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
         raise SceneError(one_line(f"scene '{text}': cannot read file: {reason}")) from None
-    return scene_from_toml(body, text, overrides, default_name=path.stem)
+    return body, text, path.stem
 
 
 def scene_from_toml(text: str, source: str = "<string>", overrides: Iterable[str] = (),
@@ -256,9 +288,11 @@ def scene_from_toml(text: str, source: str = "<string>", overrides: Iterable[str
     """
     where = f"scene '{source}'"
     try:
-        raw = tomllib.loads(text)
+        raw = tomllib.loads(text.removeprefix(BOM))
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(one_line(f"{where}: TOML syntax error: {exc}")) from None
+    except ValueError as exc:  # Python's limit on the digits of an integer (4300 by default)
+        raise SceneError(f"{where}: {huge_integer(exc)}") from None
     except RecursionError:
         raise SceneError(f"{where}: TOML nested too deeply (arrays or tables within each other "
                          "hundreds of levels deep)") from None
@@ -272,9 +306,21 @@ def scene_from_toml(text: str, source: str = "<string>", overrides: Iterable[str
 # ---------------------------------------------------------------- --set overrides
 
 
+BOM = "\ufeff"
+
+
+def huge_integer(exc: ValueError) -> str:
+    """The one line for an integer literal past Python's int-string conversion limit."""
+    digits = re.search(r"value has (\d+) digits", str(exc))
+    return (f"an integer of {digits[1] + ' ' if digits else 'too many '}digits; Python reads at "
+            f"most {sys.get_int_max_str_digits() or 'unlimited'} and no scene value needs "
+            "more than a few (write a float, e.g. 1e300, if a huge number is meant)")
+
+
 def parse_override_value(text: str) -> Any:
     """A ``--set`` value: a TOML value (``3``, ``0.1``, ``[0, -9.81]``, ``true``, ``"s"``) or,
-    if it does not parse as one, the plain string (``mpm``, ``2dx``)."""
+    if it does not parse as one, the plain string (``mpm``, ``2dx``). An integer past Python's
+    digit limit raises ``ValueError``."""
     try:
         parsed = tomllib.loads("v = " + text)
     except tomllib.TOMLDecodeError:
@@ -290,31 +336,37 @@ def apply_overrides(raw: dict, overrides: Iterable[str], where: str) -> dict[str
     origins = {}
     for item in overrides:
         text = str(item)
+        said = short_text(text)  # as an error message quotes it
         key, sep, value = text.partition("=")
         parts = [p.strip() for p in key.strip().split(".")]
         if not sep or not all(parts):
             raise SceneError(one_line(
-                f"{where}: --set {text!r}: expected KEY=VALUE with a dotted KEY "
+                f"{where}: --set {said!r}: expected KEY=VALUE with a dotted KEY "
                 "(e.g. method.interpolator=mpm)"))
         node: Any = raw
         for depth, part in enumerate(parts):
             last = depth == len(parts) - 1
             here = ".".join(parts[:depth]) or "the scene"
             if isinstance(node, list):
-                if not part.isdigit() or int(part) >= len(node):
+                if not part.isdigit() or len(part) > 18 or int(part) >= len(node):
                     raise SceneError(one_line(
-                        f"{where}: --set {text}: {here} has {len(node)} entries, expected an "
-                        f"index 0..{len(node) - 1}, got {part!r}"))
+                        f"{where}: --set {said}: {here} has {len(node)} entries, expected an "
+                        f"index 0..{len(node) - 1}, got {short_text(part)!r}"))
                 part = int(part)
             elif not isinstance(node, dict):
                 raise SceneError(one_line(
-                    f"{where}: --set {text}: {here} is {toml_value(node)}, not a table"))
+                    f"{where}: --set {said}: {here} is {show(node)}, not a table"))
             if last:
-                node[part] = parse_override_value(value)
+                try:
+                    node[part] = parse_override_value(value)
+                except ValueError as exc:
+                    raise SceneError(f"{where}: --set {said}: {huge_integer(exc)}") from None
             else:
                 if isinstance(node, dict) and node.get(part) is None:
                     node[part] = {}
                 node = node[part]
+        # the latest --set of a key goes last: an error blames the one that took effect
+        origins.pop(".".join(parts), None)
         origins[".".join(parts)] = text.strip()
     return origins
 

@@ -120,9 +120,11 @@ class _Checker:
         self.origins = origins  # dotted key -> the --set text that produced it
 
     def _origin(self, key: str) -> str:
-        for okey, text in self.origins.items():
+        """The ``--set`` behind ``key``: the latest one that set it, a table above it or a key
+        within it (``--set time.end=1 --set 'time={}'``: the second emptied the table)."""
+        for okey, text in reversed(self.origins.items()):
             if key == okey or key.startswith(okey + ".") or okey.startswith(key + "."):
-                return f" (from --set {text})"
+                return f" (from --set {short_text(text)})"
         return ""
 
     def fail(self, key: str, message: str) -> NoReturn:
@@ -212,3 +214,12 @@ _KINDS = {  # kind -> (singular, plural, integer?, predicate)
 
 def one_line(text: str) -> str:
     return " ".join(text.splitlines())
+
+
+def short_text(text: str, limit: int = 100) -> str:
+    """``text`` on one line, cut to about ``limit`` characters for an error message (a
+    5,000-digit ``--set`` value would fill the screen)."""
+    text = one_line(str(text)).strip()
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit - 40]}... ({len(text)} characters)"

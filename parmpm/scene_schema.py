@@ -33,6 +33,7 @@ from parmpm.scene_bodies import (  # noqa: F401
 )
 from parmpm.scene_check import AXIS_NAMES, _Checker, lcr_length, show
 from parmpm.scene_history import history
+from parmpm.scene_speed import check_speeds
 from parmpm.shapes import INTERPOLATORS
 from parmpm.update_order import UPDATES as _UPDATE_ORDERS
 
@@ -92,6 +93,7 @@ def resolve(raw: dict, where: str, default_name: str,
     out["grid"] = _grid(c, raw.get("grid", {}), dim)
     out["materials"] = _materials(c, raw.get("materials", {}))
     out["bodies"] = _bodies(c, raw.get("bodies", []), dim, out["grid"], out["materials"])
+    check_speeds(c, out["bodies"], out["materials"])  # a speed whose energy overflows
     min_dx = min(out["grid"]["cell_size"])
     # an l_cr past the grid caps nothing, and its ghost width must still be allocated
     max_cells = max(max(out["grid"]["cells"]), MAX_EXTERIOR)

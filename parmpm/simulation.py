@@ -24,6 +24,7 @@ from parmpm import measures
 from parmpm.callbacks import Checkpoints, interrupted, standard_callbacks, stop_agreed, stop_signals
 from parmpm.collective import agree
 from parmpm.compile import compile_first
+from parmpm.compile_clock import CompileClock
 from parmpm.errors import RunInterrupted
 from parmpm.io.summary import run_info
 from parmpm.log import get_logger
@@ -150,19 +151,32 @@ class Simulation:
             s = self.state
             name = self.data["name"]
             series = name if not s.restart else f"{name}_from_{self.nstep:08d}"
-            self.files = RunFiles(self.comm, self.out_dir, self.out_explicit, self.overwrite)
-            self.out_dir = self.files.claim({
-                "run_id": s.run_id, "continues": s.continues, "scene": name, "ranks": self.size,
-                "files": ["scene.toml", "summary.json", f"{series}.xdmf", f"{series}.h5",
-                          f"{name}.png", "history.csv", "history.h5", "history.png"]})
-            self.files.write_scene(s.scene.to_toml())  # what ran, as a scene file to run again
-            if self.data["output"]["snapshots"]:
-                # the snapshots' writer groups follow the checkpoints' (checkpoint.ranks_per_file)
-                self.files.open_snapshots(series, self.dim,
-                                          self.data["checkpoint"]["ranks_per_file"])
-            return self._run()
+            # a restart's checkpoint is its input: --overwrite never deletes it
+            self.files = RunFiles(self.comm, self.out_dir, self.out_explicit, self.overwrite,
+                                  inputs=[s.continues["checkpoint"]] if s.continues else ())
+            try:  # the claim (rank 0's lock: the run is alive) is held until the run is over
+                self.out_dir = self.files.claim({
+                    "run_id": s.run_id, "continues": s.continues, "scene": name,
+                    "ranks": self.size,
+                    "files": ["scene.toml", "summary.json", f"{series}.xdmf", f"{series}.h5",
+                              f"{name}.png", "history.csv", "history.h5", "history.png"]})
+                self.files.write_scene(s.scene.to_toml())  # what ran, as a scene file
+                if self.data["output"]["snapshots"]:
+                    # the snapshots' writer groups follow the checkpoints'
+                    self.files.open_snapshots(series, self.dim,
+                                              self.data["checkpoint"]["ranks_per_file"])
+                return self._run()
+            finally:
+                self.files.release()
 
     def _run(self) -> dict:
+        # numba's compilations meanwhile (one rank compiles where a kernel is first called) are
+        # left out of the wall time and the rate and reported apart (parmpm.compile_clock)
+        self._compiling, self._compile_warm, self._compile_loop = CompileClock(), 0.0, None
+        with self._compiling.listen():
+            return self._run_timed()
+
+    def _run_timed(self) -> dict:
         callbacks = standard_callbacks(self) + self.callbacks
         self.checkpoints = Checkpoints()
         self.stopped, self.summary = None, None
@@ -179,6 +193,7 @@ class Simulation:
                         cb.action(self)
                 self._loop(callbacks, progress)
                 self._loop_wall = time.perf_counter()  # the rate leaves out the end's outputs
+                self._compile_loop = self._compiling.seconds
                 for cb in callbacks:
                     if cb.at_end is not None and cb.at_end(cb, self):
                         cb.action(self)
@@ -204,6 +219,7 @@ class Simulation:
             clock.tick(dt, stepper.step(dt, self.gravity(clock.t), clock.t))
             if self._warm_wall is None:
                 self._warm_wall = time.perf_counter()  # the first step includes JIT compilation
+                self._compile_warm = self._compiling.seconds
                 stepper.timers = dict.fromkeys(stepper.timers, 0.0)
             else:
                 self._warm_steps += 1
@@ -215,6 +231,7 @@ class Simulation:
                     cb.schedule.advance(clock.t)
             warm_steps = self._warm_steps
             elapsed = time.perf_counter() - (self._warm_wall or self._wall0)
+            elapsed -= self._compiling.seconds - self._compile_warm  # kernels met mid-run
             rate = self.n_total * warm_steps / elapsed if warm_steps and elapsed > 0 else 0.0
             progress.update(clock.nstep, clock.t, rate)
 
@@ -223,9 +240,14 @@ class Simulation:
         now = time.perf_counter()
         wall = now - self._wall0
         loop = (self._loop_wall or now) - self._warm_wall if self._warm_wall else wall
-        wall, loop = (float(v) for v in allreduce_max(self.comm, np.array([wall, loop])))
-        summary = measures.summary(self.state, self.out_dir, self.stopped, wall, loop,
-                                   self._warm_steps)
+        compiled = self._compiling.seconds  # left out of both, reported apart
+        in_loop = ((self._compile_loop if self._compile_loop is not None else compiled)
+                   - self._compile_warm) if self._warm_wall else compiled
+        wall, loop, compiled, in_loop = (
+            float(v) for v in allreduce_max(self.comm, np.array([wall, loop, compiled, in_loop])))
+        summary = measures.summary(self.state, self.out_dir, self.stopped, wall - compiled,
+                                   loop - in_loop, self._warm_steps)
+        summary["compile_seconds"] = compiled
         summary.update(run_info(self.size))
         if self.stopped == "interrupted":
             summary["checkpoint"] = str(self.checkpoints.last_path)

@@ -145,8 +145,11 @@ class Stepper:
         self.plan = ps.plan
         # two blocks (see parmpm.grid.grid_block): P2G sums (m, mv, f) and grid-update results
         # (v, Δv); the specialised kernels (kernels2d/3d) take the blocks, all else the node-major views
-        self.gsum_block, self.gsum = grid_block(n, 1 + 2 * d, nn)
-        self.gnew_block, self.gnew = grid_block(n, 2 * d, nn)
+        # views of two slots at least (spares never visited): numba types an array of 0 or 1 slot
+        # as contiguous, and a rank with no or one patch compiled kernels of its own mid-run
+        self.gsum_block, self.gsum = grid_block(max(n, 2), 1 + 2 * d, nn)
+        self.gnew_block, self.gnew = grid_block(max(n, 2), 2 * d, nn)
+        self.gsum_block, self.gnew_block = self.gsum_block[:n], self.gnew_block[:n]
         self.gm, self.gmv, self.gf = (self.gsum[:, :, :1], self.gsum[:, :, 1:1 + d],
                                       self.gsum[:, :, 1 + d:])
         self.gvel, self.gdv = self.gnew[:, :, :d], self.gnew[:, :, d:]

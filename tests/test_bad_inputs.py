@@ -8,6 +8,7 @@ import math
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -104,6 +105,14 @@ def test_check_memory_refuses_with_one_line_and_respects_the_limit(monkeypatch):
     assert available_bytes() == 1536
     with pytest.raises(ParmpmError, match="needs about"):
         check_memory(data, 2)
+    for text, value in (("8G", 8 << 30), ("8GB", 8 << 30), ("8GiB", 8 << 30), ("512m", 512 << 20),
+                        ("2T", 2 << 40), ("4096", 4096)):  # binary units, as Slurm's --mem
+        monkeypatch.setenv("PARMPM_MEMORY_LIMIT", text)
+        assert available_bytes() == value, text
+    with pytest.raises(ParmpmError, match=r"which has 1\.5 KiB available"):
+        check_memory(data, 2, available=1536)
+    with pytest.raises(ParmpmError, match=r"needs about [0-9.]+ MiB per rank"):
+        check_memory(data, 2, available=1536)
     for bad in ("lots", "-1G", "nan", "infG"):
         monkeypatch.setenv("PARMPM_MEMORY_LIMIT", bad)
         with pytest.raises(ParmpmError, match="PARMPM_MEMORY_LIMIT"):
@@ -115,7 +124,8 @@ def test_memory_limit_through_the_cli(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "parmpm", "run", "hanging_bar", *QUIET, "-o",
                            str(tmp_path / "o")], capture_output=True, text=True, timeout=300,
                           env=env, cwd=tmp_path)
-    assert_one_line_error(proc, "needs about", "which has 0.102 MB available")
+    # 100K is 100 KiB, and says so (before: read as KiB, reported as "0.102 MB")
+    assert_one_line_error(proc, "needs about", "which has 100 KiB available")
     assert not (tmp_path / "o").exists()  # refused before the folder was claimed
 
 
@@ -126,6 +136,73 @@ def test_memory_refusal_under_two_ranks_prints_once(tmp_path, mpirun):
                           env=env, cwd=tmp_path)
     lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
     assert proc.returncode == 2 and len(lines) == 1 and "for the 2 rank(s)" in lines[0], proc.stderr
+
+
+# --- issue 28: a huge integer, a byte order mark, a huge speed, the --set blamed -------------------
+HUGE = "1" * 5000  # past Python's int-string conversion limit (4300 digits)
+
+
+def test_a_5000_digit_integer_in_a_scene_file_is_one_line(tmp_path):
+    """Before: a ValueError traceback (Python's int-string conversion limit)."""
+    path = tmp_path / "huge.toml"
+    path.write_text(f"dim = 1\n[grid]\ncell_size = 0.1\ncells = {HUGE}\n")
+    proc = cli("run", str(path), *QUIET, cwd=tmp_path)
+    assert_one_line_error(proc, "huge.toml", "an integer of 5000 digits", "at most 4300")
+    assert len(proc.stderr) < 400  # the number is not echoed
+
+
+@pytest.mark.parametrize("override", [f"time.steps={HUGE}", f"bodies.{HUGE}.ppc=3"])
+def test_a_5000_digit_integer_in_set_is_one_line(tmp_path, override):
+    proc = cli("run", "hanging_bar", *QUIET, "--set", override, cwd=tmp_path)
+    assert_one_line_error(proc, "--set ")
+    assert len(proc.stderr) < 600, proc.stderr  # the number is cut short, its length said
+    assert f"({len(override)} characters)" in proc.stderr, proc.stderr
+
+
+def test_a_5000_digit_integer_under_two_ranks_is_printed_once(tmp_path, mpirun):
+    """Before: one traceback per rank."""
+    proc = subprocess.run([mpirun, "-n", "2", sys.executable, "-m", "parmpm", "run",
+                           "hanging_bar", *QUIET, "--set", f"time.steps={HUGE}"],
+                          capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+    assert "an integer of 5000 digits" in lines[0] and "Traceback" not in proc.stderr
+
+
+def test_a_byte_order_mark_is_accepted(tmp_path):
+    """Before: 'TOML syntax error: Invalid statement (at line 1, column 1)'."""
+    plain = (Path(__file__).parents[1] / "parmpm" / "scenes" / "hanging_bar_1d.toml").read_text()
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + plain.encode())
+    assert load_scene(path).data == load_scene("hanging_bar_1d", ['name="bom"']).data
+    proc = cli("show", str(path), cwd=tmp_path)
+    assert proc.returncode == 0 and "dim = 1" in proc.stdout, proc.stderr
+
+
+@pytest.mark.parametrize("override,key", [
+    ("bodies.0.velocity=[1e300, 0]", "bodies.0.velocity"),
+    ("bodies.0.velocity=[1e160, 0]", "bodies.0.velocity"),
+    ("bodies.0.angular_velocity=1e200", "bodies.0.angular_velocity"),
+])
+def test_a_huge_speed_names_the_body_key(tmp_path, override, key):
+    """Before: 'the run is unstable ... try a smaller time.cfl' at step 0."""
+    proc = cli("run", "hanging_bar", *QUIET, "--set", override, "-o", str(tmp_path / "o"),
+               cwd=tmp_path)
+    assert_one_line_error(proc, f"{key}:", "kinetic energy", f"(from --set {override})")
+    assert "time.cfl" not in proc.stderr
+    load_scene("hanging_bar", ["bodies.0.velocity=[1e100, 0]"])  # large but summable: runs
+
+
+@pytest.mark.parametrize("sets,blamed", [
+    (["time.end=1", "time={}"], "time={}"),           # before: blamed time.end=1
+    (["time={}", "time.end=-1"], "time.end=-1"),
+    (["time.end=-1", "time.steps=3"], "time.end=-1"),
+    (["time={}", "time.end=1", "time={}"], "time={}"),
+])
+def test_the_set_that_took_effect_is_blamed(sets, blamed):
+    with pytest.raises(SceneError) as info:
+        load_scene("hanging_bar", sets)
+    assert str(info.value).endswith(f"(from --set {blamed})"), str(info.value)
 
 
 # --- fuzz ---------------------------------------------------------------------------------------

@@ -212,8 +212,9 @@ def test_sigterm_writes_a_final_checkpoint(tmp_path, n):
     assert proc.returncode == 130, err
     files = sorted(tmp_path.glob("checkpoint_*.h5"))
     assert len(files) == 1 and "continue with: parmpm restart" in err, err
-    proc2 = _cli(1, "restart", str(files[0]), "-o", str(tmp_path / "r"), "--set", "time.steps=3",
-                 *QUIET)
+    step = int(files[0].stem.split("_")[1])  # time.steps counts from the run's start
+    proc2 = _cli(1, "restart", str(files[0]), "-o", str(tmp_path / "r"), "--set",
+                 f"time.steps={step + 3}", *QUIET)
     assert proc2.returncode == 0, proc2.stderr
 
 

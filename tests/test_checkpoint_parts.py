@@ -442,3 +442,130 @@ def test_keep_prunes_the_parts_too(tmp_path, mpirun):
     assert sorted(p.name for p in d.glob("checkpoint_*")) == [
         "checkpoint_00000030.h5", "checkpoint_00000030.parts",
         "checkpoint_00000040.h5", "checkpoint_00000040.parts"]
+
+
+# --- a checkpoint's parts stay in its own .parts folder (issue 28, item 8) -------------------------
+def _write_in_parts(path: Path, n_parts: int = 2, names=None, where=None) -> None:
+    """A checkpoint in ``n_parts`` parts written here, as the leads and rank 0 write one, but with
+    the part table and virtual datasets naming ``names`` (relative to ``path``'s folder; default
+    the writer's own) and each part file written at ``where[k]`` (default: where it is named):
+    what a crafted file with valid (keyless) digests looks like."""
+    from parmpm.io.checkpoint import PART_FORMAT, CheckpointWriter, part_name
+    from parmpm.io.checkpoint_parts import layout_record, top_tables, write_top
+
+    P, disc = _synthetic()
+    order = np.lexsort((P.gid, P.patch))
+    fields = {k: getattr(P, k)[order] for k in FIELDS}
+    patch = P.patch[order]
+    cut = np.searchsorted(patch, [disc.layout.n_patches * k // n_parts for k in range(n_parts + 1)])
+    cut[-1] = P.n
+    names = names or [f"{parts_folder(path).name}/{part_name(k)}" for k in range(n_parts)]
+    where = where or [path.parent / name for name in names]
+    like = {k: v[:0] for k, v in fields.items()}
+    files = []
+    for k in range(n_parts):
+        lo, hi = int(cut[k]), int(cut[k + 1])
+        ids, counts = np.unique(patch[lo:hi], return_counts=True)
+        Path(where[k]).parent.mkdir(parents=True, exist_ok=True)
+        w = CheckpointWriter(Path(where[k]), hi - lo, like,
+                             {"part": k, "parts": n_parts, "first_row": lo, "rows": hi - lo,
+                              "step": 7, "lineage": "L"}, segments=segments_of(counts),
+                             fmt=PART_FORMAT)
+        w.write(0, {f: v[lo:hi] for f, v in fields.items()})
+        files.append((names[k], w.commit(None)))
+    ids, counts = np.unique(patch, return_counts=True)
+    _, index = rank_rows([(ids, counts)], disc.layout.n_patches)
+    top = {**_attrs(P.n), "layout": layout_record(disc), "part_files": n_parts,
+           "ranks_per_file": 1}
+    write_top(path, top, like, [(name, int(cut[k]), int(cut[k + 1] - cut[k]))
+                                for k, (name, _) in enumerate(files)],
+              P.n, top_tables(index, cut, files))
+
+
+def _read_all(path: Path) -> np.ndarray:
+    r = CheckpointReader(path)
+    try:
+        return r.read("x")
+    finally:
+        r.close()
+
+
+def test_parts_written_here_read_back(tmp_path):
+    """The crafting helper writes a sound checkpoint (so the refusals below are for the names)."""
+    path = tmp_path / "checkpoint_00000007.h5"
+    _write_in_parts(path)
+    assert sorted(p.name for p in parts_folder(path).iterdir()) == ["part_00000.h5",
+                                                                    "part_00001.h5"]
+    np.testing.assert_array_equal(np.sort(_read_all(path)[:, 0]),
+                                  np.sort(_synthetic()[0].x[:, 0]))
+
+
+@pytest.mark.parametrize("crafted", ["absolute", "dotdot", "another folder", "dot", "nested",
+                                     "backslash"])
+def test_a_part_named_outside_its_folder_is_refused_alike_whether_it_exists(tmp_path, crafted):
+    """Before: the names were joined to the folder unchecked, so a crafted checkpoint (valid,
+    keyless digests) restarted from parts anywhere, and its error told whether a path existed.
+    Now any name but ``<checkpoint>.parts/<file>`` is one line, the same whether that path
+    exists or not."""
+    lines = []
+    for exists in (True, False):
+        d = tmp_path / str(exists)
+        path = d / "run" / "checkpoint_00000007.h5"
+        outside = d / "elsewhere" / "part_00001.h5"
+        name = {"absolute": str(outside), "dotdot": "../elsewhere/part_00001.h5",
+                "another folder": "checkpoint_00000003.parts/part_00001.h5", "dot": ".",
+                "nested": "checkpoint_00000007.parts/sub/part_00001.h5",
+                "backslash": "checkpoint_00000007.parts/..\\part_00001.h5"}[crafted]
+        target = {"absolute": outside, "dotdot": outside}.get(crafted, path.parent / name)
+        if crafted == "dot":
+            target = outside  # (the file of a "." part can be nowhere: written aside)
+        _write_in_parts(path, names=["checkpoint_00000007.parts/part_00000.h5", name],
+                        where=[parts_folder(path) / "part_00000.h5", target])
+        if not exists:
+            Path(target).unlink()
+        with pytest.raises(ParmpmError) as info:
+            _read_all(path)
+        lines.append(str(info.value).replace(str(d), "D"))
+    assert lines[0] == lines[1]
+    assert "\n" not in lines[0] and "part 1 is named" in lines[0], lines[0]
+    assert "not a file in 'checkpoint_00000007.parts/'" in lines[0], lines[0]
+
+
+def test_a_part_that_is_a_link_out_of_its_folder_is_refused_alike(tmp_path):
+    lines = []
+    for exists in (True, False):
+        d = tmp_path / str(exists)
+        path = d / "checkpoint_00000007.h5"
+        _write_in_parts(path)
+        link = parts_folder(path) / "part_00001.h5"
+        outside = d / "elsewhere" / "part_00001.h5"
+        outside.parent.mkdir()
+        if exists:
+            link.rename(outside)
+        else:
+            link.unlink()
+        link.symlink_to(Path("..") / "elsewhere" / "part_00001.h5")
+        with pytest.raises(ParmpmError) as info:
+            _read_all(path)
+        lines.append(str(info.value).replace(str(d), "D"))
+    assert lines[0] == lines[1] and "a link that leads out of" in lines[0], lines[0]
+    # a link inside the folder (and a parts folder that is itself a link) still reads
+    d = tmp_path / "inside"
+    path = d / "checkpoint_00000007.h5"
+    _write_in_parts(path)
+    store = tmp_path / "store"
+    parts_folder(path).rename(store)
+    parts_folder(path).symlink_to(store)
+    (store / "part_00001.h5").rename(store / "real_00001.h5")
+    (store / "part_00001.h5").symlink_to("real_00001.h5")
+    assert _read_all(path).shape == (3000, 2)
+
+
+def test_a_crafted_checkpoint_is_one_line_from_the_cli(tmp_path):
+    path = tmp_path / "checkpoint_00000007.h5"
+    _write_in_parts(path, names=["checkpoint_00000007.parts/part_00000.h5", "/etc/hostname"],
+                    where=[parts_folder(path) / "part_00000.h5", tmp_path / "x" / "p.h5"])
+    proc = _cli(None, 1, "restart", str(path), "-o", str(tmp_path / "r"), *QUIET)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 1, proc.stderr
+    assert "'/etc/hostname', not a file in" in lines[0] and not (tmp_path / "r").exists()

@@ -8,6 +8,7 @@ nothing.
 """
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -154,3 +155,36 @@ def test_a_cold_cache_is_compiled_once_by_rank_0_then_every_run_loads_it(tmp_pat
     assert run.returncode == 0, run.stderr
     assert "compiling kernels" not in run.stderr and "compiled " not in run.stderr
 
+
+
+def _cache_state(cache: Path) -> dict:
+    """Every index and data file of numba's cache, with its size and modification time."""
+    return {str(p.relative_to(cache)): (p.stat().st_size, p.stat().st_mtime_ns)
+            for p in cache.rglob("*.nb[ic]")}
+
+
+@pytest.mark.slow
+def test_after_parmpm_compile_a_many_rank_run_compiles_nothing(tmp_path, mpirun):
+    """Eight ranks on the 1D bar (four patches, two holding particles): ranks without a patch,
+    ranks with one, a patch-set change, halo exchanges and migration. Each of these once made
+    numba compile kernels in the middle of the run that ``parmpm compile`` (and the one-rank
+    warm-up of the staged compile) had not: an empty grid view, or one of a single patch, is
+    typed as a contiguous array (other variants of P2G, G2P and the halo copies, compiled by
+    every idle rank at once); a patch-set change moves the particles' runs (``move_runs``).
+    After ``parmpm compile`` of the case, the run writes nothing into the cache."""
+    cache = tmp_path / "cache"
+    done = _cli("compile", "--dim", "1", "--methods", "mpm", "--update", "musl", cache=cache,
+                cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    before = _cache_state(cache)
+    assert before
+    run = _cli("run", "hanging_bar_1d", "--set", "method.interpolator=mpm", "--set",
+               "time.steps=200", "-o", "out8", "-v", cache=cache, cwd=tmp_path,
+               launcher=(mpirun, "-n", "8"))
+    assert run.returncode == 0, run.stderr
+    dec = json.loads((tmp_path / "out8" / "summary.json").read_text())["decomposition"]
+    assert 0 in dec["patches_per_rank"] and 1 in dec["patches_per_rank"]  # the paths it takes
+    assert dec["patch_set_changes"] >= 1
+    after = _cache_state(cache)
+    assert sorted(k for k in after if before.get(k) != after[k]) == []
+    assert "compiling kernels" not in run.stderr

@@ -408,3 +408,143 @@ def test_pairwise_runs_is_numpys_sum():
         assert pairwise_runs(values, counts) == np.sum(np.repeat(values, counts)), (values, counts)
     assert pairwise_runs([], []) == 0.0
     assert str(pairwise_runs([-0.0], [3])) == str(np.sum(np.full(3, -0.0)))
+
+
+# --- issue 28: a metric's record does not grow with the run -----------------------------------
+def _old_first_peak_and_rebound(u, tol=0.01):
+    """The whole-history version this module had before issue 28 (the reference)."""
+    d = -np.asarray(u, dtype=float)
+    high = np.fmax.accumulate(d) if d.size else d
+    back = np.flatnonzero((high > 0.0) & (high - d > tol * high))
+    if back.size == 0:
+        return None, None
+    i_peak = int(np.nanargmax(d[: back[0] + 1]))
+    rest = d[i_peak:]
+    low = np.fmin.accumulate(rest)
+    up = np.flatnonzero(rest - low > tol * d[i_peak])
+    if up.size == 0:
+        return i_peak, None
+    return i_peak, i_peak + int(np.nanargmin(rest[: up[0] + 1]))
+
+
+def test_turning_points_one_sample_at_a_time_match_the_whole_history():
+    from parmpm.metrics.bars import first_peak_and_rebound
+
+    rng = np.random.default_rng(28)
+    for trial in range(400):
+        n = int(rng.integers(0, 80))
+        t = np.linspace(0.0, 1.0, n)
+        u = -(1.0 - np.cos(2 * np.pi * t / rng.uniform(0.1, 1.5))) * rng.uniform(0.5, 2.0)
+        u += rng.normal(0.0, rng.choice([0.0, 1e-3, 0.05]), n)
+        if n and trial % 3 == 0:
+            u[rng.integers(0, n, 3)] = np.nan
+        if trial % 7 == 0:
+            u = np.round(u, 1)  # ties
+        assert first_peak_and_rebound(u) == _old_first_peak_and_rebound(u), (trial, u)
+
+
+def test_trace_keeps_at_most_its_capacity_evenly_and_the_latest():
+    from parmpm.metrics.trace import Trace
+
+    tr = Trace(("times", "v"), capacity=8)
+    for k in range(8):
+        tr.add(k, 10 * k)
+    assert tr.stride == 1 and tr.indices().tolist() == list(range(8))
+    for k in range(8, 37):
+        tr.add(k, 10 * k)
+    # full at 8 kept: every 2nd, then every 4th ... always from sample 0, and the latest shown
+    assert tr.count == 37 and tr.stride == 8
+    assert tr.indices().tolist() == [0, 8, 16, 24, 32, 36]
+    assert tr.column("v").tolist() == [0, 80, 160, 240, 320, 360]
+    state = json.loads(json.dumps(tr.state()))
+    again = Trace(("times", "v"), capacity=8)
+    again.restore(state)
+    for k in range(37, 200):
+        tr.add(k, 10 * k)
+        again.add(k, 10 * k)
+    assert again.state() == tr.state() and len(tr.state()["rows"]) <= 8
+
+
+def test_vibrating_bar_summary_streams_the_whole_history():
+    """The error norms from running sums equal those of every sample kept (as before)."""
+    scene, x0, mass, (E, rho, L, v0) = _vib_scene(n=40)
+    m = make_metrics(scene, x0, mass)
+    beta = math.pi / (2 * L)
+    omega = math.sqrt(E / rho) * beta
+    for t in np.linspace(0.0, 20.0, 301):
+        v = np.zeros_like(x0)
+        v[:, 0] = 1.01 * v0 * math.cos(omega * t) * np.sin(beta * x0[:, 0]) + 1e-4 * math.sin(7 * t)
+        m.sample(t, x0, v, np.ones((x0.shape[0], 1, 1)), 1)
+    num, ex = np.asarray(m.com_velocity), np.asarray(m.com_velocity_exact)  # 301: all kept
+    r = m.result()
+    assert r["samples"] == 301 == num.size
+    assert r["com_velocity_rel_l2_error"] == pytest.approx(
+        math.sqrt(np.sum((num - ex) ** 2) / np.sum(ex**2)), rel=1e-12)
+    assert r["com_velocity_max_abs_error"] == np.max(np.abs(num - ex))
+
+
+def test_metrics_memory_and_checkpoint_state_stay_bounded():
+    """Past the trace's capacity (8,192 samples), more samples add nothing to memory
+    (tracemalloc) and the state a checkpoint stores stays the trace's size. Before issue 28
+    each sample appended three floats to lists (~100 bytes per sample here: ~2 MB over the
+    20,000 samples below) and the state held every one (three times as large at 3N as at N)."""
+    import gc
+    import tracemalloc
+
+    scene, x0, mass, _ = _vib_scene(n=8)
+    m = make_metrics(scene, x0, mass)
+    F = np.ones((x0.shape[0], 1, 1))
+    v = np.zeros_like(x0)
+
+    def run(a, b):
+        for k in range(a, b):
+            v[:, 0] = 1e-3 * math.sin(0.01 * k)
+            m.sample(0.01 * k, x0, v, F, 1)
+
+    run(0, 10_000)
+    size = len(json.dumps(m.state()))
+    gc.collect()
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        run(10_000, 30_000)
+        gc.collect()
+        grown = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    assert grown < 16_000, f"{grown} bytes over 20,000 samples"
+    assert len(json.dumps(m.state())) < 1.6 * size  # kept: 5,000 → 7,500 of 8,192 at most
+    assert m.result()["samples"] == 30_000
+
+
+@pytest.mark.parametrize("kind", ["hanging_bar", "tension_bar", "rotation", "manufactured"])
+def test_every_kind_restores_its_record_and_continues_the_same(kind):
+    """A metric restored from its JSON state (a checkpoint) and sampled on reports what the
+    uninterrupted one reports."""
+    import parmpm
+
+    scene = parmpm.load_scene(kind if kind != "rotation" else "spinning_disk").data
+    from parmpm.seeding import seed_bodies
+    from parmpm.materials import material_table
+
+    names = material_table(scene["materials"])[1]
+    seeds = seed_bodies(scene, {n: i for i, n in enumerate(names)})
+    params = np.zeros((len(names), 2))
+    params[:, 1] = [scene["materials"][n]["density"] for n in names]
+    P = seeds.particles(params)
+    a, b = make_metrics(scene, P.x0, P.mass), make_metrics(scene, P.x0, P.mass)
+
+    def sample(m, k):
+        x = P.x0 * (1.0 + 1e-3 * math.sin(0.3 * k))
+        sums, maxes = m.terms(P.gid, x, P.v, P.F, t=0.01 * k, particles=P, method=0, lcr=None,
+                              inertia=None)
+        m.record(0.01 * k, sums.sum(axis=0), maxes, 1 + (k > 30))
+
+    for k in range(20):
+        sample(a, k)
+    b.restore(json.loads(json.dumps(a.state())))
+    for k in range(20, 50):
+        sample(a, k)
+        sample(b, k)
+    assert json.dumps(b.result()) == json.dumps(a.result())
+    assert b.result()["samples"] == 50

@@ -212,8 +212,8 @@ def test_a_failing_run_cannot_overwrite_another_runs_results(tmp_path):
                  "--set", "time.steps=3"]) == 0
     # snapshots off: the history table has no snapshot file to go into, so history.h5
     assert sorted(p.name for p in same.iterdir()) == ["history.csv", "history.h5", "notes.txt",
-                                                      "parmpm-run.json", "scene.toml",
-                                                      "summary.json"]
+                                                      "parmpm-run.json", "parmpm-run.lock",
+                                                      "scene.toml", "summary.json"]
 
 
 def test_the_default_folder_is_never_taken_from_another_run(tmp_path):

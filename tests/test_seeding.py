@@ -104,3 +104,140 @@ def test_outside_the_grid_names_the_particle(tmp_path):
     seeds.motion = lambda X: X + np.where(np.arange(len(X))[:, None] == 7, 5.0, 0.0)
     with pytest.raises(SimulationError, match=r"particle 7 at \(.*\) is outside the grid"):
         seeds.patch_counts(D)
+
+
+# --- issue 28: overlapping bodies are seeded twice, and say so --------------------------------
+OVERLAP_BASE = """
+dim = {dim}
+[grid]
+origin = {origin}
+cell_size = 0.25
+cells = {cells}
+[materials.steel]
+model = "linear_elastic"
+density = 1000.0
+youngs_modulus = 1e6
+poisson_ratio = 0.3
+[materials.rubber]
+model = "linear_elastic"
+density = 500.0
+youngs_modulus = 1e5
+poisson_ratio = 0.3
+[time]
+end = 1.0
+steps = 1
+[output]
+snapshots = false
+figure = false
+history = false
+[metrics]
+kind = "none"
+[checkpoint]
+at_end = false
+"""
+
+
+def _box(lo, hi, material="steel", ppc=2, angle=None):
+    turn = f"\nangle = {angle}" if angle is not None else ""
+    return (f'\n[[bodies]]\nshape = "box"\nmin = {list(lo)}\nmax = {list(hi)}\n'
+            f'material = "{material}"\nppc = {ppc}{turn}\n')
+
+
+def _disk(c, r, material="steel", ppc=2):
+    return (f'\n[[bodies]]\nshape = "disk"\ncenter = {list(c)}\nradius = {r}\n'
+            f'material = "{material}"\nppc = {ppc}\n')
+
+
+def _overlap_scene(tmp_path, dim, bodies, cells=None):
+    cells = cells or [16, 8, 8][:dim]
+    text = OVERLAP_BASE.format(dim=dim, origin=[0.0] * dim, cells=cells) + "".join(bodies)
+    path = tmp_path / "overlap.toml"
+    path.write_text(text)
+    return path
+
+
+def _seeded_twice(path):
+    from parmpm.body_overlaps import seeded_twice
+
+    data = load_scene(path).data
+    names = material_table(data["materials"])[1]
+    seeds = seed_bodies(data, {n: i for i, n in enumerate(names)})
+    return seeded_twice(None, data, seeds, np.arange(seeds.n), seeds.x), data, seeds
+
+
+@pytest.mark.parametrize("dim", [1, 2, 3])
+def test_two_overlapping_boxes_report_the_closed_form_overlap(tmp_path, dim):
+    """Boxes [0, 2]×[0, 1]^(d-1) and [1.25, 3]×[0.5, 1.5]^(d-1): their overlap is
+    0.75 · 0.5^(d-1), and the later box's particles inside the first weigh ρ times that.
+    Before: nothing said (the particles seeded twice, silently)."""
+    a = _box([0.0] + [0.0] * (dim - 1), [2.0] + [1.0] * (dim - 1))
+    b = _box([1.25] + [0.5] * (dim - 1), [3.0] + [1.5] * (dim - 1))
+    found, data, seeds = _seeded_twice(_overlap_scene(tmp_path, dim, [a, b]))
+    exact = 0.75 * 0.5 ** (dim - 1)
+    assert len(found) == 1 and found[0]["bodies"] == (0, 1)
+    assert found[0]["volume"] == pytest.approx(exact, rel=1e-12)
+    assert found[0]["mass"] == pytest.approx(1000.0 * exact, rel=1e-12)
+    # what was seeded twice is exactly the excess over the union's mass (2 + 1.75 − overlap)
+    names = material_table(data["materials"])[1]
+    params = np.zeros((len(names), 2))
+    params[:, 1] = [data["materials"][n]["density"] for n in names]
+    excess = seeds.mass(params).sum() - 1000.0 * (2.0 + 1.75 - exact)
+    assert excess == pytest.approx(found[0]["mass"], rel=1e-9)
+
+
+def test_box_and_disk_overlap_is_the_half_disk(tmp_path):
+    """A disk of radius 0.5 centred on the box's right edge: the half disk, π r²/2, inside the
+    box (the disk's lattice estimates it to the particle spacing: within 2 %)."""
+    found, _, _ = _seeded_twice(_overlap_scene(
+        tmp_path, 2, [_box([0.0, 0.0], [2.0, 1.0]), _disk([2.0, 0.5], 0.5, "rubber", ppc=8)]))
+    assert [o["bodies"] for o in found] == [(0, 1)]
+    assert found[0]["volume"] == pytest.approx(np.pi * 0.25 / 2, rel=0.02)
+    assert found[0]["mass"] == pytest.approx(500.0 * found[0]["volume"], rel=1e-12)
+
+
+def test_a_turned_box_holding_a_small_box_reports_the_small_box(tmp_path):
+    """A box turned by 30° that holds all of a small box: the overlap is the small box."""
+    big = _box([1.0, 0.5], [3.0, 1.5], angle=30.0)
+    small = _box([1.75, 0.75], [2.25, 1.25])
+    found, _, _ = _seeded_twice(_overlap_scene(tmp_path, 2, [big, small]))
+    assert len(found) == 1 and found[0]["volume"] == pytest.approx(0.25, rel=1e-12)
+
+
+def test_touching_and_distant_bodies_say_nothing(tmp_path):
+    """Boxes sharing a face, a disk touching a box, and a disk inside a box's bounds but
+    outside it (a turned box's corner): no particle seeded twice."""
+    bodies = [_box([0.0, 0.0], [1.0, 1.0]), _box([1.0, 0.0], [2.0, 1.0]),
+              _disk([2.5, 0.5], 0.5), _box([3.0, 0.0], [4.0, 2.0])]
+    found, _, _ = _seeded_twice(_overlap_scene(tmp_path, 2, bodies))
+    assert found == []
+
+
+def test_an_overlapping_scene_warns_once_naming_the_bodies(tmp_path, caplog):
+    """The run's set-up warns, one line per pair, on rank 0."""
+    path = _overlap_scene(tmp_path, 2, [_box([0.0, 0.0], [2.0, 1.0]),
+                                         _box([1.0, 0.0], [3.0, 1.0])])
+    with caplog.at_level("WARNING", logger="parmpm"):
+        Simulation(load_scene(path), tmp_path / "out", quiet=True).run()
+    lines = [r.getMessage() for r in caplog.records if "overlap" in r.getMessage()]
+    assert lines == ["bodies.0 and bodies.1 overlap: 1 m² of bodies.1 (64 particles, 1000 kg) "
+                     "lies inside bodies.0 and is seeded twice (the scene holds that material "
+                     "twice; make the bodies touch, not overlap)"]
+
+
+def test_an_overlapping_scene_warns_once_on_two_ranks(tmp_path, mpirun):
+    """Under two ranks (each counting its own particles) the same line, printed once."""
+    import subprocess
+    import sys
+
+    path = _overlap_scene(tmp_path, 2, [_box([0.0, 0.0], [2.0, 1.0]),
+                                         _box([1.0, 0.0], [3.0, 1.0]), _disk([3.0, 0.5], 0.5)])
+    proc = subprocess.run([mpirun, "-n", "2", sys.executable, "-m", "parmpm", "run", str(path),
+                           "--out", str(tmp_path / "o"), "-q", "--set", "grid.patch_size=4"],
+                          capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    found, _, _ = _seeded_twice(path)
+    assert len(found) == 2
+    for o in found:
+        (i, j) = o["bodies"]
+        hits = [ln for ln in proc.stderr.splitlines() if f"bodies.{i} and bodies.{j} overlap" in ln]
+        assert len(hits) == 1 and f"({o['particles']} particles" in hits[0], proc.stderr

@@ -196,8 +196,9 @@ def test_idle_rank_warning_names_the_ranks_and_a_computed_patch_size():
     # four patches of 36, 84, 84 and 196 particles: the Morton cut leaves a rank without
     assert _warning(scene, 8, 4) == ("4 ranks and 4 patches holding particles: rank 3 has no "
                                      "work; run on at most 3 ranks")
+    # four of the six ranks have work: the advice says so, not "at most 3" alone (issue 28)
     assert _warning(scene, 8, 6) == ("6 ranks and 4 patches holding particles: ranks 3, 5 have "
-                                     "no work; run on at most 3 ranks")
+                                     "no work (4 of 6 do); every rank has work on 3 ranks")
 
 
 def test_idle_rank_warning_without_a_size_that_helps():

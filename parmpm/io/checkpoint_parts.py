@@ -34,6 +34,7 @@ from parmpm.errors import ParmpmError
 from parmpm.io.checkpoint import (ATTRS, DTYPES, FORMAT, OPTIONAL, PART_FORMAT, VERSION,
                                   CheckpointWriter, arrays_digest, attrs_digest, block_digest,
                                   required_fields, tables_digest)
+from parmpm.io.checkpoint_paths import inside, part_paths
 
 logger = logging.getLogger("parmpm.io.checkpoint")
 
@@ -300,6 +301,7 @@ class CheckpointReader:
             raise ParmpmError(f"{where}: damaged: its patch index does not match its parts")
         self.patch_rows, self._part_rows = index, rows
         self._part_names, self._part_digests = names, [bytes(s).decode() for s in tables["parts/digest"]]
+        self._part_paths = [] if inline else part_paths(self.path, names, where)
         self._files = [None] * k
         if inline:
             digests = {name[len("digests/"):]: t for name, t in digests.items()}
@@ -322,8 +324,9 @@ class CheckpointReader:
         """Part ``p``, opened and checked the first time it is read."""
         if self._files[p] is not None:
             return self._files[p]
-        path = self.path.parent / self._part_names[p]
+        path = self._part_paths[p]
         where = f"{self.where}: part '{path}'"
+        inside(path, where)
         f = _open_h5(path, where)
         self._parts[p] = f
         try:

@@ -34,26 +34,27 @@ class HistoryFile:
     def __init__(self, folder: Path, columns: list[str]):
         self.path = Path(folder) / "history.csv"
         self.columns = list(columns)
-        self.rows: list[list[float]] = []
+        self.count = 0  # rows written; the rows themselves are only in the file (issue 28)
         self._file = open(self.path, "w", newline="", encoding="utf-8")  # noqa: SIM115
         self._csv = csv.writer(self._file)
         self._csv.writerow(self.columns)
         self._file.flush()
 
     def append(self, row: list[float]) -> None:
-        self.rows.append(row)
         self._csv.writerow([repr(int(v)) if c in ("step", "damaged", "frozen") else repr(v)
                             for c, v in zip(self.columns, row)])
         self._file.flush()
+        self.count += 1
 
     def close(self) -> None:
         if not self._file.closed:
             self._file.close()
 
     def table(self) -> tuple[dict[str, np.ndarray], dict[str, dict]]:
-        """The rows as columns, with their units, for an HDF5 table."""
-        data = np.array(self.rows, float).reshape(len(self.rows), len(self.columns))
-        cols = {c: data[:, j] for j, c in enumerate(self.columns)}
+        """The rows as columns, with their units, for an HDF5 table: read back from
+        ``history.csv`` (the file is the store, so a long run's history takes no memory; ``repr``
+        round-trips, so the table holds the run's floats bit for bit)."""
+        cols = read_history(self.path)
         for c in ("step", "damaged", "frozen"):
             cols[c] = cols[c].astype(np.int64)
         return cols, {c: {"units": unit_of(c)} for c in self.columns}

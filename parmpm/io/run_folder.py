@@ -1,20 +1,30 @@
 """Output folders: a run claims its folder before it writes, and never takes another run's.
 
 A run writes ``parmpm-run.json`` (the *marker*: run id, the ids of the runs it continues, scene,
-start time, the files it writes) into its output folder before anything else, created with
-``O_EXCL`` so two runs started at once cannot both claim one folder. A folder *holds a run* when
-it has a marker, or (runs of older parmpm versions) a ``summary.json``, a checkpoint or an XDMF
-series. The rules:
+start time, the files it writes, the host and pid of its rank 0) into its output folder before
+anything else, created with ``O_EXCL`` so two runs started at once cannot both claim one folder,
+and holds the lock of ``parmpm-run.lock`` while it runs (:mod:`parmpm.io.run_lock`: released by
+the OS when the process dies), so that whether the folder's run is still going can be told. A
+folder *holds a run* when it has a marker, or (runs of older parmpm versions) a
+``summary.json``, a checkpoint or an XDMF series. The rules:
 
 * the default folder (``parmpm-out/<scene>``, or ``restart_<step>`` beside a checkpoint) is used
   when free, else the first free ``<folder>_2``, ``<folder>_3``, …: repeating a command never
   overwrites the last results;
 * an explicit ``--out`` folder that holds another run is refused with one line, unless the user
-  passes ``--overwrite``, which deletes that run's outputs (its marker's files, its checkpoints,
-  ``summary.json``; files parmpm did not write are kept) before the new run starts;
+  passes ``--overwrite``, which deletes that run's outputs (its marker's files, its checkpoints
+  and snapshot series with their ``.parts`` folders, ``summary.json``; files parmpm did not write
+  are kept; the marker last) before the new run starts;
+* a run that is still going is never overwritten: the refusal names its folder, host and pid; a
+  run that crashed or was killed (its lock free) can be;
+* ``--overwrite`` never deletes what the new run starts from: a restart into the folder of the
+  checkpoint it continues is refused (keeping that checkpoint would leave one of the old run's
+  files, claimed by neither marker, in the new run's folder, for the next ``--overwrite`` to
+  delete);
 * a restart is a run of its own: it writes into a folder of its own (by default
   ``restart_<step>`` beside the checkpoint), never into the folder of the run it continues, so
-  neither can overwrite or prune the other's checkpoints.
+  neither can overwrite or prune the other's checkpoints;
+* an ``--out`` that is a file, or a symbolic link to nothing, is refused saying so.
 
 Claiming is also the writability probe: a read-only or missing-permission folder fails here,
 before the run, with one line.
@@ -23,10 +33,12 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import time
 from pathlib import Path
 
 from parmpm.errors import ParmpmError
+from parmpm.io import run_lock
 
 MARKER = "parmpm-run.json"
 #: folders tried after the default one is taken: <folder>_2 ... <folder>_MAX_SUFFIX
@@ -69,17 +81,61 @@ def _describe(folder: Path) -> str:
             f"{marker.get('started', '?')})")
 
 
-def _remove_run(folder: Path) -> None:
-    """``--overwrite``: delete the outputs of the run in ``folder`` (not files parmpm did not write)."""
+def _doomed(folder: Path) -> tuple[list[Path], list[Path]]:
+    """What ``--overwrite`` deletes in ``folder``: the files (the marker last) and the folders of
+    parts of the run there: its marker's files, its checkpoints with their ``.parts``, its
+    snapshot series with theirs, the temporary files of its writers. Files parmpm did not write
+    are kept."""
     marker = read_marker(folder) or {}
-    doomed = {folder / name for name in marker.get("files", []) if isinstance(name, str)
-              and "/" not in name and name not in ("", ".", "..")}
-    doomed.update(_legacy_outputs(folder))
-    doomed.update(folder.glob("checkpoint_*.h5.tmp"))
-    doomed.add(folder / MARKER)
-    for path in sorted(doomed):
-        if path.is_file() or path.is_symlink():
-            path.unlink()
+    files = {folder / name for name in marker.get("files", []) if isinstance(name, str)
+             and "/" not in name and name not in ("", ".", "..")}
+    files.update(_legacy_outputs(folder))
+    for pattern in ("checkpoint_*.h5.tmp", "*.xdmf.tmp", f".{MARKER}.*.tmp", ".scene.toml.tmp"):
+        files.update(folder.glob(pattern))
+    dirs = {p.with_suffix(".parts") for p in files if p.suffix in (".h5", ".xdmf")
+            and (p.name.startswith("checkpoint_") or p.suffix == ".xdmf")}
+    dirs.update(folder.glob("checkpoint_*.parts"))
+    files = sorted(p for p in files if p.name != MARKER and (p.is_file() or p.is_symlink()))
+    dirs = sorted(d for d in dirs if d.is_dir() and not d.is_symlink())
+    return files + ([folder / MARKER] if (folder / MARKER).exists() else []), dirs
+
+
+def _same(a: Path, b: Path) -> bool:
+    try:
+        return os.path.realpath(a) == os.path.realpath(b) or os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _check_inputs(folder: Path, inputs, files: list[Path], dirs: list[Path]) -> None:
+    """Refuse to delete a file the new run starts from (a restart's checkpoint, its parts)."""
+    for path in inputs:
+        path = Path(path)
+        parts = path.with_name(path.name[:-3] + ".parts" if path.name.endswith(".h5")
+                               else path.name + ".parts")
+        hit = any(_same(f, path) for f in files) or any(
+            _same(d, parts) or os.path.realpath(path).startswith(os.path.realpath(d) + os.sep)
+            for d in dirs)
+        if hit:
+            raise ParmpmError(
+                f"output folder '{folder}' holds the checkpoint this restart continues from "
+                f"('{path}'): --overwrite would delete it; restart into another --out (without "
+                "--out: a folder of its own beside the checkpoint)")
+
+
+def _remove_run(folder: Path, inputs=()) -> None:
+    """``--overwrite``: delete the run in ``folder`` (:func:`_doomed`), unless that would delete
+    one of ``inputs``; the marker goes last, so a failure half way leaves a folder that still
+    holds a run (and ``--overwrite`` again finishes the job), never an unclaimed half."""
+    files, dirs = _doomed(folder)
+    _check_inputs(folder, inputs, files, dirs)
+    marker = files.pop() if files and files[-1].name == MARKER else None
+    for path in files:
+        path.unlink(missing_ok=True)
+    for d in dirs:
+        shutil.rmtree(d)
+    if marker is not None:
+        marker.unlink(missing_ok=True)
 
 
 def _create_marker(folder: Path, marker: dict, replace: bool) -> None:
@@ -95,43 +151,134 @@ def _create_marker(folder: Path, marker: dict, replace: bool) -> None:
         f.write(text)
 
 
-def claim(folder, marker: dict, *, explicit: bool, overwrite: bool = False) -> Path:
-    """Claim an output folder for the run described by ``marker`` and return it (rank 0 only).
+def _live(folder: Path, record: dict) -> ParmpmError:
+    return ParmpmError(f"output folder '{folder}' belongs to a run that is still going "
+                       f"({run_lock.who(record)}); wait for it to end or stop it, or choose "
+                       "another --out")
+
+
+def _not_a_folder(candidate: Path) -> str | None:
+    """Why ``candidate`` cannot be an output folder (a file, a link to nothing), or None."""
+    if candidate.is_symlink() and not candidate.exists():
+        return (f"output folder '{candidate}' is a symbolic link to '{os.readlink(candidate)}', "
+                "which does not exist; create that folder, or choose another --out")
+    if candidate.exists() and not candidate.is_dir():
+        return f"output folder '{candidate}' is a file, not a folder"
+    return None
+
+
+class Claim:
+    """A claimed output folder (``folder``) and the lock that says its run is alive (None where
+    the filesystem has no locks), held by this process until :meth:`release` (or its exit)."""
+
+    def __init__(self, folder: Path, lock: run_lock.RunLock | None):
+        self.folder, self.lock, self.held = folder, lock, True
+
+    def release(self) -> None:
+        """The run is over: its marker says so (``ended``: what tells without locks), then the
+        lock is dropped. Idempotent; never raises."""
+        if not self.held:
+            return
+        self.held = False
+        try:
+            update_marker(self.folder, ended=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+        except Exception:  # noqa: BLE001 - never hides the run's own end; the lock alone tells
+            pass
+        if self.lock is not None:
+            self.lock.release()
+            self.lock = None
+
+
+def _take(candidate: Path, marker: dict, explicit: bool, overwrite: bool,
+          inputs) -> tuple[str, object]:
+    """Try to claim one folder: ("ok", the lock or None), or ("taken", why: the ParmpmError an
+    explicit --out is refused with)."""
+    def taken() -> tuple[str, ParmpmError]:
+        return "taken", ParmpmError(
+            f"output folder '{candidate}' holds {_describe(candidate)}; choose another --out, "
+            "or pass --overwrite to delete them and write there")
+
+    held = candidate.exists() and holds_run(candidate)
+    if held and not explicit:
+        return "taken", None
+    if held and not overwrite:  # refused either way: say whether that run is still going
+        probe = run_lock.take(candidate, create=False)
+        if isinstance(probe, run_lock.RunLock):
+            probe.release()
+        elif isinstance(probe, run_lock.Busy):
+            return "taken", _live(candidate, probe.record or read_marker(candidate))
+        return taken()
+    try:
+        candidate.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        for above in candidate.parents:  # "File exists": say what is in the way
+            problem = _not_a_folder(above)
+            if problem:
+                raise ParmpmError(f"cannot create output folder '{candidate}': "
+                                  + problem.replace("output folder ", "", 1)) from None
+        raise ParmpmError(f"cannot create output folder '{candidate}': "
+                          f"{exc.strerror or exc}") from None
+    lock = run_lock.take(candidate)
+    if isinstance(lock, run_lock.Busy):
+        return "taken", _live(candidate, lock.record or read_marker(candidate))
+    if isinstance(lock, run_lock.NoLocks):
+        lock = None
+        if held:
+            record = read_marker(candidate) or {}
+            alive = run_lock.alive_by_record(record)
+            if alive:
+                return "taken", _live(candidate, record)
+            if alive is None:
+                return "taken", ParmpmError(
+                    f"cannot tell whether the run in output folder '{candidate}' "
+                    f"({run_lock.who(record)}) is still going: its filesystem offers no file "
+                    f"locks; if it has ended, delete '{candidate / MARKER}' and run again")
+    try:
+        if not held and holds_run(candidate):  # a run that came and went meanwhile
+            if lock is not None:
+                lock.release()
+            return taken()
+        if held:
+            _remove_run(candidate, inputs)
+        _create_marker(candidate, marker, replace=False)
+    except FileExistsError:  # another run (without locks) claimed it this instant
+        if lock is not None:
+            lock.release()
+        return "taken", ParmpmError(f"output folder '{candidate}' was just claimed by another "
+                                    "run; choose another --out")
+    except BaseException:
+        if lock is not None:
+            lock.release()
+        raise
+    return "ok", lock
+
+
+def claim(folder, marker: dict, *, explicit: bool, overwrite: bool = False,
+          inputs=()) -> Claim:
+    """Claim an output folder for the run described by ``marker`` (rank 0 only); the
+    :class:`Claim` holds its lock until released.
 
     ``explicit``: the user named the folder (``--out``), so it is used or refused, never renamed.
+    ``inputs``: files the run starts from (a restart's checkpoint), which ``--overwrite`` must
+    never delete. A folder whose run is still going is never taken, with or without
+    ``--overwrite`` (:mod:`parmpm.io.run_lock`).
     """
     folder = Path(folder)
-    marker = dict(marker, started=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+    marker = dict(marker, started=time.strftime("%Y-%m-%dT%H:%M:%S%z"), **run_lock.me())
     candidates = [folder] if explicit else \
         [folder] + [folder.with_name(f"{folder.name}_{k}") for k in range(2, MAX_SUFFIX + 1)]
     try:
         for candidate in candidates:
-            if candidate.exists() and not candidate.is_dir():
+            problem = _not_a_folder(candidate)
+            if problem:
                 if explicit:
-                    raise ParmpmError(f"output folder '{candidate}' is a file, not a folder")
+                    raise ParmpmError(problem)
                 continue
-            if holds_run(candidate):
-                if explicit and overwrite:
-                    _remove_run(candidate)
-                elif explicit:
-                    raise ParmpmError(
-                        f"output folder '{candidate}' holds {_describe(candidate)}; choose another "
-                        f"--out, or pass --overwrite to delete them and write there")
-                else:
-                    continue
-            try:
-                candidate.mkdir(parents=True, exist_ok=True)
-            except OSError as exc:
-                raise ParmpmError(f"cannot create output folder '{candidate}': "
-                                  f"{exc.strerror or exc}") from None
-            try:
-                _create_marker(candidate, marker, replace=False)
-            except FileExistsError:  # another run claimed it this instant
-                if explicit:
-                    raise ParmpmError(f"output folder '{candidate}' was just claimed by another "
-                                      "run; choose another --out") from None
-                continue
-            return candidate
+            verdict, result = _take(candidate, marker, explicit, overwrite, inputs)
+            if verdict == "ok":
+                return Claim(candidate, result)
+            if explicit:
+                raise result
     except OSError as exc:
         where = exc.filename or folder
         raise ParmpmError(f"cannot write to output folder '{where}': "

@@ -132,7 +132,8 @@ def format_summary(summary: dict) -> str:
     ``scene.name``; ``dim``/``scene.dim``; method ``method`` | ``interpolator`` |
     ``scene.method.interpolator``; ``scheme`` (USL/MUSL); ``lcr`` | ``l_cr``; ``ranks``;
     ``particles`` | ``n_particles``; ``steps`` | ``n_steps``; ``time`` | ``t_end`` |
-    ``simulated_time``; ``wall_time`` | ``wall_time_s`` | ``wall_s``; ``particle_steps_per_s``
+    ``simulated_time``; ``wall_time`` | ``wall_time_s`` | ``wall_s``; ``compile_seconds`` (numba
+    compiling during the run, left out of the wall time and the rate); ``particle_steps_per_s``
     (else particles·steps/wall); ``decomposition`` (patches allocated of the dense box, patch size,
     ghost width; on several ranks the load imbalance and halo bytes per step); ``energy.balance``
     (the history's last energy balance: the residual, its estimate, the energy given); ``metrics``
@@ -167,12 +168,15 @@ def format_summary(summary: dict) -> str:
         meth += f", l_cr = {_fmt(lcr)}"
     if ranks is not None:
         meth += f", {_fmt(ranks)} rank(s)"
+    compiled = summary.get("compile_seconds")
     lines = [
         head,
         meth,
         f"particles   {_fmt(particles)}    steps {_fmt(steps)}    simulated time {_fmt(t_sim)} s",
-        f"wall time   {_fmt(wall)} s    "
-        + (f"{float(rate):,.0f}" if rate is not None else "-")
+        f"wall time   {_fmt(wall)} s"
+        # numba compiling during the run: apart from the steps (cached for the next run)
+        + (f" + {float(compiled):.3g} s compiling kernels" if compiled and compiled >= 0.05 else "")
+        + "    " + (f"{float(rate):,.0f}" if rate is not None else "-")
         + " particle-steps/s",
     ]
     dec = summary.get("decomposition")

@@ -14,6 +14,7 @@ from parmpm.metrics import register_metrics
 from parmpm.metrics.common import (History, as_points, bar_box, bar_material, bar_span, gather_rows,
                                    glb_bounds, gravity, in_bar, material_constants, to_plain)
 from parmpm.metrics.sums import gid_order_sum
+from parmpm.metrics.trace import first_max, max_or_nan, nanmax
 
 logger = logging.getLogger(__name__)
 
@@ -45,6 +46,11 @@ class HangingBarMetrics(History):
       meaningful only for damped or slowly ramped runs: an undamped bar oscillates about the
       static state, peaking at twice it in small strain.
     """
+
+    _TRACE = ("times", "tip_history", "corner_history", "max_stretch_history",
+              "components_history")
+    _STATE = ("separation_time", "stretch_at_separation", "max_stretch", "max_tip",
+              "max_components", "turns")
 
     def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
         self.dim = int(scene_data["dim"])
@@ -94,13 +100,13 @@ class HangingBarMetrics(History):
             except (SceneError, ValueError) as err:
                 logger.warning("no exact static elongation: %s", err)
 
-        self.times: list[float] = []
-        self.tip_history: list[float] = []
-        self.corner_history: list[float] = []
-        self.max_stretch_history: list[float] = []
-        self.components_history: list[int] = []
+        self._begin()
         self.separation_time = None
         self.stretch_at_separation = None
+        self.max_stretch = math.nan       # nanmax over the samples
+        self.max_tip = math.nan           # nanmax of |tip displacement|
+        self.max_components = None
+        self._turns = TurningPoints()     # the corner's first peak and rebound
 
     def terms(self, gid, x, v, F, **context):
         """Per-particle addends (tip displacement along the axis, tip indicator, the same two for
@@ -126,75 +132,116 @@ class HangingBarMetrics(History):
         """Record one sample from globally reduced :meth:`terms` and the component count."""
         max_stretch = float(maxes[0]) if np.isfinite(maxes[0]) else float("nan")
         tip = float(sums[0] / sums[1]) * self.up_sign if sums[1] > 0 else float("nan")
-        self.times.append(float(t))
-        self.tip_history.append(tip)
-        self.corner_history.append(float(sums[2] / sums[3]) * self.up_sign if sums[3] > 0 else float("nan"))
-        self.max_stretch_history.append(max_stretch)
+        corner = float(sums[2] / sums[3]) * self.up_sign if sums[3] > 0 else float("nan")
         comps = -1 if components is None else int(components)
-        self.components_history.append(comps)
+        self._add(float(t), tip, corner, max_stretch, comps)
+
+    def _add(self, t, tip, corner, max_stretch, comps) -> None:
+        super()._add(t, tip, corner, max_stretch, comps)
+        comps = int(comps)
         if comps > 1 and self.separation_time is None:
             self.separation_time = float(t)
             self.stretch_at_separation = max_stretch
+        self.max_stretch = nanmax(self.max_stretch, max_stretch)
+        self.max_tip = nanmax(self.max_tip, abs(tip))
+        self.max_components = first_max(self.max_components, comps)
+        self._turns.add(corner, t)
 
-    def restore(self, state: dict) -> None:
-        """Continue a saved history; one saved before the corner was tracked gets NaN there."""
-        super().restore(state)
-        if "corner_history" not in state:
-            self.corner_history = [float("nan")] * len(self.times)
+    @property
+    def turns(self) -> dict:
+        """The corner's :class:`TurningPoints`, as a checkpoint keeps them."""
+        return self._turns.state()
+
+    @turns.setter
+    def turns(self, state: dict) -> None:
+        self._turns = TurningPoints.of(state)
 
     def result(self) -> dict:
         """JSON-ready dict (see the class docstring for the definitions)."""
-        stretches = np.asarray(self.max_stretch_history)
-        tips = np.asarray(self.tip_history)
-        tip_final = float(tips[-1]) if tips.size else None
+        n = self.samples
+        last = self.trace.column("tip_history")[-1:] if n else ()
+        tip_final = float(last[0]) if n else None
         exact = self.exact_static_tip_displacement
         rel = None
         if exact is not None and tip_final is not None and exact != 0.0:
             rel = abs(-tip_final - exact) / abs(exact)
-        times, corner = np.asarray(self.times), np.asarray(self.corner_history)
-        i_peak, i_rebound = first_peak_and_rebound(corner)
+        corner = self.trace.column("corner_history")
+        peak, rebound = self._turns.peak, self._turns.rebound  # (index, t, u) or None
         return {
             "separated": self.separation_time is not None,
             "separation_time": self.separation_time,
-            "max_stretch": to_plain(np.nanmax(stretches)) if stretches.size else None,
+            "max_stretch": to_plain(self.max_stretch) if n else None,
             "stretch_at_separation": to_plain(self.stretch_at_separation),
             "tip_displacement": to_plain(tip_final),
-            "max_tip_displacement": to_plain(np.nanmax(np.abs(tips))) if tips.size else None,
+            "max_tip_displacement": to_plain(self.max_tip) if n else None,
             "corner_particle": self.corner,
-            "corner_displacement": to_plain(corner[-1]) if corner.size else None,
-            "corner_first_peak": None if i_peak is None else to_plain(corner[i_peak]),
-            "corner_first_peak_time": None if i_peak is None else to_plain(times[i_peak]),
-            "corner_rebound": None if i_rebound is None else to_plain(corner[i_rebound]),
-            "corner_rebound_time": None if i_rebound is None else to_plain(times[i_rebound]),
+            "corner_displacement": to_plain(corner[-1]) if n else None,
+            "corner_first_peak": None if peak is None else to_plain(peak[2]),
+            "corner_first_peak_time": None if peak is None else to_plain(peak[1]),
+            "corner_rebound": None if rebound is None else to_plain(rebound[2]),
+            "corner_rebound_time": None if rebound is None else to_plain(rebound[1]),
             "exact_static_elongation": to_plain(self.exact_static_elongation),
             "exact_static_tip_displacement": to_plain(exact),
             "relative_error_static": to_plain(rel),
-            "max_components": int(max(self.components_history)) if self.components_history else None,
-            "samples": len(self.times),
+            "max_components": int(self.max_components) if n else None,
+            "samples": n,
         }
 
 
-def first_peak_and_rebound(u, tol: float = 0.01) -> tuple[int | None, int | None]:
-    """Sample indices of the first peak and the rebound of a displacement history ``u`` that
-    starts at rest and first swings downward (``u < 0``).
+class TurningPoints:
+    """The first peak and the rebound of a displacement history that starts at rest and first
+    swings downward (``u < 0``), found one sample at a time (:meth:`add`): no history is kept.
 
     The first peak is the lowest sample of the first downswing, the rebound the highest sample of
     the upswing that follows it. A turning point counts only once the history has come back from
     it by ``tol·|peak|`` (so round-off wiggles and a run that ends on its way down do not count);
-    either index is ``None`` when that has not happened by the last sample. NaN samples are
-    skipped."""
-    d = -np.asarray(u, dtype=float)  # downward displacement
-    high = np.fmax.accumulate(d) if d.size else d
-    back = np.flatnonzero((high > 0.0) & (high - d > tol * high))
-    if back.size == 0:
-        return None, None
-    i_peak = int(np.nanargmax(d[: back[0] + 1]))
-    rest = d[i_peak:]
-    low = np.fmin.accumulate(rest)
-    up = np.flatnonzero(rest - low > tol * d[i_peak])
-    if up.size == 0:
-        return i_peak, None
-    return i_peak, i_peak + int(np.nanargmin(rest[: up[0] + 1]))
+    :attr:`peak`, :attr:`rebound`: ``(index, t, u)`` of the sample, None until then. NaN samples
+    are skipped. Of several equal samples, the first counts."""
+
+    def __init__(self, tol: float = 0.01):
+        self.tol, self.n = float(tol), 0
+        self.high, self.high_at = math.nan, None  # the lowest point so far (as d = −u)
+        self.peak = None
+        self.low, self.low_at = math.nan, None    # the highest point since the peak
+        self.rebound = None
+
+    def add(self, u: float, t: float = math.nan) -> None:
+        k, d = self.n, -float(u)
+        self.n += 1
+        if self.rebound is not None:
+            return
+        if self.peak is None:
+            if d > self.high or (math.isnan(self.high) and not math.isnan(d)):
+                self.high, self.high_at = d, (k, float(t), float(u))
+            if self.high > 0.0 and self.high - d > self.tol * self.high:  # turned back up
+                self.peak = self.high_at
+                self.low, self.low_at = d, (k, float(t), float(u))
+            return
+        if d < self.low:
+            self.low, self.low_at = d, (k, float(t), float(u))
+        if d - self.low > self.tol * -self.peak[2]:  # turned back down
+            self.rebound = self.low_at
+
+    def state(self) -> dict:
+        return {k: (list(v) if isinstance(v, tuple) else v) for k, v in vars(self).items()}
+
+    @classmethod
+    def of(cls, state: dict) -> TurningPoints:
+        """The tracker :meth:`state` saved."""
+        out = cls(state["tol"])
+        for k, v in state.items():
+            setattr(out, k, tuple(v) if isinstance(v, list) else v)
+        return out
+
+
+def first_peak_and_rebound(u, tol: float = 0.01) -> tuple[int | None, int | None]:
+    """Sample indices of the first peak and the rebound of the displacement history ``u``
+    (:class:`TurningPoints`); either is None when it has not shown by the last sample."""
+    turns = TurningPoints(tol)
+    for value in np.asarray(u, dtype=float).ravel():
+        turns.add(value)
+    return (None if turns.peak is None else turns.peak[0],
+            None if turns.rebound is None else turns.rebound[0])
 
 
 @register_metrics("vibrating_bar")
@@ -210,6 +257,9 @@ class VibratingBarMetrics(History):
     in 1D (uniaxial strain, the 1D law of :func:`parmpm.exact.nominal_stress_1d`), ``E/(1 − ν²)``
     in 2D (plane strain, laterally free, long waves) and ``E`` in 3D; all equal ``E`` for ν = 0.
     """
+
+    _TRACE = ("times", "com_velocity", "com_velocity_exact")
+    _STATE = ("sq_error", "sq_exact", "max_abs_error")
 
     def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
         self.dim = int(scene_data["dim"])
@@ -232,9 +282,10 @@ class VibratingBarMetrics(History):
         bar = in_bar(self.bar_box, x0)
         # Σ m over the bar in global-id order, as one process holding every particle sums it
         self.bar_mass = gid_order_sum(comm, gid[bar], mass[bar])
-        self.times: list[float] = []
-        self.com_velocity: list[float] = []
-        self.com_velocity_exact: list[float] = []
+        self._begin()
+        self.sq_error = 0.0      # Σ (v̄_num − v̄_exact)²
+        self.sq_exact = 0.0      # Σ v̄_exact²
+        self.max_abs_error = -math.inf  # max |v̄_num − v̄_exact| (NaN if a sample is)
 
     def terms(self, gid, x, v, F, **context):
         """Per-particle momentum along the axis of the bar's particles ``gid``; no maxima."""
@@ -252,26 +303,25 @@ class VibratingBarMetrics(History):
         exact = float(
             vibrating_bar_com_velocity(t if v_time is None else v_time, self.v0, self.L, self.modulus, self.rho, self.mode)
         )
-        self.times.append(float(t))
-        self.com_velocity.append(vbar)
-        self.com_velocity_exact.append(exact)
+        self._add(float(t), vbar, exact)
+
+    def _add(self, t, vbar, exact) -> None:
+        super()._add(t, vbar, exact)
+        self.sq_error += (vbar - exact) ** 2
+        self.sq_exact += exact**2
+        self.max_abs_error = max_or_nan(self.max_abs_error, abs(vbar - exact))
 
     def result(self) -> dict:
         """JSON-ready dict: ``com_velocity_rel_l2_error``, ``samples``, ``period``, ..."""
-        num = np.asarray(self.com_velocity)
-        ex = np.asarray(self.com_velocity_exact)
-        den = float(np.sum(ex**2))
-        err = math.sqrt(float(np.sum((num - ex) ** 2)) / den) if den > 0 else None
+        den = self.sq_exact
+        err = math.sqrt(self.sq_error / den) if den > 0 else None
         return {
             "com_velocity_rel_l2_error": to_plain(err),
-            "com_velocity_max_abs_error": to_plain(np.max(np.abs(num - ex))) if num.size else None,
-            "samples": len(self.times),
+            "com_velocity_max_abs_error": to_plain(self.max_abs_error) if self.samples else None,
+            "samples": self.samples,
             "period": to_plain(self.period),
             "wave_modulus": to_plain(self.modulus),
             "length": to_plain(self.L),
         }
 
 
-HangingBarMetrics._STATE = ("times", "tip_history", "corner_history", "max_stretch_history",
-                            "components_history", "separation_time", "stretch_at_separation")
-VibratingBarMetrics._STATE = ("times", "com_velocity", "com_velocity_exact")

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from decomposition import allreduce_max, is_parallel
+from parmpm.metrics.trace import Trace
 
 logger = logging.getLogger(__name__)
 
@@ -140,10 +141,17 @@ def to_plain(value):
 
 class History:
     """Base of the metrics classes: the particles a metric is built from (:meth:`_own`), their
-    reference fields at sampling time (:meth:`reference`), checkpointing of a metric's history
-    (the attributes named in ``_STATE``) and :meth:`sample`. ``needs_components`` (the run then
-    counts connected pieces) is set from the kind's registry entry
-    (:data:`parmpm.metrics.METRIC_KINDS`).
+    reference fields at sampling time (:meth:`reference`), the record of the samples, its
+    checkpointing and :meth:`sample`. ``needs_components`` (the run then counts connected
+    pieces) is set from the kind's registry entry (:data:`parmpm.metrics.METRIC_KINDS`).
+
+    The record does not grow with the run (:mod:`parmpm.metrics.trace`): a class's ``record``
+    reduces a sample to a row of ``_TRACE`` (``times`` first) and hands it to ``_add``, which
+    updates the summary's streaming figures (the attributes named in ``_STATE``) and the bounded
+    :class:`~parmpm.metrics.trace.Trace` (``self.trace``); each trace column reads as an
+    attribute of its name (``m.times``, ``m.tip_history``: arrays of the kept samples and the
+    latest). A checkpoint keeps ``_STATE`` and the trace (:meth:`state`); one written before the
+    trace, with whole lists, is replayed row by row (:meth:`restore`).
 
     A metric is built from the particles one rank holds (``x0``, ``mass``, global ids ``gid``)
     and a communicator ``comm``: what it needs of the others comes from collective reductions,
@@ -152,7 +160,28 @@ class History:
     :meth:`sample`."""
 
     _STATE: tuple[str, ...] = ()
+    _TRACE: tuple[str, ...] = ("times",)
     needs_components = False
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        for name in cls._TRACE:  # a trace column reads as an attribute
+            if name not in vars(cls):
+                setattr(cls, name, property(lambda self, c=name: self.trace.column(c),
+                                            doc=f"the trace's {name!r} (kept samples, latest)"))
+
+    def _begin(self) -> None:
+        """Start an empty record (a class sets its ``_STATE`` attributes' starting values)."""
+        self.trace = Trace(self._TRACE)
+
+    def _add(self, *row) -> None:
+        """One sample, reduced to a row of ``_TRACE``: update ``_STATE`` and the trace."""
+        self.trace.add(*row)
+
+    @property
+    def samples(self) -> int:
+        """Samples recorded so far."""
+        return self.trace.count
 
     def _own(self, x0, mass, comm, gid):
         """``(x0 (n, dim), mass, gid)`` of the particles the metric is built from (``gid``
@@ -182,11 +211,20 @@ class History:
         self.record(t, sums.sum(axis=0), maxes, components, v_time)
 
     def state(self) -> dict:
-        """The history so far (JSON-ready), for checkpoints."""
-        return {k: v for k, v in vars(self).items() if k in self._STATE}
+        """The record so far (JSON-ready, bounded), for checkpoints."""
+        return {**{k: getattr(self, k) for k in self._STATE}, "trace": self.trace.state()}
 
     def restore(self, state: dict) -> None:
-        """Continue the history saved by :meth:`state` (a restarted run)."""
+        """Continue the record saved by :meth:`state` (a restarted run). A state saved before
+        the trace (whole lists, named as the trace's columns) is replayed sample by sample; a
+        column it lacks is NaN."""
+        if "trace" in state:
+            self.trace.restore(state["trace"])
+        else:
+            n = len(state.get("times") or ())
+            cols = [state.get(c) or [math.nan] * n for c in self._TRACE]
+            for row in zip(*cols):
+                self._add(*row)
         for k in self._STATE:
             if k in state:
                 setattr(self, k, state[k])

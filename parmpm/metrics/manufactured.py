@@ -15,11 +15,15 @@ from parmpm.errors import SceneError
 from parmpm.exact import manufactured_motion
 from parmpm.metrics import register_metrics
 from parmpm.metrics.common import History, as_points, to_plain
+from parmpm.metrics.trace import nanmax
 
 
 @register_metrics("manufactured")
 class ManufacturedMetrics(History):
     """RMS and maximum position error against the manufactured motion."""
+
+    _TRACE = ("times", "rms", "linf")
+    _STATE = ("rms_max", "linf_max")
 
     def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
         self.dim = int(scene_data["dim"])
@@ -31,9 +35,8 @@ class ManufacturedMetrics(History):
         self.A = float(man["amplitude"])
         self.c = math.sqrt(mat["youngs_modulus"] / mat["density"])
         self.period = 2.0 / self.c
-        self.times: list[float] = []
-        self.rms: list[float] = []
-        self.linf: list[float] = []
+        self._begin()
+        self.rms_max = self.linf_max = math.nan  # nanmax over the samples
 
     def terms(self, gid, x, v, F, t=0.0, **context):
         """Per-particle squared error and count; the local maximum error."""
@@ -45,21 +48,23 @@ class ManufacturedMetrics(History):
         return sums, np.array([math.sqrt(float(e2.max())) if n else -np.inf])
 
     def record(self, t, sums, maxes, components, v_time=None) -> None:
-        self.times.append(float(t))
-        self.rms.append(math.sqrt(float(sums[0]) / float(sums[1])) if sums[1] > 0 else math.nan)
-        self.linf.append(float(maxes[0]))
+        rms = math.sqrt(float(sums[0]) / float(sums[1])) if sums[1] > 0 else math.nan
+        self._add(float(t), rms, float(maxes[0]))
+
+    def _add(self, t, rms, linf) -> None:
+        super()._add(t, rms, linf)
+        self.rms_max = nanmax(self.rms_max, rms)
+        self.linf_max = nanmax(self.linf_max, linf)
 
     def result(self) -> dict:
-        rms, linf = np.asarray(self.rms), np.asarray(self.linf)
+        n = self.samples
+        rms, linf = self.rms, self.linf
         return {
-            "rms_error": to_plain(rms[-1]) if rms.size else None,
-            "rms_error_max": to_plain(np.nanmax(rms)) if rms.size else None,
-            "max_error": to_plain(linf[-1]) if linf.size else None,
-            "max_error_max": to_plain(np.nanmax(linf)) if linf.size else None,
+            "rms_error": to_plain(rms[-1]) if n else None,
+            "rms_error_max": to_plain(self.rms_max) if n else None,
+            "max_error": to_plain(linf[-1]) if n else None,
+            "max_error_max": to_plain(self.linf_max) if n else None,
             "amplitude": self.A,
             "period": self.period,
-            "samples": len(self.times),
+            "samples": n,
         }
-
-
-ManufacturedMetrics._STATE = ("times", "rms", "linf")

@@ -25,11 +25,15 @@ from parmpm.domains import domain_sizes
 from parmpm.errors import SceneError
 from parmpm.metrics import register_metrics
 from parmpm.metrics.common import History, as_points, glb_max, to_plain
+from parmpm.metrics.trace import first_max, first_min
 
 
 @register_metrics("rotation")
 class RotationMetrics(History):
     """Domain size, stress, energy and angular momentum of a spinning body (2D)."""
+
+    _TRACE = ("times", "area_ratio", "min_area_ratio", "stress_ratio", "energy", "momentum")
+    _STATE = ("area_ratio_min", "min_area_ratio_min", "stress_ratio_max", "first", "last")
 
     def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
         self.dim = int(scene_data["dim"])
@@ -48,12 +52,9 @@ class RotationMetrics(History):
         radius = float(np.sqrt(glb_max(comm, np.max(np.sum((x0 - self.centre) ** 2, axis=1),
                                                      initial=-np.inf))))
         self.stress_scale = rho * self.omega**2 * radius**2
-        self.times: list[float] = []
-        self.area_ratio: list[float] = []
-        self.min_area_ratio: list[float] = []
-        self.stress_ratio: list[float] = []
-        self.energy: list[float] = []
-        self.momentum: list[float] = []
+        self._begin()
+        self.area_ratio_min = self.min_area_ratio_min = self.stress_ratio_max = None
+        self.first = self.last = None  # (t, energy, momentum) of the first and latest samples
 
     def terms(self, gid, x, v, F, particles=None, method=0, lcr=None, inertia=None, **context):
         """Per particle: domain size now and at rest, kinetic energy, angular momentum (with
@@ -76,33 +77,40 @@ class RotationMetrics(History):
         return sums, np.array([stress.max(initial=-np.inf), (-size / size0).max(initial=-np.inf)])
 
     def record(self, t, sums, maxes, components, v_time=None) -> None:
-        self.times.append(float(t))
-        self.area_ratio.append(float(sums[0] / sums[1]))
-        self.energy.append(float(sums[2]))
-        self.momentum.append(float(sums[3]))
-        self.stress_ratio.append(float(maxes[0]) / self.stress_scale)
-        self.min_area_ratio.append(-float(maxes[1]))
+        self._add(float(t), float(sums[0] / sums[1]), -float(maxes[1]),
+                  float(maxes[0]) / self.stress_scale, float(sums[2]), float(sums[3]))
+
+    def _add(self, t, area, min_area, stress, energy, momentum) -> None:
+        super()._add(t, area, min_area, stress, energy, momentum)
+        self.area_ratio_min = first_min(self.area_ratio_min, area)
+        self.min_area_ratio_min = first_min(self.min_area_ratio_min, min_area)
+        self.stress_ratio_max = first_max(self.stress_ratio_max, stress)
+        self.last = [t, energy, momentum]
+        if self.first is None:
+            self.first = self.last
 
     def result(self) -> dict:
-        def rel(h):
-            return [q / h[0] for q in h] if h and h[0] else [math.nan for _ in h]
+        """JSON-ready dict: the extrema and final ratios over every sample, and ``history``:
+        the trace's samples (all of them up to :data:`parmpm.metrics.trace.CAPACITY`)."""
+        def rel(q, q0):
+            return q / q0 if q0 else math.nan
 
-        e, L = rel(self.energy), rel(self.momentum)
+        n = self.samples
+        e0, L0 = (self.first[1], self.first[2]) if n else (0.0, 0.0)
+        energy, momentum = self.trace.column("energy"), self.trace.column("momentum")
         return {
             "angular_velocity": self.omega,
-            "turns": self.omega * self.times[-1] / (2 * math.pi) if self.times else 0.0,
+            "turns": self.omega * self.last[0] / (2 * math.pi) if n else 0.0,
             "stress_scale": self.stress_scale,
-            "area_ratio_min": to_plain(min(self.area_ratio)) if self.times else None,
-            "min_area_ratio": to_plain(min(self.min_area_ratio)) if self.times else None,
-            "stress_ratio_max": to_plain(max(self.stress_ratio)) if self.times else None,
-            "energy_ratio_final": to_plain(e[-1]) if e else None,
-            "momentum_ratio_final": to_plain(L[-1]) if L else None,
-            "history": {"t": self.times, "area_ratio": self.area_ratio,
-                        "min_area_ratio": self.min_area_ratio, "stress_ratio": self.stress_ratio,
-                        "energy_ratio": e, "momentum_ratio": L},
-            "samples": len(self.times),
+            "area_ratio_min": to_plain(self.area_ratio_min) if n else None,
+            "min_area_ratio": to_plain(self.min_area_ratio_min) if n else None,
+            "stress_ratio_max": to_plain(self.stress_ratio_max) if n else None,
+            "energy_ratio_final": to_plain(rel(self.last[1], e0)) if n else None,
+            "momentum_ratio_final": to_plain(rel(self.last[2], L0)) if n else None,
+            "history": {"t": self.times.tolist(), "area_ratio": self.area_ratio.tolist(),
+                        "min_area_ratio": self.min_area_ratio.tolist(),
+                        "stress_ratio": self.stress_ratio.tolist(),
+                        "energy_ratio": [rel(q, e0) for q in energy.tolist()],
+                        "momentum_ratio": [rel(q, L0) for q in momentum.tolist()]},
+            "samples": n,
         }
-
-
-RotationMetrics._STATE = ("times", "area_ratio", "min_area_ratio", "stress_ratio", "energy",
-                          "momentum")

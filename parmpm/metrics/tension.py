@@ -25,6 +25,7 @@ from parmpm.errors import SceneError
 from parmpm.exact_tension import opening_allowance, tension_failure
 from parmpm.metrics import register_metrics
 from parmpm.metrics.common import History, as_points, to_plain
+from parmpm.metrics.trace import first_max
 from parmpm.seeding import _turn
 
 logger = logging.getLogger(__name__)
@@ -74,10 +75,11 @@ def _section(body: dict, dim: int, e: np.ndarray) -> float:
 class TensionBarMetrics(History):
     """Stretch, failure and separation of a bar pulled between two grips (module doc)."""
 
-    _STATE = ("times", "stretch_history", "max_damage_history", "components_history",
-              "stress_history", "peak_stress", "stretch_at_peak",
-              "failure_time", "stretch_at_failure", "separation_time", "stretch_at_separation",
-              "crack_position", "crack_range")
+    _TRACE = ("times", "stretch_history", "max_damage_history", "components_history",
+              "stress_history")
+    _STATE = ("peak_stress", "stretch_at_peak", "failure_time", "stretch_at_failure",
+              "separation_time", "stretch_at_separation", "crack_position", "crack_range",
+              "max_stretch", "max_damage", "max_components")
 
     def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
         self.dim = d = int(scene_data["dim"])
@@ -117,11 +119,8 @@ class TensionBarMetrics(History):
             cell = float(min(scene_data["grid"]["cell_size"]))
             self.allowance = opening_allowance(segments, pred["weakest"], cell)
 
-        self.times: list[float] = []
-        self.stretch_history: list[float] = []
-        self.max_damage_history: list[float] = []
-        self.components_history: list[int] = []
-        self.stress_history: list[float] = []
+        self._begin()
+        self.max_stretch = self.max_damage = self.max_components = None
         self.peak_stress = self.stretch_at_peak = None
         self.failure_time = self.stretch_at_failure = None
         self.separation_time = self.stretch_at_separation = None
@@ -168,21 +167,24 @@ class TensionBarMetrics(History):
         stretch = (float(np.linalg.norm(cB - cA)) - self.h) / self.L0
         # ∫σ_ee dV = force × current length for a force uniform along the bar: nominal stress
         stress = float(sums[-3]) / (stretch * self.L0) / self.area0
-        self.stress_history.append(stress)
+        comps = -1 if components is None else int(components)
+        separated = self.separation_time is not None
+        self._add(float(t), stretch, float(maxes[0]), comps, stress)
+        if self.separation_time is not None and not separated and sums[-2] > 0:
+            self.crack_position = float(sums[-1] / sums[-2])
+            self.crack_range = [float(-maxes[2]), float(maxes[1])]
+
+    def _add(self, t, stretch, damage, comps, stress) -> None:
+        super()._add(t, stretch, damage, comps, stress)
         if self.peak_stress is None or stress > self.peak_stress:
             self.peak_stress, self.stretch_at_peak = stress, stretch
-        comps = -1 if components is None else int(components)
-        self.times.append(float(t))
-        self.stretch_history.append(stretch)
-        self.max_damage_history.append(float(maxes[0]))
-        self.components_history.append(comps)
-        if self.failure_time is None and maxes[0] >= FULL:
+        if self.failure_time is None and damage >= FULL:
             self.failure_time, self.stretch_at_failure = float(t), stretch
         if comps > 1 and self.separation_time is None:
             self.separation_time, self.stretch_at_separation = float(t), stretch
-            if sums[-2] > 0:
-                self.crack_position = float(sums[-1] / sums[-2])
-                self.crack_range = [float(-maxes[2]), float(maxes[1])]
+        self.max_stretch = first_max(self.max_stretch, stretch)
+        self.max_damage = first_max(self.max_damage, damage)
+        self.max_components = first_max(self.max_components, int(comps))
 
     def result(self) -> dict:
         """JSON-ready dict: the measured and predicted stretches and positions (class doc)."""
@@ -207,9 +209,9 @@ class TensionBarMetrics(History):
             "crack_range": self.crack_range,
             "weak_segment_position": to_plain(self.weak_position),
             "weak_segment_halfwidth": to_plain(self.weak_halfwidth),
-            "max_stretch": to_plain(max(self.stretch_history)) if self.stretch_history else None,
-            "max_damage": to_plain(max(self.max_damage_history)) if self.max_damage_history else None,
+            "max_stretch": to_plain(self.max_stretch),
+            "max_damage": to_plain(self.max_damage),
             "bar_length": self.L0,
-            "max_components": int(max(self.components_history)) if self.components_history else None,
-            "samples": len(self.times),
+            "max_components": None if self.max_components is None else int(self.max_components),
+            "samples": self.samples,
         }

@@ -1,0 +1,46 @@
+"""Where a checkpoint's part files may be: in its own ``<checkpoint>.parts/`` folder, nowhere else.
+
+A top-level checkpoint names its parts (``/parts/file``) relative to its folder. Its digests are
+keyless (they catch damage, not intent), so a crafted file can carry any names with valid
+digests: joined to the folder unchecked, ``/etc/...`` or ``../../x`` would make a restart read
+files anywhere, and its error ("no such file" or "not a readable HDF5 file") would tell whether
+some outside path exists. So a name must be ``<checkpoint>.parts/<file>``, exactly as the writer
+(:func:`parmpm.io.checkpoint_gather.write_checkpoint`) makes it, and a part file must not be a link
+that leads out of that folder; both refusals are decided from names and links alone, before any
+part is opened, and read the same whether the outside path exists or not.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from parmpm.errors import ParmpmError
+from parmpm.io.checkpoint import parts_folder
+
+
+def part_paths(path: Path, names: list[str], where: str) -> list[Path]:
+    """Where the part files of checkpoint ``path`` are: each name must be ``<checkpoint>.parts/
+    <file>``, as the writer makes them. Nothing else is opened (an absolute name, ``..``, another
+    folder: a crafted file could otherwise read, or probe, any path), and the refusal is decided
+    from the name alone, so it never tells whether some outside path exists."""
+    real = Path(os.path.realpath(path)) if path.is_symlink() else path
+    folder = parts_folder(real)
+    paths = []
+    for k, name in enumerate(names):
+        head, sep, tail = name.partition("/")
+        if (head != folder.name or not tail or "/" in tail or tail in (".", "..")
+                or any(c in name for c in "\\\0")):
+            raise ParmpmError(f"{where}: damaged or crafted: part {k} is named {name!r}, not a "
+                              f"file in '{folder.name}/' (a checkpoint's parts stay in its own "
+                              "parts folder)")
+        paths.append(real.parent / head / tail)
+    return paths
+
+
+def inside(path: Path, where: str) -> None:
+    """A part file must not be a link that leads out of its parts folder (the verdict is made from
+    the links alone, the same whether the outside target exists or not)."""
+    folder = os.path.realpath(path.parent)
+    if os.path.dirname(os.path.realpath(path)) != folder:
+        raise ParmpmError(f"{where}: a link that leads out of '{path.parent.name}/' (refused: a "
+                          "checkpoint's parts stay in its own parts folder)")
