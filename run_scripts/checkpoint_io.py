@@ -31,6 +31,10 @@ from parmpm.io.checkpoint import DTYPES, parts_folder, remove_checkpoint
 from parmpm.log import setup_logging
 from parmpm.simulation import Simulation
 
+#: a finished run's checkpoint is refused unless the restart is given steps to run: one more
+#: (only the read is timed; the continued run is never stepped)
+MORE = ("time.steps=3",)
+
 _readers = []
 
 
@@ -95,7 +99,7 @@ def main() -> None:
         _readers.clear()
         r0 = _rchar()
         t0 = time.perf_counter()
-        Simulation.from_checkpoint(path, out_dir=out / f"restart{k}", quiet=True, comm=comm)
+        Simulation.from_checkpoint(path, MORE, out_dir=out / f"restart{k}", quiet=True, comm=comm)
         comm.Barrier()
         t_read = time.perf_counter() - t0
         rchar = _rchar() - r0

@@ -69,6 +69,11 @@ PREDICT_PARTICLES = (1e8, 1e9, 1e10)
 PREDICT_RANKS = (100, 1000, 10000)
 
 
+#: a finished run's checkpoint is refused unless the restart is given steps to run: one more
+#: (only the read is timed; the continued run is never stepped)
+MORE = ("time.steps=3",)
+
+
 # --- the worker: memory through set-up, a run, a checkpoint write and a restart ---------------
 def worker(particles: int, out: Path) -> None:
     from decomposition import world
@@ -94,11 +99,11 @@ def worker(particles: int, out: Path) -> None:
                          quiet=True, comm=comm)
         sim.run()
         path = sim.write_checkpoint()
-        Simulation.from_checkpoint(path, out_dir=tmp / "warm_r0", quiet=True, comm=comm)
+        Simulation.from_checkpoint(path, MORE, out_dir=tmp / "warm_r0", quiet=True, comm=comm)
         if rank == 0:
             remove_checkpoint(path)
         path, t_0 = timed(sim.write_checkpoint)
-        _, t_0r = timed(lambda: Simulation.from_checkpoint(path, out_dir=tmp / "warm_r1",
+        _, t_0r = timed(lambda: Simulation.from_checkpoint(path, MORE, out_dir=tmp / "warm_r1",
                                                            quiet=True, comm=comm))
         del sim
         gc.collect()
@@ -117,7 +122,7 @@ def worker(particles: int, out: Path) -> None:
         gc.collect()
         comm.Barrier()
         sm._reset_peak()
-        rs = Simulation.from_checkpoint(path, out_dir=tmp / "big_r", quiet=True, comm=comm)
+        rs = Simulation.from_checkpoint(path, MORE, out_dir=tmp / "big_r", quiet=True, comm=comm)
         restart = sm._peak(hwm)
         restored = rs.particles.n
         del rs
