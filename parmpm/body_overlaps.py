@@ -23,24 +23,13 @@ import numpy as np
 
 from decomposition import is_parallel
 from parmpm.log import get_logger
-from parmpm.scene_bodies import rotated_box_bounds
+from parmpm.scene_bodies import body_bounds
 from parmpm.seeding import _turn as turn
 
 log = get_logger(__name__)
 
 #: volume units by dimension
 UNITS = {1: "m", 2: "m²", 3: "m³"}
-
-
-def body_bounds(body: dict, dim: int) -> tuple[np.ndarray, np.ndarray]:
-    """Axis-aligned bounds of a body (a turned box's bounding box)."""
-    if body["shape"] == "box":
-        lo, hi = list(body["min"]), list(body["max"])
-        if body.get("angle"):
-            lo, hi = rotated_box_bounds(lo, hi, body["angle"])
-        return np.asarray(lo, float), np.asarray(hi, float)
-    c, r = np.asarray(body["center"], float), float(body["radius"])
-    return c - r, c + r
 
 
 def inside(body: dict, dim: int, x: np.ndarray) -> np.ndarray:
@@ -61,7 +50,7 @@ def inside(body: dict, dim: int, x: np.ndarray) -> np.ndarray:
 
 def candidate_pairs(bodies: list[dict], dim: int) -> list[tuple[int, int]]:
     """Pairs ``(i, j)``, ``i < j``, whose bounds overlap with positive volume."""
-    bounds = [body_bounds(b, dim) for b in bodies]
+    bounds = [tuple(np.asarray(v, float) for v in body_bounds(b)) for b in bodies]
     pairs = []
     for j in range(len(bodies)):
         for i in range(j):

@@ -32,7 +32,7 @@ import os
 
 from parmpm.errors import ParmpmError
 from parmpm.metrics import separation_kinds
-from parmpm.scene_bodies import rotated_box_bounds
+from parmpm.scene_bodies import body_bounds
 
 #: measured peak over the bare fields (a 2D cpdi run at 1e6 particles: 360 B per particle over
 #: 256 B of fields; the node blocks' halo buffers likewise)
@@ -62,15 +62,6 @@ def _body_particles(body: dict, h: list[float], dim: int) -> float:
     return inscribed * math.prod(2 * body["radius"] / hk * p + 1 for hk, p in zip(h, ppc))
 
 
-def _body_box(body: dict) -> tuple[list[float], list[float]]:
-    if body["shape"] == "box":
-        if body.get("angle"):
-            return rotated_box_bounds(body["min"], body["max"], body["angle"])
-        return body["min"], body["max"]
-    return ([c - body["radius"] for c in body["center"]],
-            [c + body["radius"] for c in body["center"]])
-
-
 def estimate(data: dict, ghost: int, ranks: int = 1) -> dict:
     """The estimate for a resolved scene (``scene.data``) with ``ghost`` ghost cells on ``ranks``
     ranks: particles, patches, nodes per patch and the peak bytes per rank."""
@@ -80,7 +71,7 @@ def estimate(data: dict, ghost: int, ranks: int = 1) -> dict:
     particles = sum(_body_particles(b, h, d) for b in data["bodies"])
     patches = 0.0
     for body in data["bodies"]:
-        lo, hi = _body_box(body)
+        lo, hi = body_bounds(body)
         count = 1.0
         for k in range(d):
             a = max(0, math.floor((lo[k] - origin[k]) / h[k]) - ghost - 1)

@@ -139,6 +139,17 @@ def rotated_box_bounds(bmin: list, bmax: list, angle: float) -> tuple[list, list
     return [m - r for m, r in zip(mid, reach)], [m + r for m, r in zip(mid, reach)]
 
 
+def body_bounds(body: dict) -> tuple[list, list]:
+    """Axis-aligned bounds of a resolved body: a box's corners (a turned box's bounding box), a
+    disk's or sphere's centre ± radius."""
+    if body["shape"] == "box":
+        if body.get("angle"):
+            return rotated_box_bounds(body["min"], body["max"], body["angle"])
+        return list(body["min"]), list(body["max"])
+    return ([c - body["radius"] for c in body["center"]],
+            [c + body["radius"] for c in body["center"]])
+
+
 def _velocity_gradient(c: _Checker, key: str, raw: Any, dim: int) -> list | None:
     """``L`` of the initial affine velocity ``v += L·(x − centre)`` (rows: velocity components)."""
     if raw is None:

@@ -12,21 +12,12 @@ from __future__ import annotations
 
 import math
 
-from parmpm.scene_bodies import rotated_box_bounds
+from parmpm.scene_bodies import body_bounds
 from parmpm.scene_check import _Checker, show
 
 #: the largest kinetic energy a body may start with (J, or J per m^(3 - dim)): far below the
 #: largest double, so that the sums of a run (energies, work over many steps) stay finite
 MAX_KINETIC_ENERGY = 1e300
-
-
-def _bounds(body: dict) -> tuple[list[float], list[float]]:
-    if body["shape"] == "box":
-        if body.get("angle"):
-            return rotated_box_bounds(body["min"], body["max"], body["angle"])
-        return body["min"], body["max"]
-    return ([x - body["radius"] for x in body["center"]],
-            [x + body["radius"] for x in body["center"]])
 
 
 def _norm(values) -> float:
@@ -43,7 +34,7 @@ def check_speeds(c: _Checker, bodies: list, materials: dict) -> None:
     """Refuse a body whose initial speed gives a kinetic energy past :data:`MAX_KINETIC_ENERGY`
     (or one that overflows), naming the key that contributes most to the speed."""
     for k, body in enumerate(bodies):
-        lo, hi = _bounds(body)
+        lo, hi = body_bounds(body)
         reach = 0.5 * _norm([b - a for a, b in zip(lo, hi)])  # centre to a corner
         volume = math.prod(b - a for a, b in zip(lo, hi))
         terms = {"velocity": _norm(body["velocity"])}

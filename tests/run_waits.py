@@ -7,7 +7,9 @@ run wait for proof of steps instead: ``history.csv`` (one row per step with
 """
 from __future__ import annotations
 
+import os
 import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -30,3 +32,25 @@ def wait_for_steps(proc: subprocess.Popen, history: Path, rows: int = 3,
         proc.kill()
     _, err = proc.communicate()
     pytest.fail(f"the run did not reach its time loop (exit {proc.returncode}): {err[-2000:]}")
+
+
+def signal_during_set_up(out: Path, sig: int, busy: float, limit: float) -> tuple[int, str]:
+    """Run ``parmpm run hanging_bar_1d -o out`` in a process whose set-up (``Simulation``'s
+    constructor) is replaced by ``busy`` seconds of busy waiting, send ``sig`` once it has begun,
+    and return (exit code, stderr); ``limit``: seconds to wait for the end (a hang, not a timing).
+    """
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    proc = subprocess.Popen([sys.executable, "-c",
+                             "import time, sys; from parmpm.__main__ import main\n"
+                             "import parmpm.simulation as s\n"
+                             "def slow(self, *a, **k):\n"
+                             "    print('setting up', flush=True); t = time.time()\n"
+                             f"    while time.time() - t < {busy}: pass  # busy, as set-up is\n"
+                             "s.Simulation.__init__ = slow\n"
+                             "sys.exit(main(['run', 'hanging_bar_1d', '--quiet', '-o', sys.argv[1]]))",
+                             str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    assert proc.stdout.readline().strip() == "setting up"
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=limit)
+    return proc.returncode, err

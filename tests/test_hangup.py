@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 
 import pytest
-from run_waits import wait_for_steps
+from run_waits import signal_during_set_up, wait_for_steps
 
 REPO = Path(__file__).resolve().parents[1]
 ENV = dict(os.environ, PYTHONPATH=str(REPO))
@@ -128,20 +128,8 @@ def test_a_hang_up_of_one_rank_stops_both_with_a_checkpoint(tmp_path, mpirun):
 
 
 def test_a_hang_up_during_set_up_is_one_line_and_exit_130(tmp_path):
-    proc = subprocess.Popen([sys.executable, "-c",
-                             "import time, sys; from parmpm.__main__ import main\n"
-                             "import parmpm.simulation as s\n"
-                             "def slow(self, *a, **k):\n"
-                             "    print('setting up', flush=True); t = time.time()\n"
-                             "    while time.time() - t < 60: pass  # busy, as set-up is\n"
-                             "s.Simulation.__init__ = slow\n"
-                             "sys.exit(main(['run', 'hanging_bar_1d', '--quiet', '-o', sys.argv[1]]))",
-                             str(tmp_path / "o")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV)
-    assert proc.stdout.readline().strip() == "setting up"
-    proc.send_signal(signal.SIGHUP)
-    _, err = proc.communicate(timeout=STOP_S)
-    assert proc.returncode == 130 and err.strip() == "parmpm: interrupted", err
+    returncode, err = signal_during_set_up(tmp_path / "o", signal.SIGHUP, 60, STOP_S)
+    assert returncode == 130 and err.strip() == "parmpm: interrupted", err
 
 
 def test_nohup_keeps_the_run_going(tmp_path):

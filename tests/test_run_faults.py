@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 from mpi_launch import mpirun, needs_mpi
+from run_waits import signal_during_set_up
 from test_cli import assert_one_line_error
 from test_cli import parmpm as cli
 
@@ -172,22 +173,8 @@ def test_sigterm_while_the_final_figure_is_drawn_writes_a_checkpoint(tmp_path, m
 def test_sigterm_during_set_up_is_one_line_and_exit_130(tmp_path):
     """Before the time loop there is nothing to save: SIGTERM ends the run like Ctrl-C (before:
     killed by the signal, rc -15, no message)."""
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
-    proc = subprocess.Popen([sys.executable, "-c",
-                             "import time, sys; from parmpm.__main__ import main\n"
-                             "import parmpm.simulation as s\n"
-                             "orig = s.Simulation.__init__\n"
-                             "def slow(self, *a, **k):\n"
-                             "    print('setting up', flush=True); t = time.time()\n"
-                             "    while time.time() - t < 100: pass  # busy, as set-up is\n"
-                             "s.Simulation.__init__ = slow\n"
-                             "sys.exit(main(['run', 'hanging_bar_1d', '--quiet', '-o', sys.argv[1]]))",
-                             str(tmp_path / "o")],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-    assert proc.stdout.readline().strip() == "setting up"
-    proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130, err
+    returncode, err = signal_during_set_up(tmp_path / "o", signal.SIGTERM, 100, 120)
+    assert returncode == 130, err
     assert err.strip() == "parmpm: interrupted"
 
 
