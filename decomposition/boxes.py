@@ -9,7 +9,7 @@ patch id with axis 0 fastest.
 
 The box functions take patch coordinates of any shape (``(..., 3)``, padded axes: one patch of
 one node, no ghosts) and broadcast. The scalar ones (:func:`patch_of_cell` and below) are plain
-Python that numba also compiles: :mod:`parmpm.patch_index` wraps them for the kernels, so the
+Python that numba also compiles: :mod:`parmpm.grid.patch_index` wraps them for the kernels, so the
 particle locators, the seeding and the fast G2P kernels share one formula.
 """
 from __future__ import annotations

@@ -24,12 +24,12 @@ import tempfile
 import time
 from pathlib import Path
 
-import parmpm.rank_state as rank_state
+import parmpm.driver.set_up as rank_state
 from decomposition import world
-from parmpm.bench import build_bench_scene
+from parmpm.cli.bench import build_bench_scene
 from parmpm.io.checkpoint import DTYPES, parts_folder, remove_checkpoint
-from parmpm.log import setup_logging
-from parmpm.simulation import Simulation
+from parmpm.core.log import setup_logging
+from parmpm.driver.simulation import Simulation
 
 #: a finished run's checkpoint is refused unless the restart is given steps to run: one more
 #: (only the read is timed; the continued run is never stepped)

@@ -40,7 +40,7 @@ Expected (the literature) and found (full study, RMS error / relative error; ord
   cell-crossing error grows as h shrinks).
   Quadratic B-splines (``bspline``): C¹ weights, second order expected on this smooth
   solution, provided the faces are mirrors: a B-spline particle within half a cell of a face
-  weights the node beyond it, whose velocity is the mirror of its twin's (``parmpm.symmetry``;
+  weights the node beyond it, whose velocity is the mirror of its twin's (``parmpm.grid.symmetry``;
   the slip planes used before held it at zero and gave first order: 2D 1.14, 1.13, 1.16).
   Found, mirror faces: FLIP 1D 1.85e-3, 5.13e-4, 2.96e-4, 7.82e-4 at 16 → 128 cells (orders
   1.85, 0.79, −1.40), 2D 8.99e-3, 2.19e-3, 5.57e-4, 3.61e-4 (2.04, 1.97, 0.62), 3D 4.2e-2 →
@@ -279,7 +279,7 @@ def dynamic_runs(quick: bool, methods=None) -> list[tuple[str, str, int]]:
 
 
 def dynamic_case(method, update, cells, comm, scratch: Path):
-    from parmpm.exact import hanging_bar_dynamic_series
+    from parmpm.exact.bars import hanging_bar_dynamic_series
 
     c = math.sqrt(BAR_E / BAR_RHO)
     end = 8.0 * BAR_L / c  # two periods
@@ -343,7 +343,7 @@ def manufactured_figure(rows: list[dict], path: Path) -> Path:
 
 def bars_figure(vib: dict, dyn: dict, profile, vrows, srows, drows, path: Path) -> Path:
     """2×2: vibrating bar com velocity; small-strain tip history; static profile; errors vs h."""
-    from parmpm.exact import (hanging_bar_dynamic_tip, hanging_bar_static,
+    from parmpm.exact.bars import (hanging_bar_dynamic_tip, hanging_bar_static,
                               hanging_bar_static_displacement, nominal_stress_1d)
 
     fig, axes = figure(2, 2, size=(10.0, 7.4))
@@ -351,7 +351,7 @@ def bars_figure(vib: dict, dyn: dict, profile, vrows, srows, drows, path: Path) 
     if vib:
         key0 = next(iter(vib))
         t = np.linspace(0.0, vib[key0]["t"][-1], 800)
-        from parmpm.exact import vibrating_bar_com_velocity
+        from parmpm.exact.bars import vibrating_bar_com_velocity
         ax.plot(t, vibrating_bar_com_velocity(t, 0.1, VIB_L, 100.0, 1.0), color="k", lw=1.0,
                 label="exact")
         for k, ((m, u), d) in enumerate(vib.items()):

@@ -16,7 +16,7 @@ nodes.
 Measured: the vertical displacement of the bar's bottom corner, at the reference position of
 the MPM run's bottom-left particle (Δx/6 in from the corner at 3 particles per cell; the FE
 field is interpolated there), its first peak (value, time) and rebound (the highest point of the
-following upswing, :func:`parmpm.metrics.bars.first_peak_and_rebound` on both). The FE model
+following upswing, :func:`parmpm.output.metrics.bars.first_peak_and_rebound` on both). The FE model
 converges by refinement (n = 20, 40, 80 in the full study); the MPM runs are the
 built-in ``hanging_bar`` scene (cpdi, Δx = 0.1 m, 3 particles per cell per axis) and the same
 at Δx = 0.05 m, both with the roller and clamped support.
@@ -159,7 +159,7 @@ def fe_bar(n: int, end: float, support: str = "roller", cfl: float = 0.3, points
 
 def peaks(t: np.ndarray, u: np.ndarray) -> dict:
     """First peak and rebound of the history ``u(t)`` (None where not reached)."""
-    from parmpm.metrics.bars import first_peak_and_rebound
+    from parmpm.output.metrics.bars import first_peak_and_rebound
 
     i, j = first_peak_and_rebound(u)
     return {"first_peak": None if i is None else float(u[i]),

@@ -4,7 +4,7 @@ Physics. The built-in ``tension_bar`` (2D plane strain, Δx = 0.025 m, CPDI with
 neo-Hookean bar (0.8 m x 0.1 m, damage onset/fracture stretches 1.2/1.6) with a four-cell band
 in its middle (1.1/1.3) between two heavy stiff grips pulled apart at ε̇ = 0.8 1/s
 (``metrics.kind = "tension_bar"``, ``stop_on_separation``). The damage model predicts the bar's
-stretch at failure (:mod:`parmpm.exact_tension`: the band peaks and snaps back, λ_fail ≈ 1.11);
+stretch at failure (:mod:`parmpm.exact.tension`: the band peaks and snaps back, λ_fail ≈ 1.11);
 the question is when the *numerical* bar comes apart (two connected pieces of material) and how
 much that depends on where the particles sit in the background grid. The seed paper's claim:
 with plain l_cr scaling the fracture depends on the particles' alignment with the grid, while
@@ -228,7 +228,7 @@ def _num(v) -> float:
 def run_one(case: Case, scene_path: Path, comm) -> dict:
     """One case at the scene's CFL number; a run that blows up (non-finite velocity or stress:
     seen with ``lcr`` after failure) is run again once at half of it, and reported as such."""
-    from parmpm.errors import SimulationError
+    from parmpm.core.errors import SimulationError
 
     wall, error = 0.0, ""
     for cfl in CFLS:

@@ -77,10 +77,10 @@ MORE = ("time.steps=3",)
 # --- the worker: memory through set-up, a run, a checkpoint write and a restart ---------------
 def worker(particles: int, out: Path) -> None:
     from decomposition import world
-    from parmpm.bench import build_bench_scene
+    from parmpm.cli.bench import build_bench_scene
     from parmpm.io.checkpoint import remove_checkpoint
-    from parmpm.log import setup_logging
-    from parmpm.simulation import Simulation
+    from parmpm.core.log import setup_logging
+    from parmpm.driver.simulation import Simulation
 
     comm = world()
     rank = comm.Get_rank()

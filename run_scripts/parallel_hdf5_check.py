@@ -58,12 +58,12 @@ STEPS = (20, 40)
 #: one rank's row writes fail: the collective path must still end on every rank with one line
 INJECT = """
 import errno, os, sys
-import parmpm.io.checkpoint_gather as g
+import parmpm.driver.checkpoint_writer as g
 if os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK")) == "1":
     def _full(*args, **kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
     g.block_digest = _full
-from parmpm.__main__ import main
+from parmpm.cli.main import main
 sys.exit(main(sys.argv[1:]))
 """
 

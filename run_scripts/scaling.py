@@ -1,6 +1,6 @@
 """Strong and weak scaling of the time step, and a cost model fitted to them (``cost_model.py``).
 
-What it measures. ``parmpm bench`` (a translating neo-Hookean block, ``parmpm/bench.py``; the
+What it measures. ``parmpm bench`` (a translating neo-Hookean block, ``parmpm/cli/bench.py``; the
 first step, JIT, untimed) run as ``mpirun -n P python -m parmpm bench --json ...`` for each P in
 ``--ranks`` (1 is always added: the reference):
 

@@ -37,7 +37,7 @@ def partition_halo(result: dict, ranks: int) -> dict:
     bytes and neighbour-rank count, the number of shared patch faces across ranks and the
     bytes they alone account for."""
     from decomposition import PatchLayout, active_patches, assign
-    from parmpm.bench import build_bench_scene
+    from parmpm.cli.bench import build_bench_scene
 
     req, dim = result["request"], int(result["dim"])
     scene = build_bench_scene(dim, req["method"], req["particles"], req["ppc"], req["steps"],
@@ -194,7 +194,7 @@ def model_study(args, results: dict, rows: list[dict], t_p: dict, probes: dict, 
     """Fit, check and predict; write ``cost_model.csv`` / ``.json`` / ``.png``; returns (check
     rows, PNG path). ``results``: bench results per kind (each with its ``halo_model``),
     ``rows``: their ``scaling.csv`` rows in the same order."""
-    from parmpm.scene_schema import DEFAULT_PATCH_SIZE
+    from parmpm.scene.schema import DEFAULT_PATCH_SIZE
     from parmpm.shapes import INTERPOLATORS
 
     kinds = list(results)

@@ -13,7 +13,7 @@ from the warm-up's own peak). Cases:
 * ``box``: the ``hanging_bar`` scene (hanging-bar metrics: tip, corner, separation) refined to
   4·10⁶ particles (``grid.cell_size = 0.0015``, ``ppc = 3``) on a grid trimmed to the bar.
 
-Expected: set-up holds O(N/P) particle data per rank (parmpm.seeding seeds in blocks of global
+Expected: set-up holds O(N/P) particle data per rank (parmpm.particles.seeding seeds in blocks of global
 ids; the metrics keep only reductions), so the largest rank's memory above baseline falls as
 ``a·N/P + b``: ``a`` bytes per particle, ``b`` a constant (the grid's and the patches'
 descriptions, MPI buffers). The issue's goal: on 8 ranks the largest rank holds at most 1.5/8 of
@@ -108,7 +108,7 @@ def _peak(hwm: bool) -> int:
 def worker(case: str, quick: bool, out: Path) -> None:
     import parmpm
     from decomposition import world
-    from parmpm.log import setup_logging
+    from parmpm.core.log import setup_logging
 
     comm = world()
     setup_logging(comm.Get_rank(), comm.Get_size(), quiet=True)

@@ -50,7 +50,7 @@ Found (a run of every case but the 64-cell ones, one core, shared machine):
   are worse and separate earlier (every non-CPDI ppc 1 run separates, except uGIMP's and
   cpGIMP's at 10 cells). Below an error of 4e-4 the front is CPDI's alone.
 * Quadratic B-splines on the mirror faces (the manufactured rows re-run after
-  ``parmpm.symmetry``; with the slip planes before, both were first order, 15–16× CPDI's error
+  ``parmpm.grid.symmetry``; with the slip planes before, both were first order, 15–16× CPDI's error
   at 32 cells): manufactured, ppc 2: FLIP 9.0e-3, 2.2e-3, 5.6e-4, 3.6e-4 m at 8 → 64 cells
   (orders 2.04, 1.97, 0.62: second order, then the stall of README's convergence section),
   APIC 5.0e-3, 1.2e-3, 3.2e-4, 2.1e-4 (2.07, 1.88, 0.64). APIC at ppc 1 is on the time front
@@ -141,7 +141,7 @@ class Case:
 class StaticBarError:
     """Observer (collective) for the 1D hanging bar: at the end of the run, the largest
     ``|u_p − u*(X_p)|`` over all particles against the exact static displacement ``u*`` of the 1D
-    neo-Hookean law (:func:`parmpm.exact.hanging_bar_static_displacement`; ``X`` from the support),
+    neo-Hookean law (:func:`parmpm.exact.bars.hanging_bar_static_displacement`; ``X`` from the support),
     over the exact tip displacement ``u*(L)``. Gathered in global-id order: rank-independent."""
 
     def __init__(self):
@@ -150,7 +150,7 @@ class StaticBarError:
     def __call__(self, sim) -> None:
         if not sim.done():
             return
-        from parmpm.exact import hanging_bar_static_displacement, nominal_stress_1d
+        from parmpm.exact.bars import hanging_bar_static_displacement, nominal_stress_1d
 
         P = sim.particles
         g = sim.gather({"x": P.x[:, 0].copy(), "x0": P.x0[:, 0].copy()})

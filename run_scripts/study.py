@@ -43,7 +43,7 @@ class Method:
     key: str            # the study's name for it: CSV ``method`` column, case ids, ``--methods``
     interpolator: str   # ``method.interpolator``
     transfer: str       # ``method.transfer``: "flip" | "apic" | "mls"
-    update: str         # what ``method.update = "auto"`` resolves to (parmpm.simulation)
+    update: str         # what ``method.update = "auto"`` resolves to (parmpm.driver.simulation)
     label: str
     colour: str
     marker: str
@@ -143,6 +143,7 @@ def run_case(scene, overrides=(), comm=None, observers=(), out_dir=None) -> tupl
     ``scene`` is a built-in name, a TOML path or a :class:`parmpm.Scene`; ``overrides`` apply to
     any of them."""
     import parmpm
+    from parmpm.driver.warm_up import compile_first
 
     overrides = list(overrides) + ["output.snapshots=false", "output.figure=false"]
     if isinstance(scene, parmpm.Scene):
@@ -154,7 +155,8 @@ def run_case(scene, overrides=(), comm=None, observers=(), out_dir=None) -> tupl
         if out_dir is None:
             out_dir = stack.enter_context(scratch_folder(comm, "parmpm-study-"))
         # a study owns its folders: a rerun replaces its own earlier case
-        sim = parmpm.Simulation(scene, out_dir, quiet=True, comm=comm, overwrite=True)
+        sim = parmpm.Simulation(scene, out_dir, quiet=True, comm=comm, overwrite=True,
+                                warm_up=compile_first)
         sim.observers.extend(observers)
         comm.Barrier()
         t0 = time.perf_counter()
@@ -249,7 +251,7 @@ def manufactured_scene(dim: int, cells: int, interpolator: str = "cpdi", update:
                        transfer: str = "flip", faces: str = "symmetry"):
     """The axis-aligned manufactured solution (the built-in ``manufactured`` scene, any
     dimension): unit cube of ``cells`` cells per axis, mirror faces (``faces = "symmetry"``,
-    :mod:`parmpm.symmetry`, the exterior layer auto) or, as before, two cells of room on each
+    :mod:`parmpm.grid.symmetry`, the exterior layer auto) or, as before, two cells of room on each
     side held by slip regions on and beyond the faces (``faces = "slip_regions"``: first order
     for the B-spline); Uintah's parameters (E = 1e4, ν = 0.3, ρ0 = 1: period 0.02 s).
     ``interpolator`` may also be a key of :data:`METHODS` (e.g. ``"bspline_apic"``), which sets
@@ -258,7 +260,7 @@ def manufactured_scene(dim: int, cells: int, interpolator: str = "cpdi", update:
     if interpolator in METHODS:
         transfer = METHODS[interpolator].transfer
         interpolator = METHODS[interpolator].interpolator
-    from parmpm.scene import scene_from_toml
+    from parmpm.scene.load import scene_from_toml
 
     h = 1.0 / cells
     axes = "xyz"[:dim]
@@ -275,7 +277,7 @@ def manufactured_scene(dim: int, cells: int, interpolator: str = "cpdi", update:
             else:
                 lo[k] = 1.0
             planes.append(f'{{ min = {vec(lo)}, max = {vec(hi)}, normal = "{a}" }}')
-    if faces == "symmetry":  # mirror faces on the body (parmpm.symmetry), exterior layer auto
+    if faces == "symmetry":  # mirror faces on the body (parmpm.grid.symmetry), exterior layer auto
         origin, n = 0.0, cells
         ps = patch_size or max(6, (cells + 5) // 2)
         boundary = "\n".join(f'{a}_{s} = "symmetry"' for a in axes for s in ("min", "max"))
@@ -330,7 +332,7 @@ def scene_with(scene, overrides=()):
     """``scene`` (a :class:`parmpm.Scene`, e.g. from :func:`manufactured_scene`) with
     ``section.key=value`` overrides applied on top; the round trip is ``Scene.to_toml`` →
     ``scene_from_toml``."""
-    from parmpm.scene import scene_from_toml
+    from parmpm.scene.load import scene_from_toml
 
     return scene_from_toml(scene.to_toml(), scene.source, list(overrides), default_name=scene.name)
 

@@ -5,7 +5,7 @@ equation and maps back. *Update stress last* (USL) updates F and the stress with
 gradient of that grid solution; *modified USL* (MUSL; Sulsky et al. 1995) first updates the
 particle velocities and positions, maps the new particle momentum to the grid again and takes the
 velocity gradient from that second grid field. parmpm's default (``method.update = "auto"``,
-:mod:`parmpm.simulation`) is USL for cpdi and MUSL for mpm, uGIMP, cpGIMP and bspline (FLIP or
+:mod:`parmpm.driver.simulation`) is USL for cpdi and MUSL for mpm, uGIMP, cpGIMP and bspline (FLIP or
 APIC). Four checks, each method of ``study.METHODS`` with both updates (CPDI unscaled,
 ``method.lcr = none``):
 

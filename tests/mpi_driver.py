@@ -13,9 +13,10 @@ from pathlib import Path
 import numpy as np
 
 from decomposition import world
-from parmpm.log import setup_logging
-from parmpm.scene import load_scene
-from parmpm.simulation import Simulation
+from parmpm.core.log import setup_logging
+from parmpm.scene.load import load_scene
+from parmpm.driver.simulation import Simulation
+from parmpm.driver.warm_up import compile_first
 
 
 def main() -> None:
@@ -23,7 +24,8 @@ def main() -> None:
     comm = world()
     setup_logging(comm.Get_rank(), comm.Get_size(), quiet=True)
     for name, (scene, overrides) in cases.items():
-        sim = Simulation(load_scene(scene, overrides), out / name, quiet=True, comm=comm)
+        sim = Simulation(load_scene(scene, overrides), out / name, quiet=True, comm=comm,
+                         warm_up=compile_first)
         summary = sim.run()
         P = sim.particles
         fields = {"gid": P.gid, "x": P.x, "v": P.v, "F": P.F, "stress": P.stress,

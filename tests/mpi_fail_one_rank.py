@@ -1,4 +1,4 @@
-"""Make one rank fail in the middle of a run, through the real CLI (``parmpm.__main__.main``).
+"""Make one rank fail in the middle of a run, through the real CLI (``parmpm.cli.main.main``).
 
     mpirun -n 2 python tests/mpi_fail_one_rank.py {user|bug} OUT_DIR
 
@@ -7,9 +7,9 @@ while rank 0 goes on into the next collective. The CLI must end both ranks promp
 """
 import sys
 
-from parmpm import stepper
-from parmpm.__main__ import main
-from parmpm.errors import SimulationError
+from parmpm.step import stepper
+from parmpm.cli.main import main
+from parmpm.core.errors import SimulationError
 
 kind, out = sys.argv[1], sys.argv[2]
 original = stepper.Stepper.step

@@ -41,8 +41,8 @@ def signal_during_set_up(out: Path, sig: int, busy: float, limit: float) -> tupl
     """
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
     proc = subprocess.Popen([sys.executable, "-c",
-                             "import time, sys; from parmpm.__main__ import main\n"
-                             "import parmpm.simulation as s\n"
+                             "import time, sys; from parmpm.cli.main import main\n"
+                             "import parmpm.driver.simulation as s\n"
                              "def slow(self, *a, **k):\n"
                              "    print('setting up', flush=True); t = time.time()\n"
                              f"    while time.time() - t < {busy}: pass  # busy, as set-up is\n"

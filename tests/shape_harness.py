@@ -2,7 +2,7 @@
 import numpy as np
 
 from decomposition import PatchLayout
-from parmpm.kernel_records import kernel_lcr
+from parmpm.core.records import kernel_lcr
 from parmpm.shapes import CPDI
 from parmpm.shapes.cpdi2 import SCRATCH_SHAPE
 from parmpm.shapes.support import domain_matrix, particle_support

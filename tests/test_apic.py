@@ -1,4 +1,4 @@
-"""APIC and MLS transfers (``method.transfer = "apic" | "mls"``, :mod:`parmpm.affine`): angular
+"""APIC and MLS transfers (``method.transfer = "apic" | "mls"``, :mod:`parmpm.transfer.affine`): angular
 momentum kept to round-off on the spinning disk (FLIP's drifts), the affine field's start, rigid
 translation, a checkpoint round trip on 1 and 2 ranks, and the scene's refusals."""
 import subprocess
@@ -8,8 +8,8 @@ import h5py
 import numpy as np
 import pytest
 
-from parmpm.errors import SceneError
-from parmpm.scene import load_scene
+from parmpm.core.errors import SceneError
+from parmpm.scene.load import load_scene
 
 QUIET = ["-q", "--set", "output.snapshots=false", "--set", "output.figure=false"]
 APIC = ["--set", "method.interpolator=bspline", "--set", "method.transfer=apic"]
@@ -74,7 +74,7 @@ def test_the_initial_affine_field_is_the_spin(tmp_path):
     """The seeded C_p is the initial velocity gradient (ω× for the disk), so the angular
     momentum at t = 0 includes the particles' own spin m ω (Δx² + Δy²)/4."""
     from decomposition import world
-    from parmpm.rank_state import set_up
+    from parmpm.driver.set_up import set_up
 
     scene = load_scene("spinning_disk", overrides=["method.interpolator=bspline",
                                                    "method.transfer=apic"])
@@ -128,8 +128,8 @@ def test_checkpoint_round_trip_keeps_the_affine_field(transfer, tmp_path, mpirun
 
 def test_a_rotation_metric_without_spin_is_one_line():
     """Found writing these tests: angular_velocity = 0 divided by zero in the metric."""
-    from parmpm.errors import ParmpmError
-    from parmpm.rank_state import set_up
+    from parmpm.core.errors import ParmpmError
+    from parmpm.driver.set_up import set_up
     from decomposition import world
 
     scene = load_scene("spinning_disk", overrides=["bodies.0.angular_velocity=0.0"])
@@ -154,7 +154,7 @@ def test_bad_transfers_are_one_line(overrides, message):
 
 def test_the_resolved_apic_scene_reads_back():
     """``show`` of an APIC scene has no flip key (the blend does not apply) and loads again."""
-    from parmpm.scene import scene_from_toml
+    from parmpm.scene.load import scene_from_toml
 
     scene = load_scene("hanging_bar", overrides=["method.interpolator=bspline",
                                                  "method.transfer=apic"])

@@ -16,11 +16,11 @@ from hypothesis import strategies as st
 from test_cli import assert_one_line_error
 from test_cli import parmpm as cli
 
-from parmpm.errors import ParmpmError, SceneError
-from parmpm.footprint import available_bytes, check_memory, estimate
+from parmpm.core.errors import ParmpmError, SceneError
+from parmpm.driver.footprint import available_bytes, check_memory, estimate
 from parmpm.materials import lame
-from parmpm.scene import load_scene
-from parmpm.seeding import seed_bodies
+from parmpm.scene.load import load_scene
+from parmpm.particles.seeding import seed_bodies
 
 QUIET = ["--quiet", "--set", "time.steps=2", "--set", "output.figure=false"]
 
@@ -171,7 +171,7 @@ def test_a_5000_digit_integer_under_two_ranks_is_printed_once(tmp_path, mpirun):
 
 def test_a_byte_order_mark_is_accepted(tmp_path):
     """Before: 'TOML syntax error: Invalid statement (at line 1, column 1)'."""
-    plain = (Path(__file__).parents[1] / "parmpm" / "scenes" / "hanging_bar_1d.toml").read_text()
+    plain = (Path(__file__).parents[1] / "parmpm" / "scene" / "builtin" / "hanging_bar_1d.toml").read_text()
     path = tmp_path / "bom.toml"
     path.write_bytes(b"\xef\xbb\xbf" + plain.encode())
     assert load_scene(path).data == load_scene("hanging_bar_1d", ['name="bom"']).data

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import pytest
 
-from parmpm.bench import add_arguments, build_bench_scene, run_bench, run_benches
-from parmpm.errors import ParmpmError
+from parmpm.cli.bench import add_arguments, build_bench_scene, run_bench, run_benches
+from parmpm.core.errors import ParmpmError
 
 REPO = Path(__file__).resolve().parents[1]
 PHASES = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "sort", "reduce")
@@ -113,7 +113,7 @@ def test_sweep_writes_csv_and_json(tmp_path, capsys):
 def test_bench_apic_runs_and_apic_elsewhere_is_one_line(tmp_path, capsys):
     """``--transfer apic`` times bspline's APIC kernels; with another method it is the scene's
     one-line refusal."""
-    import parmpm.__main__ as cli
+    import parmpm.cli.main as cli
 
     r = run_bench(bench_args("--method", "bspline", "--transfer", "apic", "--particles", "2000",
                              "--steps", "3"), None)
@@ -126,7 +126,7 @@ def test_bench_apic_runs_and_apic_elsewhere_is_one_line(tmp_path, capsys):
 
 
 def test_cli_bench_error_is_one_line(capsys):
-    import parmpm.__main__ as cli
+    import parmpm.cli.main as cli
 
     assert cli.main(["bench", "--steps", "1", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -144,7 +144,7 @@ def test_a_bar_held_by_nodes_converges_at_first_order():
 
 
 def test_a_clamped_face_makes_the_bspline_bar_second_order():
-    """A ``"clamped"`` face mirrors the bar oddly beyond X = 0 (parmpm.symmetry), so the node
+    """A ``"clamped"`` face mirrors the bar oddly beyond X = 0 (parmpm.grid.symmetry), so the node
     beyond the end carries minus its twin's velocity: measured 0.0350, 0.0087, 0.0021 on 16, 32,
     64 cells (orders 2.00, 2.03), 9× to 34× below the node-held bar; CPDI's error is the same
     either way (0.0214 at 16 cells)."""
@@ -167,12 +167,11 @@ def test_reach_message_uses_the_grid_sized_support():
     the B-spline one and a half), not the particle's nominal GIMP half-widths."""
     from types import SimpleNamespace
 
-    from parmpm.reach import support_half_widths
+    from parmpm.transfer.reach import support_half_widths
     from parmpm.shapes import MPM
 
-    rows = SimpleNamespace(lh0=np.array([[0.01, 0.02]]))  # the stepper reads physical rows
-    P = SimpleNamespace(rows=rows)
+    rows = SimpleNamespace(lh0=np.array([[0.01, 0.02]]))  # the physical rows
     for method, cells in ((MPM, 1.0), (BSPLINE, 1.5)):
         D = SimpleNamespace(method=method, dim=2, h=np.array([0.1, 0.2, 1.0]))
-        half = support_half_widths(SimpleNamespace(disc=D, P=P), 0)
+        half = support_half_widths(D, rows, 0)
         np.testing.assert_allclose(half, [cells * 0.1, cells * 0.2])

@@ -1,4 +1,4 @@
-"""numba's on-disk cache keyed to the whole package source (:mod:`parmpm.cache_key`).
+"""numba's on-disk cache keyed to the whole package source (:mod:`parmpm.core.cache_key`).
 
 numba's own freshness test looks at the cached kernel's file alone; a kernel's machine code also
 holds the helpers it calls from other modules. The end-to-end tests copy ``parmpm`` and
@@ -24,7 +24,7 @@ REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 300
 
 CALLEE = """\
-from parmpm.jit import helper_kernel, inline_kernel, kernel
+from parmpm.core.jit import helper_kernel, inline_kernel, kernel
 
 SCALE = {factor}
 
@@ -46,7 +46,7 @@ def forced(x):
 
 CALLER = """\
 from parmpm._probe_callee import SCALE, forced, inlined, plain
-from parmpm.jit import kernel, loop_kernel
+from parmpm.core.jit import kernel, loop_kernel
 
 
 @kernel
@@ -154,7 +154,7 @@ def test_an_edited_callee_in_another_module_is_never_run_stale(tmp_path, locatio
 
 # --- the key, in this process -------------------------------------------------------------------
 def test_the_digest_covers_every_module_and_only_the_sources(tmp_path):
-    from parmpm.cache_key import digest_of
+    from parmpm.core.cache_key import digest_of
 
     root = tmp_path / "pkg"
     (root / "sub").mkdir(parents=True)
@@ -176,12 +176,12 @@ def test_the_digest_covers_every_module_and_only_the_sources(tmp_path):
 
 def test_every_cached_kernel_of_both_packages_is_keyed_to_the_digest():
     """All of them: ``@kernel`` and friends, the overloads' wrappers and the ``@njit(cache=True)``
-    of :mod:`decomposition.halo`, which does not import :mod:`parmpm.jit`."""
+    of :mod:`decomposition.halo`, which does not import :mod:`parmpm.core.jit`."""
     import numba
     from numba.core.dispatcher import Dispatcher
 
-    import parmpm.simulation  # noqa: F401 (imports every kernel module of a run)
-    from parmpm.cache_key import is_keyed, source_digest
+    import parmpm.driver.simulation  # noqa: F401 (imports every kernel module of a run)
+    from parmpm.core.cache_key import is_keyed, source_digest
 
     kernels = {f"{name}.{attr}": is_keyed(obj) for name, module in list(sys.modules.items())
                if module is not None and name.split(".")[0] in ("parmpm", "decomposition")
@@ -200,14 +200,46 @@ def test_every_cached_kernel_of_both_packages_is_keyed_to_the_digest():
 
 def test_kernels_decorated_before_the_key_is_installed_are_re_keyed():
     """``decomposition`` imported first (it never imports parmpm): its kernels are re-keyed when
-    :mod:`parmpm.jit` comes."""
+    :mod:`parmpm.core.jit` comes."""
     code = ("import decomposition.halo as h\n"
-            "from parmpm.cache_key import is_keyed\n"
+            "from parmpm.core.cache_key import is_keyed\n"
             "before = is_keyed(h._owner_rows)\n"
-            "import parmpm.jit\n"
+            "import parmpm.core.jit\n"
             "print(before, is_keyed(h._owner_rows), is_keyed(h._ghost_copy))\n")
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
                           timeout=TIMEOUT_S)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.split() == ["False", "True", "True"]
+
+
+def test_an_index_naming_a_module_that_no_longer_exists_is_stale(tmp_path, monkeypatch):
+    """A cache index written before a module moved names the old module in its pickled types;
+    numba unpickles it before the freshness test and raised ModuleNotFoundError at the kernel's
+    first call. Keyed indexes now count as stale (compiled again); others fail as before."""
+    import pickle
+
+    from numba.core import caching
+
+    from parmpm.core.cache_key import STAMP_TAG, install
+
+    install()
+    gone = tmp_path / "gone_module_for_the_index.py"
+    gone.write_text("class Record:\n    pass\n", encoding="utf-8")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import gone_module_for_the_index as mod
+
+    def index(name, stamp):
+        cache = caching.IndexDataCacheFile(str(tmp_path), name, stamp)
+        with open(cache._index_path, "wb") as f:
+            pickle.dump(cache._version, f, protocol=-1)
+            f.write(pickle.dumps((stamp, {"sig": mod.Record()}), protocol=-1))
+        return cache
+
+    keyed, plain = index("keyed", (STAMP_TAG, "digest")), index("plain", (1.0, 2))
+    assert isinstance(keyed._load_index()["sig"], mod.Record)  # while the module exists: read
+    monkeypatch.delitem(sys.modules, "gone_module_for_the_index")
+    gone.unlink()
+    assert keyed._load_index() == {}
+    with pytest.raises(ModuleNotFoundError):
+        plain._load_index()

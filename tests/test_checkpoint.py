@@ -16,7 +16,7 @@ from run_waits import HISTORY_EVERY_STEP, wait_for_steps
 from mpi_launch import MPI_MARKS, mpirun, needs_mpi
 from test_mpi_ranks import CROSSING
 
-from parmpm.__main__ import main
+from parmpm.cli.main import main
 
 QUIET = ["--quiet"]
 OFF = ["--set", "output.snapshots=false", "--set", "output.figure=false"]
@@ -174,7 +174,7 @@ def test_bad_checkpoint_under_two_ranks_prints_once(straight, tmp_path):
 KILL_WHILE_WRITING = """
 import os, sys
 from parmpm.io import checkpoint
-from parmpm.__main__ import main
+from parmpm.cli.main import main
 orig = checkpoint.CheckpointWriter.write
 def write(self, lo, block):
     orig(self, lo, block)

@@ -21,7 +21,7 @@ import h5py
 import numpy as np
 import pytest
 
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io import SnapshotWriter
 from parmpm.io import checkpoint as ck
 from parmpm.io.checkpoint import (FIELDS, CheckpointWriter, attrs_digest, estimate_bytes, prune,
@@ -363,7 +363,7 @@ import sys
 from pathlib import Path
 sys.path.insert(0, {tests!r})
 import test_checkpoint_faults as t
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io import checkpoint
 if {bypass}:  # the free-space check passes: HDF5 itself runs into the full disk
     checkpoint._free_bytes = lambda folder: 1 << 50
@@ -460,7 +460,7 @@ import sys
 from pathlib import Path
 sys.path.insert(0, {tests!r})
 import test_checkpoint_faults as t
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io import SnapshotWriter
 SnapshotWriter._free = lambda self: None  # no check: the writes run into the full disk
 try:

@@ -28,12 +28,12 @@ from test_mpi_ranks import CROSSING
 
 from decomposition import SerialComm
 from decomposition.layout import PatchLayout
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io.checkpoint import FIELDS as ALL_FIELDS
 from parmpm.io.checkpoint import OPTIONAL, parts_folder, remove_stale_tmp, segments_of
-from parmpm.io.checkpoint_gather import load_patches, write_checkpoint, write_collective
+from parmpm.driver.checkpoint_writer import load_patches, write_checkpoint, write_collective
 from parmpm.io.checkpoint_parts import CheckpointReader, rank_rows, ranks_per_file
-from parmpm.particles import Particles
+from parmpm.particles.store import Particles
 
 QUIET = ["--quiet"]
 TIMEOUT = 600
@@ -120,9 +120,9 @@ import numpy as np
 from pathlib import Path
 from decomposition import world
 import test_checkpoint_parts as t
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io import checkpoint
-from parmpm.io.checkpoint_gather import write_checkpoint
+from parmpm.driver.checkpoint_writer import write_checkpoint
 comm = world()
 if comm.Get_rank() == {full_rank}:  # this rank's disk is (nearly) full
     checkpoint._free_bytes = lambda folder: 10_000
@@ -266,10 +266,10 @@ def _cli(mpirun, n, *args, timeout=TIMEOUT):
 RESTART = """
 import json, sys
 from pathlib import Path
-import parmpm.rank_state as rs
+import parmpm.driver.set_up as rs
 from decomposition import world
-from parmpm.log import setup_logging
-from parmpm.simulation import Simulation
+from parmpm.core.log import setup_logging
+from parmpm.driver.simulation import Simulation
 readers = []
 class Counting(rs.CheckpointReader):
     def __init__(self, *a, **k):
@@ -394,7 +394,7 @@ def test_a_bad_part_is_one_line_naming_it(runs, tmp_path, mpirun, how):
 KILL = """
 import os, sys
 from parmpm.io import checkpoint, checkpoint_gather
-from parmpm.__main__ import main
+from parmpm.cli.main import main
 how = os.environ["KILL_HOW"]
 write, top = checkpoint.CheckpointWriter.write, checkpoint_gather.write_top
 def killed_write(self, lo, block):  # rank 1's part of step 10, after its first block

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 
-import parmpm.__main__ as cli
-from parmpm.errors import SceneError
+import parmpm.cli.main as cli
+from parmpm.core.errors import SceneError
 
 REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 120
@@ -70,7 +70,7 @@ def test_run_and_restart_help_name_logging_options(tmp_path):
 def test_help_does_not_import_numba_or_mpi(tmp_path):
     """``parmpm --help`` builds every command's options, the benchmark's too: without numba
     (about a second) and without starting MPI."""
-    code = ("import sys; from parmpm.__main__ import build_parser; build_parser()\n"
+    code = ("import sys; from parmpm.cli.main import build_parser; build_parser()\n"
             "print(sorted(m for m in ('numba', 'mpi4py') if m in sys.modules))")
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env,
@@ -225,7 +225,7 @@ def _raise(exc):
 
 
 def test_main_scene_error_returns_2(serial, monkeypatch, capsys):
-    monkeypatch.setattr("parmpm.scene.load_scene", _raise(SceneError("bad\nscene")))
+    monkeypatch.setattr("parmpm.scene.load.load_scene", _raise(SceneError("bad\nscene")))
     assert cli.main(["run", "x"]) == 2
     assert capsys.readouterr().err == "parmpm: error: bad scene\n"
 
@@ -237,7 +237,7 @@ def test_main_default_command_is_run_hanging_bar(serial, monkeypatch, capsys):
         seen.update(source=source, overrides=list(overrides))
         raise SceneError("stop here")
 
-    monkeypatch.setattr("parmpm.scene.load_scene", loader)
+    monkeypatch.setattr("parmpm.scene.load.load_scene", loader)
     assert cli.main([]) == 2
     assert seen == {"source": "hanging_bar", "overrides": []}
 
@@ -249,20 +249,20 @@ def test_main_passes_overrides_in_order(serial, monkeypatch):
         seen.update(source=source, overrides=list(overrides))
         raise SceneError("stop here")
 
-    monkeypatch.setattr("parmpm.scene.load_scene", loader)
+    monkeypatch.setattr("parmpm.scene.load.load_scene", loader)
     cli.main(["run", "vibrating_bar", "--set", "a.b=1", "-s", "a.b=2"])
     assert seen == {"source": "vibrating_bar", "overrides": ["a.b=1", "a.b=2"]}
 
 
 def test_main_keyboard_interrupt_returns_130(serial, monkeypatch, capsys):
-    monkeypatch.setattr("parmpm.scene.load_scene", _raise(KeyboardInterrupt()))
+    monkeypatch.setattr("parmpm.scene.load.load_scene", _raise(KeyboardInterrupt()))
     assert cli.main(["run", "x"]) == 130
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "Traceback" not in err
 
 
 def test_main_bug_prints_traceback_returns_1(serial, monkeypatch, capsys):
-    monkeypatch.setattr("parmpm.scene.load_scene", _raise(ZeroDivisionError("a bug")))
+    monkeypatch.setattr("parmpm.scene.load.load_scene", _raise(ZeroDivisionError("a bug")))
     assert cli.main(["run", "x"]) == 1
     err = capsys.readouterr().err
     assert "Traceback" in err and "ZeroDivisionError: a bug" in err
@@ -277,7 +277,7 @@ def test_main_bug_prints_traceback_returns_1(serial, monkeypatch, capsys):
     (1, 4, False, ["warning"]),
 ])
 def test_logging_levels_by_rank(restore_logging, rank, size, quiet, shown):
-    from parmpm.log import get_logger, setup_logging
+    from parmpm.core.log import get_logger, setup_logging
 
     stream = io.StringIO()
     setup_logging(rank, size, quiet=quiet, stream=stream)
@@ -291,14 +291,14 @@ def test_logging_levels_by_rank(restore_logging, rank, size, quiet, shown):
 
 
 def test_get_logger_places_foreign_names_under_parmpm():
-    from parmpm.log import get_logger
+    from parmpm.core.log import get_logger
 
-    assert get_logger("parmpm.stepper").name == "parmpm.stepper"
+    assert get_logger("parmpm.step.stepper").name == "parmpm.step.stepper"
     assert get_logger("__main__").name == "parmpm.__main__"
 
 
 def test_progress_disabled_writes_nothing(capsys):
-    from parmpm.progress import Progress
+    from parmpm.driver.progress import Progress
 
     with Progress(total_steps=10, end_time=1.0, enabled=False) as bar:
         for step in range(1, 11):
@@ -312,7 +312,7 @@ def test_progress_disabled_writes_nothing(capsys):
     ({}, "10step"),
 ])
 def test_progress_shows_steps_time_and_rate(capsys, kwargs, expected):
-    from parmpm.progress import Progress
+    from parmpm.driver.progress import Progress
 
     bar = Progress(**kwargs, interactive=True)  # a terminal's bar (capsys is none)
     for step in range(1, 11):

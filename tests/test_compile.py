@@ -1,5 +1,5 @@
 """Compiling the kernels ahead (``parmpm compile``), the first-run notice, and rank 0 compiling
-first under MPI (:mod:`parmpm.compile`).
+first under MPI (:mod:`parmpm.driver.warm_up`).
 
 The cold-cache tests give numba an empty ``NUMBA_CACHE_DIR`` of their own, so they compile for
 real (tens of seconds: marked ``slow``): the notice shows exactly when numba compiles, never
@@ -16,8 +16,9 @@ from pathlib import Path
 
 import pytest
 
-import parmpm.compile as comp
-from parmpm.scene import scene_from_toml
+import parmpm.driver.warm_up as comp
+from parmpm.cli.compile import run_compile
+from parmpm.scene.load import scene_from_toml
 
 REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 600
@@ -90,11 +91,11 @@ def test_a_selection_with_no_case_is_a_one_line_error(warm_ups):
     """``parmpm compile --methods cpdi --transfer mls`` compiles nothing: an error, not "0 cases"."""
     import argparse
 
-    from parmpm.errors import ParmpmError
+    from parmpm.core.errors import ParmpmError
 
     args = argparse.Namespace(dim=[2], methods=["cpdi", "mpm"], update=["usl"], transfer=["mls"])
     with pytest.raises(ParmpmError, match="--transfer mls applies to none of --methods cpdi mpm"):
-        comp.run_compile(args, None)
+        run_compile(args, None)
     assert warm_ups == []
 
 
@@ -145,7 +146,7 @@ def test_a_cold_cache_is_compiled_once_by_rank_0_then_every_run_loads_it(tmp_pat
     assert str(cache) in proc.stderr
     after = proc.stderr.split("rank 0 warmed up the kernels")[1]
     late = [line.split("compiled ")[1].split()[0] for line in after.splitlines()
-            if "DEBUG parmpm.compile: compiled " in line]
+            if "DEBUG parmpm.driver.warm_up: compiled " in line]
     assert late == []
     for _ in range(2):
         again = _cli("compile", *case, cache=cache, cwd=tmp_path)

@@ -1,17 +1,17 @@
 """A one-rank run reports its compiling apart (issue 28 item 11): a first run's summary read
 "wall time 59.2 s, 68,468 particle-steps/s" for 7 s of steps and 52 s of numba compiling
 kernels met inside the timed loop. The run now leaves numba's compilations out of its wall time
-and rate and reports them as ``compile_seconds`` (:mod:`parmpm.compile_clock`)."""
+and rate and reports them as ``compile_seconds`` (:mod:`parmpm.driver.compile_clock`)."""
 from __future__ import annotations
 
 import time
 
-from parmpm.callbacks import Callback
-from parmpm.compile_clock import CompileClock
+from parmpm.driver.callbacks import Callback
+from parmpm.driver.compile_clock import CompileClock
 from parmpm.io.summary import format_summary
-from parmpm.scene import load_scene
-from parmpm.schedule import Schedule
-from parmpm.simulation import Simulation
+from parmpm.scene.load import load_scene
+from parmpm.driver.schedule import Schedule
+from parmpm.driver.simulation import Simulation
 
 PAUSE_S = 1.0
 

@@ -17,12 +17,12 @@ import math
 import numpy as np
 import pytest
 
-from parmpm.domains import capped_corners, domain_corners, domain_sizes
-from parmpm.errors import SimulationError
-from parmpm.scene import load_scene, scene_from_toml
+from parmpm.output.domains import capped_corners, domain_corners, domain_sizes
+from parmpm.core.errors import SimulationError
+from parmpm.scene.load import load_scene, scene_from_toml
 from parmpm.shapes import CPDI, CPDI2
 from parmpm.shapes.cpdi2 import affine_corners, corner_signs
-from parmpm.simulation import Simulation
+from parmpm.driver.simulation import Simulation
 
 QUIET = ["output.snapshots=false", "output.figure=false"]
 #: a velocity gradient with stretch, shear and spin (1/s)
@@ -168,7 +168,7 @@ def test_an_inverted_domain_stops_the_run_naming_the_particle(tmp_path):
 @pytest.mark.parametrize("d", [1, 2, 3])
 def test_seeded_corners_are_the_domain_R0(d):
     from decomposition import SerialComm
-    from parmpm.rank_state import set_up
+    from parmpm.driver.set_up import set_up
 
     s = set_up(block_scene(d, np.zeros((d, d))), SerialComm())
     P = s.particles

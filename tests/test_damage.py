@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 
 import parmpm
-from parmpm.errors import SceneError
-from parmpm.kernels2d import KERNELS_2D
+from parmpm.core.errors import SceneError
+from parmpm.transfer.kernels2d import KERNELS_2D
 from parmpm.materials import material_table
 from parmpm.materials.damage import (damage_scalar, damage_update, degrade, degrade_2d, degrade_3d,
                                      max_stretch, max_stretch_2d, max_stretch_3d)
 from parmpm.materials.laws import cauchy_stress
-from parmpm.simulation import Simulation
+from parmpm.driver.simulation import Simulation
 
 QUIET = ["output.snapshots=false", "output.figure=false"]
 

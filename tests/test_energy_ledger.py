@@ -13,10 +13,10 @@ import logging
 import numpy as np
 import pytest
 
-from parmpm.energy import energy_totals
+from parmpm.output.energy import energy_totals
 from parmpm.io.history_file import read_history
-from parmpm.scene import load_scene
-from parmpm.simulation import Simulation
+from parmpm.scene.load import load_scene
+from parmpm.driver.simulation import Simulation
 
 #: the spinning disk on a coarse grid (12 × 12 cells of 0.1 m, 452 particles), 0.1 s (a tenth of
 #: a revolution)

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from parmpm.errors import SceneError
-from parmpm.exact import (hanging_bar_dynamic_series, hanging_bar_dynamic_tip, hanging_bar_static,
+from parmpm.core.errors import SceneError
+from parmpm.exact.bars import (hanging_bar_dynamic_series, hanging_bar_dynamic_tip, hanging_bar_static,
                           hanging_bar_static_displacement, nominal_stress_1d,
                           vibrating_bar_com_velocity, vibrating_bar_fields)
 

@@ -21,9 +21,9 @@ import pytest
 from mpi_launch import mpirun, needs_mpi
 
 import parmpm
-from parmpm.discretisation import Discretisation, exterior_cells
-from parmpm.errors import SceneError, SimulationError
-from parmpm.simulation import Simulation
+from parmpm.transfer.discretisation import Discretisation, exterior_cells
+from parmpm.core.errors import SceneError, SimulationError
+from parmpm.driver.simulation import Simulation
 
 HERE = Path(__file__).parent
 QUIET = ["output.snapshots=false", "output.figure=false"]
@@ -190,7 +190,7 @@ def test_auto_adds_no_layer_to_builtin_scenes(name):
     """Every built-in scene's bodies start a cell or more from every face: "auto" gives them no
     layer, so they run on exactly the grid (and give exactly the results) they did before —
     but the manufactured solution, whose body fills the grid up to its mirror faces, and the
-    vibrating bar, clamped at its x_min face (the layer holds the mirror image, parmpm.symmetry)."""
+    vibrating bar, clamped at its x_min face (the layer holds the mirror image, parmpm.grid.symmetry)."""
     sc = parmpm.load_scene(name)
     assert sc.data["grid"]["exterior"] == "auto"
     for ghost in (1, 2, 3):

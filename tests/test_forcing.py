@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 import parmpm
-from parmpm.errors import SceneError
-from parmpm.exact import manufactured_body_force, manufactured_motion
-from parmpm.grid import _apply_regions
-from parmpm.manufactured import body_force
+from parmpm.core.errors import SceneError
+from parmpm.exact.bars import manufactured_body_force, manufactured_motion
+from parmpm.grid.update import apply_regions
+from parmpm.loads.manufactured import body_force
 from parmpm.materials import lame
-from parmpm.scene import scene_from_toml
+from parmpm.scene.load import scene_from_toml
 from parmpm.shapes import CPDI, CPGIMP, MPM, UGIMP
 
 A, E, NU, RHO = 0.05, 1.0e4, 0.3, 1.0
@@ -87,7 +87,7 @@ def test_manufactured_needs_one_neo_hookean_material():
 
 @pytest.mark.parametrize("jit", [True, False], ids=["jit", "py"])
 def test_slip_and_fixed_regions(jit):
-    apply = _apply_regions if jit else _apply_regions.py_func
+    apply = apply_regions if jit else apply_regions.py_func
     origin, h = np.zeros(3), np.ones(3)
     regions = np.array([[[0, 0, 0], [1, 5, 0]], [[4, 0, 0], [5, 5, 0]]], float)
     normal = np.array([0, -1])  # slip with normal x on x <= 1; fixed on x >= 4
@@ -145,7 +145,7 @@ def test_manufactured_restart_is_bit_identical(tmp_path):
 
 
 def test_only_separation_metrics_count_pieces_and_stop_on_separation():
-    from parmpm.metrics import METRICS
+    from parmpm.output.metrics import METRICS
 
     assert {k for k, cls in METRICS.items() if cls.needs_components} == {"hanging_bar",
                                                                           "tension_bar"}

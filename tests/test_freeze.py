@@ -106,7 +106,7 @@ def test_damage_with_freeze_separates_the_hanging_bar_plain_cpdi_holds(tmp_path)
 def test_3d_domains_freeze_and_kernels_agree(tmp_path):
     """The 3D bar with damage freezes domains (Newton polar rotation in the loop), and the
     specialised 3D kernels give the generic kernels' state to round-off."""
-    from parmpm.simulation import Simulation
+    from parmpm.driver.simulation import Simulation
 
     over = QUIET + ["time.steps=60", "metrics.stop_on_separation=false",
                     "materials.bar.damage={onset=1.02, fracture=1.5, freeze=0.3}"]

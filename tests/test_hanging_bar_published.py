@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 
 import parmpm
-from parmpm.metrics import make_metrics
-from parmpm.metrics.bars import first_peak_and_rebound
+from parmpm.output.metrics import make_metrics
+from parmpm.output.metrics.bars import first_peak_and_rebound
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "run_scripts"))
 import fe_bar  # noqa: E402

@@ -149,7 +149,7 @@ def test_nohup_keeps_the_run_going(tmp_path):
 
 
 def test_only_a_terminal_that_hung_up_is_silenced():
-    from parmpm.signals import hung_up
+    from parmpm.driver.signals import hung_up
 
     master, slave = pty.openpty()
     r, w = os.pipe()

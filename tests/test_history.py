@@ -1,4 +1,4 @@
-"""The run's history (parmpm.history): schema, columns, the energy ledger's exactness, the
+"""The run's history (parmpm.output.history): schema, columns, the energy ledger's exactness, the
 residual's size and order, and the same file on 1, 2 and 3 ranks.
 
 ``docs/energy.md`` derives what is tested: the grid's kinetic energy changes by exactly the work
@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from parmpm.errors import SceneError
+from parmpm.core.errors import SceneError
 from parmpm.io.history_file import read_history
-from parmpm.scene import load_scene, scene_from_toml
-from parmpm.simulation import Simulation
+from parmpm.scene.load import load_scene, scene_from_toml
+from parmpm.driver.simulation import Simulation
 
 BLOCKS = Path(__file__).parent.parent / "docs" / "examples" / "colliding_blocks.toml"
 QUIET = ("output.snapshots=false", "output.figure=false")
@@ -183,10 +183,10 @@ def test_history_in_1d_and_3d(tmp_path, scene, spin):
 
 
 def test_the_energy_watch_sums_every_particles_energy(tmp_path):
-    """The watch's totals (one fused pass per patch, :func:`parmpm.energy.energy_sums`) are
+    """The watch's totals (one fused pass per patch, :func:`parmpm.output.energy.energy_sums`) are
     Σ ½ m |v|², Σ V0 ψ(F) and Σ m g·(x − X) over the particles, checked term by term against
     numpy and the material law on a run that has moved, stretched and crossed patches."""
-    from parmpm.energy import energy_totals
+    from parmpm.output.energy import energy_totals
     from parmpm.materials.laws import stored_energy
 
     sim = Simulation(load_scene("hanging_bar", ["time.steps=30", "grid.patch_size=4",

@@ -94,7 +94,7 @@ def test_pip_install_without_extras_runs_on_one_rank(tmp_path):
     assert summary["ranks"] == 1 and summary["steps"] >= 1
     assert (out / "scene.toml").is_file()
 
-    # the installed kernels' cache is keyed to the installed sources (parmpm.cache_key): an
+    # the installed kernels' cache is keyed to the installed sources (parmpm.core.cache_key): an
     # upgrade into the same place can never load the previous version's machine code
     keyed = subprocess.run([str(python), "-c", KEYED], cwd=tmp_path, env=_env(),
                            capture_output=True, text=True, timeout=300)
@@ -109,9 +109,9 @@ def test_pip_install_without_extras_runs_on_one_rank(tmp_path):
 
 #: what the installed parmpm says about its kernels' cache: roots, keyed flags, a cache folder
 KEYED = """import json
-import parmpm.simulation
+import parmpm.driver.simulation
 from decomposition.halo import _owner_rows
-from parmpm.cache_key import is_keyed, package_roots
-from parmpm.transfer import p2g
+from parmpm.core.cache_key import is_keyed, package_roots
+from parmpm.transfer.generic import p2g
 print(json.dumps([package_roots(), [is_keyed(p2g), is_keyed(_owner_rows)], p2g.stats.cache_path]))
 """

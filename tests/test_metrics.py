@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
-from parmpm.connectivity import local_components
-from parmpm.errors import SceneError
-from parmpm.exact import (hanging_bar_static_displacement, nominal_stress_1d,
+from parmpm.output.connectivity import local_components
+from parmpm.core.errors import SceneError
+from parmpm.exact.bars import (hanging_bar_static_displacement, nominal_stress_1d,
                           vibrating_bar_com_velocity)
-from parmpm.metrics import HangingBarMetrics, VibratingBarMetrics, count_components, make_metrics
+from parmpm.output.metrics import HangingBarMetrics, VibratingBarMetrics, count_components, make_metrics
 
 # the component count of the union-find kernel, compiled and through its pure-Python body
 KERNELS = [pytest.param(lambda *a: local_components(*a)[0], id="jit"),
@@ -101,7 +101,7 @@ def test_count_components_wrapper():
 
 # --------------------------------------------------------------------------------------------
 def _scene_1d(L=1.0, n=32, E=1e6, nu=0.0, rho=1050.0, g=1000.0, model="neo_hookean"):
-    # the resolved-scene layout of parmpm.scene_schema
+    # the resolved-scene layout of parmpm.scene.schema
     scene = {
         "dim": 1,
         "materials": {"rubber": {"model": model, "density": rho, "youngs_modulus": E, "poisson_ratio": nu}},
@@ -398,7 +398,7 @@ def test_metrics_built_per_rank_are_the_whole_scenes(size):
 
 
 def test_pairwise_runs_is_numpys_sum():
-    from parmpm.metrics.sums import pairwise_runs
+    from parmpm.output.metrics.sums import pairwise_runs
 
     rng = np.random.default_rng(5)
     for trial in range(200):
@@ -428,7 +428,7 @@ def _old_first_peak_and_rebound(u, tol=0.01):
 
 
 def test_turning_points_one_sample_at_a_time_match_the_whole_history():
-    from parmpm.metrics.bars import first_peak_and_rebound
+    from parmpm.output.metrics.bars import first_peak_and_rebound
 
     rng = np.random.default_rng(28)
     for trial in range(400):
@@ -444,7 +444,7 @@ def test_turning_points_one_sample_at_a_time_match_the_whole_history():
 
 
 def test_trace_keeps_at_most_its_capacity_evenly_and_the_latest():
-    from parmpm.metrics.trace import Trace
+    from parmpm.output.metrics.trace import Trace
 
     tr = Trace(("times", "v"), capacity=8)
     for k in range(8):
@@ -524,7 +524,7 @@ def test_every_kind_restores_its_record_and_continues_the_same(kind):
     import parmpm
 
     scene = parmpm.load_scene(kind if kind != "rotation" else "spinning_disk").data
-    from parmpm.seeding import seed_bodies
+    from parmpm.particles.seeding import seed_bodies
     from parmpm.materials import material_table
 
     names = material_table(scene["materials"])[1]

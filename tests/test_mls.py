@@ -1,4 +1,4 @@
-"""MLS-MPM transfers (``method.transfer = "mls"``, :mod:`parmpm.affine`) at the kernel level, on
+"""MLS-MPM transfers (``method.transfer = "mls"``, :mod:`parmpm.transfer.affine`) at the kernel level, on
 the 2D and 3D specialised kernels and the dimension-generic ones (1D and the reference): the MLS
 velocity gradient is exact for an affine grid velocity, and P2G folds exactly ``Δt f`` into the
 momentum. Angular momentum, the energy account, checkpoints and rank independence are in
@@ -7,7 +7,7 @@ momentum. Angular momentum, the energy account, checkpoints and rank independenc
 import numpy as np
 import pytest
 
-from parmpm.update_order import G2P_USL
+from parmpm.transfer.update_order import G2P_USL
 from test_specialised_kernels import deformed_stepper
 
 #: (dimension, kernels): specialised MLS kernels in 2D and 3D, the generic ones in every dimension
@@ -75,8 +75,8 @@ def test_p2g_folds_dt_times_the_force_into_the_momentum(dim, kind, forced, tmp_p
 def test_one_particle_per_cell_under_mls_is_warned_about():
     """MLS at one particle per cell diverged on the manufactured solution (docs/mls.md): the
     set-up says so for each such body, and only under MLS."""
-    from parmpm.rank_state import sparse_mls_warnings
-    from parmpm.scene import load_scene
+    from parmpm.driver.set_up import sparse_mls_warnings
+    from parmpm.scene.load import load_scene
 
     over = ["method.interpolator=bspline", "bodies.0.ppc=[1, 2]"]
     lines = sparse_mls_warnings(load_scene("hanging_bar", over + ["method.transfer=mls"]).data)
@@ -90,8 +90,8 @@ def test_the_energy_ledger_does_not_change_an_mls_run(tmp_path):
     """With a history the MLS P2G also writes the force rows (for the ledger), without one it
     skips them and the step zeroes, folds and exchanges fewer rows: the motion must be the same
     bits either way (manufactured solution: body force and mirror faces)."""
-    from parmpm.scene import load_scene
-    from parmpm.simulation import Simulation
+    from parmpm.scene.load import load_scene
+    from parmpm.driver.simulation import Simulation
 
     over = ["method.interpolator=bspline", "method.transfer=mls", "time.steps=20",
             "output.snapshots=false", "output.figure=false"]

@@ -73,7 +73,7 @@ def _cases() -> dict:
     cases["1d_cpdi_damage"] = ["hanging_bar_1d", OFF + [damage, "grid.patch_size=4",
                                                         "time.steps=60"]]
     # no metrics: every rank counts the particles per patch axis by axis and builds only its
-    # own (parmpm.seeding); the same run as 2d_cpdi, whose metrics make every rank seed all
+    # own (parmpm.particles.seeding); the same run as 2d_cpdi, whose metrics make every rank seed all
     cases["2d_cpdi_no_metrics"] = ["hanging_bar", OFF + ["metrics.kind=none", "grid.patch_size=4",
                                                          "time.steps=40"]]
     # the tension bar: grips, a weak band, domains freezing; separation counted across ranks

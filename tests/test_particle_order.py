@@ -1,12 +1,12 @@
-"""The lazy canonical order (parmpm.particle_order): after particles change patch, leave the rank
+"""The lazy canonical order (parmpm.particles.order): after particles change patch, leave the rank
 or arrive, the store's order, offsets and fields equal a full (slot, gid) sort of the rows that
 remain, whether or not the fields were copied into order; reading a field from outside the step
 sees the canonical order."""
 import numpy as np
 import pytest
 
-import parmpm.particles as particles_module
-from parmpm.particles import Particles
+import parmpm.particles.store as particles_module
+from parmpm.particles.store import Particles
 
 SLOTS = 7
 

@@ -1,5 +1,5 @@
 """Patch-box arithmetic (:mod:`decomposition.boxes`) and its compiled form for the kernels
-(:mod:`parmpm.patch_index`): owned box, ghost base, cell → patch, point → patch; the compiled
+(:mod:`parmpm.grid.patch_index`): owned box, ghost base, cell → patch, point → patch; the compiled
 helpers agree with the plain functions, inline into their callers and cache (STYLE items 2, 4)."""
 import os
 import subprocess
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from decomposition import PatchLayout, boxes
-from parmpm.particles import locate_patches
-from parmpm.kernel_records import Locate
-from parmpm.patch_index import (next_patch_2d, next_patch_3d, patch_id1, patch_id2, patch_id3,
+from parmpm.particles.store import locate_patches
+from parmpm.core.records import Locate
+from parmpm.grid.patch_index import (next_patch_2d, next_patch_3d, patch_id1, patch_id2, patch_id3,
                                  patch_index, patches_holding_node)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -167,8 +167,8 @@ def test_locator_rows():
 
 CALLER = '''
 import numpy as np
-from parmpm.jit import kernel
-from parmpm.patch_index import patch_id2, patch_id3
+from parmpm.core.jit import kernel
+from parmpm.grid.patch_index import patch_id2, patch_id3
 
 
 @kernel
@@ -185,7 +185,7 @@ def ids(x, origin, inv_h, loc, inv_ps):
 RUN = '''
 import numpy as np
 from decomposition import PatchLayout
-from parmpm.patch_index import patch_id2, patch_id3
+from parmpm.grid.patch_index import patch_id2, patch_id3
 from caller import ids
 lay = PatchLayout((12, 9), (4, 4), 2)
 loc, inv_ps = lay.locator()

@@ -18,10 +18,10 @@ from pathlib import Path
 
 import pytest
 
-import parmpm.progress as progress
-from parmpm.errors import ParmpmError
-from parmpm.log import get_logger, setup_logging
-from parmpm.progress import Progress
+import parmpm.driver.progress as progress
+from parmpm.core.errors import ParmpmError
+from parmpm.core.log import get_logger, setup_logging
+from parmpm.driver.progress import Progress
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -86,7 +86,7 @@ def test_a_batch_log_gets_plain_lines(restore_logging, capsys, clock, kwargs, ex
             fifth = bar.line(5, 0.5, 2.5e6)
     bar.close()
     lines = stream.getvalue().splitlines()
-    assert len(lines) == 3 and all("INFO parmpm.progress: step " in line for line in lines)
+    assert len(lines) == 3 and all("INFO parmpm.driver.progress: step " in line for line in lines)
     for fragment in expected:
         assert fragment in fifth, fifth
     assert capsys.readouterr().err == ""  # nothing but the log's own lines, no \r redraws
@@ -116,7 +116,7 @@ def test_records_are_written_above_a_bar_and_the_file_gets_its_lines(restore_log
     assert "a record at step 2" in err and "4/4" in err
     text = log_file.read_text()
     assert "INFO parmpm.test: a record at step 4" in text
-    assert text.count("parmpm.progress: step ") == 5  # one per update (interval 0) and the end
+    assert text.count("parmpm.driver.progress: step ") == 5  # one per update (interval 0) and the end
 
 
 @pytest.mark.parametrize("rank, verbose, quiet, console, in_file", [
@@ -165,7 +165,7 @@ def test_cli_log_file(tmp_path):
     proc = run("--set", "time.steps=3", "-o", "a", "--log-file", "run.log")  # a taken folder
     assert proc.returncode == 2
     assert (tmp_path / "run.log").read_text().splitlines()[-1].endswith(
-        "ERROR parmpm.__main__: " + proc.stderr.strip())
+        "ERROR parmpm.cli.main: " + proc.stderr.strip())
     proc = run("--log-file", str(tmp_path / "no" / "such" / "run.log"), "-o", "b")
     assert proc.returncode == 2 and proc.stderr.startswith("parmpm: error: cannot write log file")
     assert len(proc.stderr.strip().splitlines()) == 1 and not (tmp_path / "b").exists()

@@ -8,10 +8,10 @@ from pathlib import Path
 import pytest
 
 import parmpm
-from parmpm import scene as scene_module
-from parmpm.errors import SceneError
+from parmpm.scene import load as scene_module
+from parmpm.core.errors import SceneError
 from parmpm.materials import MODELS
-from parmpm.metrics import (METRIC_KINDS, NO_METRICS, make_metrics, metric_names, register_metrics,
+from parmpm.output.metrics import (METRIC_KINDS, NO_METRICS, make_metrics, metric_names, register_metrics,
                             separation_kinds)
 from parmpm.shapes import (BSPLINE, CPDI, CPDI2, CPGIMP, INTERPOLATORS, MPM, UGIMP,
                            UNBOUNDED_DEFAULT_GHOST, interpolator_names, interpolator_table)
@@ -20,15 +20,15 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def test_reading_a_scene_loads_no_numba():
-    """``import parmpm.scene_schema`` / ``parmpm.scene`` and resolving every built-in scene
+    """``import parmpm.scene.schema`` / ``parmpm.scene.load`` and resolving every built-in scene
     (damage, metrics, every interpolator) leave numba unloaded."""
     code = (
         "import sys\n"
-        "import parmpm.scene_schema, parmpm.scene, parmpm.shapes, parmpm.metrics, parmpm.materials\n"
+        "import parmpm.scene.schema, parmpm.scene.load, parmpm.shapes, parmpm.output.metrics, parmpm.materials\n"
         "assert 'numba' not in sys.modules, 'import'\n"
-        "for name in parmpm.scene.builtin_scenes():\n"
+        "for name in parmpm.scene.load.builtin_scenes():\n"
         "    for interp in parmpm.shapes.INTERPOLATORS:\n"
-        "        parmpm.scene.load_scene(name, [f'method.interpolator={interp}'])\n"
+        "        parmpm.scene.load.load_scene(name, [f'method.interpolator={interp}'])\n"
         "assert 'numba' not in sys.modules, 'load_scene'\n"
         "print('ok')\n"
     )
@@ -82,7 +82,7 @@ def test_schema_names_the_registered_choices():
 
 # --- metrics -------------------------------------------------------------------------------------
 def test_metric_kinds_load_their_classes():
-    from parmpm.metrics import METRICS
+    from parmpm.output.metrics import METRICS
 
     assert metric_names() == (*METRIC_KINDS, NO_METRICS)
     assert set(METRICS) == set(METRIC_KINDS)
@@ -134,7 +134,7 @@ def test_scene_reference_lists_the_registered_names():
 
 
 def test_readme_and_cli_show_the_registry():
-    from parmpm.__main__ import build_parser
+    from parmpm.cli.main import build_parser
 
     assert interpolator_table() in (ROOT / "README.md").read_text(encoding="utf-8")
     assert f"({interpolator_names()} " in build_parser().description

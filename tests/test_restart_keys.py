@@ -1,4 +1,4 @@
-"""What ``parmpm restart --set`` may change (issue 28 item 6; :mod:`parmpm.restart_keys`).
+"""What ``parmpm restart --set`` may change (issue 28 item 6; :mod:`parmpm.driver.restart_keys`).
 
 Before, a restart's ``--set`` changed the stored scene wholesale: ``materials.bar.density=5000``
 kept the checkpoint's masses but set Δt from the new density and scene.toml said 5000; a changed
@@ -12,10 +12,10 @@ import os
 
 import pytest
 
-from parmpm.__main__ import main
+from parmpm.cli.main import main
 from parmpm.io import load_snapshots
-from parmpm.restart_keys import RESTART_KEYS, allowed, changes
-from parmpm.scene import load_scene, scene_from_toml
+from parmpm.driver.restart_keys import RESTART_KEYS, allowed, changes
+from parmpm.scene.load import load_scene, scene_from_toml
 
 QUIET = ["--quiet", "--set", "output.figure=false"]
 

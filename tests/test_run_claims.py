@@ -25,7 +25,7 @@ from run_waits import wait_for_steps
 from test_cli import assert_one_line_error
 from test_cli import parmpm as cli
 
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io.run_folder import MARKER, claim
 
 REPO = Path(__file__).resolve().parents[1]

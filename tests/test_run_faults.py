@@ -19,10 +19,10 @@ from test_cli import assert_one_line_error
 from test_cli import parmpm as cli
 
 import parmpm
-from parmpm.__main__ import main
-from parmpm.errors import ParmpmError, RunInterrupted
-from parmpm.schedule import Schedule
-from parmpm.simulation import Simulation
+from parmpm.cli.main import main
+from parmpm.core.errors import ParmpmError, RunInterrupted
+from parmpm.driver.schedule import Schedule
+from parmpm.driver.simulation import Simulation
 
 QUIET = ["--quiet"]
 OFF = ["--set", "output.snapshots=false", "--set", "output.figure=false"]
@@ -57,7 +57,7 @@ def test_a_schedule_fires_at_multiples_of_its_period_and_of_its_step_count():
 def test_any_of_asks_every_part_and_at_end_follows_the_clock():
     """A collective part (wall time) must be asked at every step on every rank, even when an
     earlier part is already due; the end of the run has the schedules' tolerance."""
-    from parmpm.schedule import AnyOf, AtEnd, Clock
+    from parmpm.driver.schedule import AnyOf, AtEnd, Clock
 
     asked = []
 
@@ -94,8 +94,8 @@ class _Ranks:
 
 
 def test_agree_raises_the_same_message_on_every_rank():
-    from parmpm.collective import agree
-    from parmpm.errors import SimulationError
+    from parmpm.core.collective import agree
+    from parmpm.core.errors import SimulationError
 
     agree(_Ranks(0, [(0, None), (1, None)]), None, root=None)  # no problem anywhere
     values = [(0, None), (1, "rank 1 failed"), (2, "rank 2 failed")]
@@ -111,7 +111,7 @@ def test_agree_raises_the_same_message_on_every_rank():
 
 def test_a_new_output_is_one_callback_and_changes_no_result(tmp_path):
     """What a history writer needs: one Callback on a schedule, also on the initial state."""
-    from parmpm.callbacks import Callback
+    from parmpm.driver.callbacks import Callback
 
     rows = []
     with_history = _sim(tmp_path, "checkpoint.every_steps=3", name="h")

@@ -22,11 +22,11 @@ import pytest
 from run_waits import wait_for_steps
 
 import parmpm
-from parmpm.callbacks import Callback, Schedule
-from parmpm.errors import ParmpmError, RunInterrupted
+from parmpm.driver.callbacks import Callback, Schedule
+from parmpm.core.errors import ParmpmError, RunInterrupted
 from parmpm.io.run_folder import claim
-from parmpm.run_files import RunFiles
-from parmpm.simulation import Simulation
+from parmpm.driver.run_files import RunFiles
+from parmpm.driver.simulation import Simulation
 
 REPO = Path(__file__).resolve().parents[1]
 QUIET_SCENE = ["output.snapshots=false", "output.figure=false", "output.history=false"]

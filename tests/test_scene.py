@@ -6,8 +6,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from parmpm.errors import SceneError
-from parmpm.scene import Scene, builtin_scenes, load_scene, parse_lcr, scene_from_toml
+from parmpm.core.errors import SceneError
+from parmpm.scene.load import Scene, builtin_scenes, load_scene, parse_lcr, scene_from_toml
 
 BUILTINS = ("hanging_bar", "hanging_bar_1d", "hanging_bar_3d", "vibrating_bar")
 
@@ -120,7 +120,7 @@ def test_defaults(tmp_path):
     assert scene.source.endswith("my_scene.toml")
     assert d["grid"]["origin"] == [0.0, 0.0]
     assert d["grid"]["cell_size"] == [0.5, 0.5]
-    assert d["grid"]["patch_size"] == "auto"  # chosen at set-up (parmpm.patch_size)
+    assert d["grid"]["patch_size"] == "auto"  # chosen at set-up (parmpm.scene.patch_size)
     assert d["bodies"][0]["shape"] == "box" and d["bodies"][0]["velocity"] == [0.0, 0.0]
     assert d["method"]["lcr"] == "2dx" and scene.lcr == pytest.approx(1.0)
     assert d["damping"] == {"coefficient": 0.0}

@@ -12,13 +12,13 @@ from pathlib import Path
 
 from mpi_launch import needs_mpi, mpirun
 
-from parmpm.scene import load_scene
-from parmpm.scene_agreement import first_difference, scene_digest
+from parmpm.scene.load import load_scene
+from parmpm.scene.agreement import first_difference, scene_digest
 
 REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 300
 #: a 1D bar on two patches of 8 cells: on two ranks each holds half of it
-BAR = (REPO / "parmpm" / "scenes" / "hanging_bar_1d.toml").read_text()
+BAR = (REPO / "parmpm" / "scene" / "builtin" / "hanging_bar_1d.toml").read_text()
 QUIET = ["--quiet", "--set", "output.figure=false", "--set", "output.snapshots=false"]
 
 
@@ -66,7 +66,7 @@ if MPI.COMM_WORLD.Get_rank() == 1:
     def replaced(self, *args, **kwargs):
         return read(self.with_name("b.toml") if self.name == "a.toml" else self, *args, **kwargs)
     pathlib.Path.read_text = replaced
-from parmpm.__main__ import main
+from parmpm.cli.main import main
 sys.exit(main(sys.argv[1:]))
 """
 
@@ -80,7 +80,7 @@ def test_a_scene_file_replaced_while_the_ranks_start_is_read_once(tmp_path):
     proc, _ = _launch(["-n", "2", sys.executable, str(script), "run", str(a), "-o", "two",
                        *QUIET], tmp_path)
     assert proc.returncode == 0, proc.stderr
-    from parmpm.__main__ import main
+    from parmpm.cli.main import main
     assert main(["run", str(a), "-o", str(tmp_path / "one"), *QUIET]) == 0
     two = json.loads((tmp_path / "two" / "summary.json").read_text())
     one = json.loads((tmp_path / "one" / "summary.json").read_text())
@@ -118,7 +118,7 @@ def test_mpmd_launch_with_different_set_fails_in_one_line(tmp_path):
 
 @needs_mpi
 def test_mpmd_restart_with_different_set_or_checkpoint_fails_in_one_line(tmp_path):
-    from parmpm.__main__ import main
+    from parmpm.cli.main import main
 
     a, _ = _scenes(tmp_path)
     assert main(["run", str(a), "-o", str(tmp_path / "r"), *QUIET, "--set", "time.steps=4",

@@ -1,4 +1,4 @@
-"""Seeding (:mod:`parmpm.seeding`): bodies made block by block (a box's lattice kept axis by
+"""Seeding (:mod:`parmpm.particles.seeding`): bodies made block by block (a box's lattice kept axis by
 axis, a turned box turned block by block, a disk or sphere masked block by block) give the same
 points, bit for bit, the same particles per patch and the same members of a rank's patches as
 seeding every particle at once and locating each one — what lets set-up skip holding every
@@ -10,9 +10,10 @@ import pytest
 
 from parmpm import Simulation, load_scene
 from parmpm.materials import material_table
-from parmpm.particles import locate_patches
-from parmpm import seeding
-from parmpm.seeding import _Ball, _Lattice, _lattice, _turn, _Turned, seed_bodies
+from parmpm.particles.store import locate_patches
+from parmpm.particles import seeding
+from parmpm.geometry.primitives import turn as _turn
+from parmpm.particles.seeding import _Ball, _Lattice, _lattice, _Turned, seed_bodies
 
 
 def test_lattice_points_are_the_meshgrid_points():
@@ -96,7 +97,7 @@ def test_ball_is_its_box_lattice_masked(block, monkeypatch):
 
 
 def test_outside_the_grid_names_the_particle(tmp_path):
-    from parmpm.errors import SimulationError
+    from parmpm.core.errors import SimulationError
 
     sc = load_scene("spinning_disk", ["grid.patch_size=6"])
     D = Simulation(sc, tmp_path, quiet=True).disc
@@ -157,7 +158,7 @@ def _overlap_scene(tmp_path, dim, bodies, cells=None):
 
 
 def _seeded_twice(path):
-    from parmpm.body_overlaps import seeded_twice
+    from parmpm.scene.overlaps import seeded_twice
 
     data = load_scene(path).data
     names = material_table(data["materials"])[1]

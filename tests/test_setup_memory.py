@@ -4,7 +4,7 @@ are those of one rank.
 For every body kind (1D, 2D and 3D boxes, turned boxes, a disk, a sphere) and every metrics
 kind, each scene runs on 1 rank (one block of seeds: the whole body) and on 2 and 3 ranks with
 blocks of :data:`SMALL_BLOCK` lattice points. On every rank, the largest particle array seeding
-built (:data:`parmpm.seeding.WATCH`: positions, patch ids, masks, global ids) is at most the
+built (:data:`parmpm.particles.seeding.WATCH`: positions, patch ids, masks, global ids) is at most the
 rank's own particles plus one block, the metrics hold no particle field and no array of the
 scene's size, and the final state and summary equal the 1-rank run's, bit for bit.
 
@@ -51,8 +51,8 @@ def _largest_metric_array(metrics) -> int:
 def main() -> None:
     from decomposition import world
     from parmpm import Simulation, load_scene, seeding
-    from parmpm.compile import compile_first
-    from parmpm.log import setup_logging
+    from parmpm.driver.warm_up import compile_first
+    from parmpm.core.log import setup_logging
 
     out, block = Path(sys.argv[1]), int(sys.argv[2])
     comm = world()
@@ -104,7 +104,7 @@ def _load(folder: Path, case: str):
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_no_rank_holds_the_whole_scene_and_results_are_one_ranks(runs, case):
-    from parmpm.seeding import ALIGN
+    from parmpm.particles.seeding import ALIGN
 
     ref, ref_summary, _ = _load(runs[1], case)
     n_total = ref["gid"].size

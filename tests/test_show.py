@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-import parmpm.__main__ as cli
-from parmpm.scene import builtin_scenes, load_scene
+import parmpm.cli.main as cli
+from parmpm.scene.load import builtin_scenes, load_scene
 
 REPO = Path(__file__).resolve().parents[1]
 TIMEOUT_S = 120

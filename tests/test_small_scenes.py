@@ -2,7 +2,7 @@
 scene smaller than one default patch enough patches for a handful of ranks, chosen from the
 scene alone so results stay the same bit for bit on any rank count; a run with more ranks than
 patches holding particles warns once, naming the idle ranks and a computed fix
-(:mod:`parmpm.patch_size`)."""
+(:mod:`parmpm.scene.patch_size`)."""
 import json
 import subprocess
 import sys
@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 
 from decomposition import PatchLayout
-from parmpm.bench import build_bench_scene
-from parmpm.discretisation import Discretisation, exterior_cells
-from parmpm.errors import SceneError
-from parmpm.particles import locate_patches
-from parmpm.patch_size import (MAX_DENSE_PATCHES, _rank_list, auto_patch_size, covered_patches,
+from parmpm.cli.bench import build_bench_scene
+from parmpm.transfer.discretisation import Discretisation, exterior_cells
+from parmpm.core.errors import SceneError
+from parmpm.particles.store import locate_patches
+from parmpm.scene.patch_size import (MAX_DENSE_PATCHES, _rank_list, auto_patch_size, covered_patches,
                                floor_size, idle_ranks_warning)
-from parmpm.rank_state import _patch_size
-from parmpm.scene import scene_from_toml
-from parmpm.seeding import seed_bodies
+from parmpm.driver.set_up import _patch_size
+from parmpm.scene.load import scene_from_toml
+from parmpm.particles.seeding import seed_bodies
 from parmpm.shapes import INTERPOLATORS
 
 HERE = Path(__file__).parent

@@ -12,12 +12,12 @@ import h5py
 import numpy as np
 import pytest
 
-from parmpm.domains import domain_corners, domain_sizes
+from parmpm.output.domains import domain_corners, domain_sizes
 from parmpm.io import SnapshotWriter, load_snapshots
 from parmpm.io.history_file import read_history
-from parmpm.scene import load_scene
+from parmpm.scene.load import load_scene
 from parmpm.shapes import CPDI, CPGIMP, MPM, UGIMP
-from parmpm.simulation import Simulation
+from parmpm.driver.simulation import Simulation
 
 SCENES = {1: "hanging_bar_1d", 2: "hanging_bar", 3: "hanging_bar_3d"}
 TINY = ("time.steps=4", "output.every_steps=2", "output.figure=false")
@@ -116,7 +116,7 @@ def test_fields_types_and_attributes(run):
 
 
 def test_domains_are_the_interpolation_domains(run):
-    """The domains block holds one cell per particle, of the size parmpm.domains computes."""
+    """The domains block holds one cell per particle, of the size parmpm.output.domains computes."""
     path, sim = run
     s = load_snapshots(path)
     p, disc = particle_state(sim), sim.state.disc
@@ -264,7 +264,7 @@ def test_write_table_replaces(tmp_path):
 
 
 def test_not_a_snapshot_file(tmp_path):
-    from parmpm.errors import ParmpmError
+    from parmpm.core.errors import ParmpmError
 
     with h5py.File(tmp_path / "x.h5", "w") as f:
         f["a"] = 1
@@ -381,10 +381,10 @@ def test_meshio_cannot_read_parts(ranks_runs):
 PART_FAILS = """
 import sys
 from mpi4py import MPI
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io import xdmf
-from parmpm.scene import load_scene
-from parmpm.simulation import Simulation
+from parmpm.scene.load import load_scene
+from parmpm.driver.simulation import Simulation
 
 free = xdmf.SnapshotWriter._free
 def short(self):  # part 1's disk fills after its first snapshot

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import parmpm
-from parmpm.errors import SimulationError
+from parmpm.core.errors import SimulationError
 
 QUIET = ["output.snapshots=false", "output.figure=false"]
 

@@ -1,6 +1,6 @@
-"""The hand-specialised kernels (:mod:`parmpm.kernels2d`, :mod:`parmpm.kernels3d`) against the
-dimension-generic ones (:mod:`parmpm.transfer`), for every entry of the kernel registry
-(:data:`parmpm.stepper.SPECIALISED`, and the MLS kernels of :data:`parmpm.stepper.SPECIALISED_MLS`)
+"""The hand-specialised kernels (:mod:`parmpm.transfer.kernels2d`, :mod:`parmpm.transfer.kernels3d`) against the
+dimension-generic ones (:mod:`parmpm.transfer.generic`), for every entry of the kernel registry
+(:data:`parmpm.step.stepper.SPECIALISED`, and the MLS kernels of :data:`parmpm.step.stepper.SPECIALISED_MLS`)
 in 2D and 3D.
 
 On the hanging bar with several patches and a randomly deformed, moving, stressed particle state,
@@ -8,26 +8,26 @@ P2G sums, the MUSL momentum re-map and every G2P mode (positions, velocities, F,
 speed) agree to round-off, with and without domain scaling (an ``l_cr`` that caps some but not
 all domains), body forces and every registered material law; the stress pass agrees; a support
 past the ghost layer is caught the same way; G2P finds each particle's next patch as
-:func:`parmpm.particles.locate_patches` does. The kernels switch through
-:meth:`parmpm.stepper.Stepper.use_kernels` (never by their positional signatures); every kernel
+:func:`parmpm.particles.store.locate_patches` does. The kernels switch through
+:meth:`parmpm.step.stepper.Stepper.use_kernels` (never by their positional signatures); every kernel
 also runs through ``.py_func`` (readable failures, coverage).
 """
 import numpy as np
 import pytest
 
 import parmpm
-from parmpm.kernels2d.cells import cell_of, usable_cells
-from parmpm.kernels2d.material import stress_pass as stress_pass_2d
-from parmpm.kernels3d.cells import cells_of8
-from parmpm.kernels3d.material import stress_pass as stress_pass_3d
+from parmpm.transfer.kernels2d.cells import cell_of, usable_cells
+from parmpm.transfer.kernels2d.material import stress_pass as stress_pass_2d
+from parmpm.transfer.kernels3d.cells import cells_of8
+from parmpm.transfer.kernels3d.material import stress_pass as stress_pass_3d
 from parmpm.materials import MODELS
-from parmpm.particles import locate_patches
+from parmpm.particles.store import locate_patches
 from parmpm.shapes import BSPLINE, CPDI, CPDI2, INTERPOLATORS
 from parmpm.shapes.cpdi2 import affine_corners
-from parmpm.simulation import Simulation
-from parmpm.stepper import SPECIALISED, SPECIALISED_MLS
-from parmpm.transfer import stress_pass as generic_stress_pass
-from parmpm.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
+from parmpm.driver.simulation import Simulation
+from parmpm.step.stepper import SPECIALISED, SPECIALISED_MLS
+from parmpm.transfer.generic import stress_pass as generic_stress_pass
+from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 
 QUIET = ["output.snapshots=false", "output.figure=false", "time.steps=1"]
 SCENE = {2: "hanging_bar", 3: "hanging_bar_3d"}

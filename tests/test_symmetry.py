@@ -1,4 +1,4 @@
-"""Symmetry faces (``boundary.x_min = "symmetry"``, :mod:`parmpm.symmetry`): a half body on a
+"""Symmetry faces (``boundary.x_min = "symmetry"``, :mod:`parmpm.grid.symmetry`): a half body on a
 mirror face moves exactly as the x > 0 half of the whole body; the energy ledger sees the half;
 B-splines converge at second order on the manufactured solution with mirror faces (first order
 with slip planes); a patch size that cuts a mirror pair is refused in one line."""
@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from decomposition import world
-from parmpm.energy import EnergyLedger
-from parmpm.errors import SceneError
-from parmpm.rank_state import set_up
-from parmpm.scene import scene_from_toml
+from parmpm.output.energy import EnergyLedger
+from parmpm.core.errors import SceneError
+from parmpm.driver.set_up import set_up
+from parmpm.scene.load import scene_from_toml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "run_scripts"))
 

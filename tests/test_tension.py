@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from parmpm import Simulation, load_scene
-from parmpm.errors import SceneError
-from parmpm.exact_tension import elastic_tension, opening_allowance, softening, tension_failure
+from parmpm.core.errors import SceneError
+from parmpm.exact.tension import elastic_tension, opening_allowance, softening, tension_failure
 from parmpm.materials import lame
 from parmpm.materials.neo_hookean import neo_hookean_stress
-from parmpm.scene import scene_from_toml
-from parmpm.seeding import bodies_to_particles
+from parmpm.scene.load import scene_from_toml
+from parmpm.particles.seeding import bodies_to_particles
 
 E, NU = 1.0e6, 0.3
 OFF = ["output.snapshots=false", "output.figure=false"]
@@ -205,7 +205,7 @@ def test_seeds_build_exactly_the_kept_particles():
     every field equals the all-particles build at those global ids, bit for bit, velocities of
     turned, affine and spinning bodies included."""
     from parmpm.materials import material_table
-    from parmpm.seeding import seed_bodies
+    from parmpm.particles.seeding import seed_bodies
 
     scene = load_scene("tension_bar", ["bodies.1.angle=3.0", "bodies.2.angular_velocity=1.5"])
     params, names = material_table(scene.data["materials"])

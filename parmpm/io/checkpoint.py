@@ -9,7 +9,7 @@ so a restart reads exactly the rows of its own patches. With more than one write
 in part files, ``checkpoint_<step>.parts/part_<k>.h5``, that the top-level file binds with HDF5
 virtual datasets (relative source names: the folder can be moved); with one writer they are in
 the top-level file itself. :mod:`parmpm.io.checkpoint_parts` reads checkpoints and writes the
-top-level file; :mod:`parmpm.io.checkpoint_gather` is the parallel strategy.
+top-level file; :mod:`parmpm.driver.checkpoint_writer` is the parallel strategy.
 
 **Integrity.** A file's rows are cut into *segments* (``segments``: offsets; version 4: each
 patch's rows, cut at ``block_rows``; versions 1–3: fixed blocks of ``block_rows``) and
@@ -62,7 +62,7 @@ from pathlib import Path
 
 import numpy as np
 
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io.guarded_file import GuardedFile, space_message  # noqa: F401 (re-exported)
 
 FORMAT = "parmpm-checkpoint"
@@ -76,7 +76,7 @@ FIELDS = ("gid", "mat", "x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh
           "rf", "affine", "corners")
 
 
-#: fields a checkpoint holds only when the run carries them (:data:`parmpm.particles.OPTIONAL_FIELDS`)
+#: fields a checkpoint holds only when the run carries them (:data:`parmpm.particles.store.OPTIONAL_FIELDS`)
 OPTIONAL = ("affine", "corners")
 
 

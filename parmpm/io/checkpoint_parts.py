@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io.checkpoint import (ATTRS, DTYPES, FORMAT, OPTIONAL, PART_FORMAT, VERSION,
                                   CheckpointWriter, arrays_digest, attrs_digest, block_digest,
                                   required_fields, tables_digest)

@@ -5,7 +5,7 @@ keyless (they catch damage, not intent), so a crafted file can carry any names w
 digests: joined to the folder unchecked, ``/etc/...`` or ``../../x`` would make a restart read
 files anywhere, and its error ("no such file" or "not a readable HDF5 file") would tell whether
 some outside path exists. So a name must be ``<checkpoint>.parts/<file>``, exactly as the writer
-(:func:`parmpm.io.checkpoint_gather.write_checkpoint`) makes it, and a part file must not be a link
+(:func:`parmpm.driver.checkpoint_writer.write_checkpoint`) makes it, and a part file must not be a link
 that leads out of that folder; both refusals are decided from names and links alone, before any
 part is opened, and read the same whether the outside path exists or not.
 """
@@ -14,7 +14,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io.checkpoint import parts_folder
 
 

@@ -2,7 +2,7 @@
 the same columns as a table of the run's HDF5, and ``history.png``.
 
 Written by rank 0 only; the run driver makes every write collective
-(:class:`parmpm.run_files.RunFiles`). Numbers are written with ``repr`` (shortest round-trip), so
+(:class:`parmpm.driver.run_files.RunFiles`). Numbers are written with ``repr`` (shortest round-trip), so
 the CSV holds exactly the floats the run computed: two runs agree bit for bit iff their files do.
 """
 from __future__ import annotations

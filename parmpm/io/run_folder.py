@@ -37,7 +37,7 @@ import shutil
 import time
 from pathlib import Path
 
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io import run_lock
 
 MARKER = "parmpm-run.json"

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io.xdmf_layout import CELL_TYPES, FORMAT
 
 __all__ = ["load_snapshots", "Snapshots", "FieldSeries"]

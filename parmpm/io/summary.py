@@ -60,7 +60,7 @@ def parmpm_version() -> str:
         from importlib.metadata import PackageNotFoundError, version
         return version("parmpm")
     except (ImportError, PackageNotFoundError):
-        from parmpm import __version__
+        from parmpm.core.version import __version__
         return f"{__version__} (not installed)"
 
 

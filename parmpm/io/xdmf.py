@@ -14,7 +14,7 @@
 
 Every dataset carries ``units``, ``description`` and ``shape`` (the per-particle shape before
 padding, which :func:`parmpm.io.snapshot_reader.load_snapshots` restores). Fields are whatever
-the caller hands :meth:`SnapshotWriter.write`; a run's are :mod:`parmpm.snapshot_fields`.
+the caller hands :meth:`SnapshotWriter.write`; a run's are :mod:`parmpm.driver.snapshot_fields`.
 
 The XML index (``<name>.xdmf``) holds two temporal collections under one ``Domain``, so ParaView
 shows two blocks: ``domains`` (one uniform grid per snapshot: the domains as cells — ``Polyline``
@@ -67,7 +67,7 @@ raises ``meshio.ReadError("Couldn't find the mesh grid")`` when opened; read suc
 (one rank, or every rank in one group) writes the single-file layout, format_version 1.
 
 Without parts, call from one rank with the particle state of all ranks in gid order; the run's
-collective side is :class:`parmpm.run_files.RunFiles`. How fields are shaped for XDMF and the XML
+collective side is :class:`parmpm.driver.run_files.RunFiles`. How fields are shaped for XDMF and the XML
 elements that point at the datasets are :mod:`parmpm.io.xdmf_layout`'s.
 """
 
@@ -83,7 +83,7 @@ from pathlib import Path
 
 import numpy as np
 
-from parmpm.errors import ParmpmError
+from parmpm.core.errors import ParmpmError
 from parmpm.io.guarded_file import GuardedFile, space_message
 from parmpm.io.xdmf_index import XdmfIndex, snapshot_grids
 from parmpm.io.xdmf_layout import (CELL_TYPES, FORMAT, FORMAT_VERSION, PARTS_VERSION, array_spec,
@@ -257,7 +257,7 @@ class SnapshotWriter:
         """Add the snapshot at time ``t``: positions ``x`` (N, dim), named particle fields,
         the run's ``step`` (the group's name; default: the snapshot's index) and, optionally,
         every particle's domain corners ``(N, 2^dim, dim)`` as
-        :func:`parmpm.domains.domain_corners` gives them. Returns the snapshot's record (what
+        :func:`parmpm.output.domains.domain_corners` gives them. Returns the snapshot's record (what
         the index needs to point at its datasets)."""
         if self._closed:
             raise ValueError(f"{self.path} is closed")

@@ -20,7 +20,7 @@ PARTS_VERSION = 2
 
 #: XDMF topology of a domain, by dimension: (type, nodes per cell)
 CELL_TYPES = {1: ("Polyline", 2), 2: ("Quadrilateral", 4), 3: ("Hexahedron", 8)}
-#: :func:`parmpm.domains.domain_corners`' 3D box order (axis 0 fastest) → XDMF/VTK hexahedron
+#: :func:`parmpm.output.domains.domain_corners`' 3D box order (axis 0 fastest) → XDMF/VTK hexahedron
 #: order (the bottom face counter-clockwise, then the top face)
 BOX_TO_HEXAHEDRON = (0, 1, 3, 2, 4, 5, 7, 6)
 
@@ -74,7 +74,7 @@ def pad_point_data(name: str, data, n: int, dim: int) -> dict[str, np.ndarray]:
 
 
 def xdmf_cells(corners) -> np.ndarray:
-    """Domain corners as :func:`parmpm.domains.domain_corners` gives them, ``(N, 2^d, d)``, in
+    """Domain corners as :func:`parmpm.output.domains.domain_corners` gives them, ``(N, 2^d, d)``, in
     XDMF/VTK node order: unchanged in 1D (a segment) and 2D (already counter-clockwise); the 3D
     box order (axis 0 fastest) reordered to a hexahedron's (:data:`BOX_TO_HEXAHEDRON`)."""
     c = np.asarray(corners, dtype=np.float64)

@@ -30,8 +30,8 @@ which a CPDI domain stops following the material's stretch; see :mod:`parmpm.sha
 """
 import math
 
-from parmpm.jit import helper_kernel
-from parmpm.kinematics import left_cauchy_green_2d, left_cauchy_green_3d
+from parmpm.core.jit import helper_kernel
+from parmpm.materials.kinematics import left_cauchy_green_2d, left_cauchy_green_3d
 from parmpm.materials import (COL_DAMAGE, COL_FRACTURE, COL_ONSET, EXPONENTIAL, LINEAR, NO_DAMAGE,
                               SOFTENING)
 

@@ -18,8 +18,8 @@ importing this module fails while a registered law is missing from :data:`DISPAT
 """
 import math
 
-from parmpm.jit import helper_kernel
-from parmpm.kinematics import (det_2d, det_3d, det_d, gershgorin_2d, gershgorin_3d,
+from parmpm.core.jit import helper_kernel
+from parmpm.materials.kinematics import (det_2d, det_3d, det_d, gershgorin_2d, gershgorin_3d,
                                gershgorin_bound, left_cauchy_green_2d, left_cauchy_green_3d)
 from parmpm.materials import (COL_C2, COL_DENSITY, COL_INV_DENSITY, COL_LAM, COL_LAW, COL_MU, LAWS,
                               LINEAR_ELASTIC, NEO_HOOKEAN)
@@ -72,7 +72,7 @@ def stored_energy(d, params, F, damage):
 
     The damaged law keeps a compressive pressure on broken particles, whose energy this leaves
     out: an underestimate, which is the safe side for the run's blow-up watch
-    (:mod:`parmpm.energy`)."""
+    (:mod:`parmpm.output.energy`)."""
     law = int(params[COL_LAW])
     if law == LINEAR_ELASTIC:
         psi = linear_elastic_energy(d, F, params[COL_LAM], params[COL_MU])

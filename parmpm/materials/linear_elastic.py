@@ -11,7 +11,7 @@ kernels), :func:`linear_elastic_2d` / :func:`linear_elastic_3d` on scalar entrie
 """
 import math
 
-from parmpm.jit import helper_kernel
+from parmpm.core.jit import helper_kernel
 
 
 @helper_kernel

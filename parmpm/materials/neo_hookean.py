@@ -12,8 +12,8 @@ which take ``ln J`` and ``1/J`` once and multiply where the generic form divides
 """
 import math
 
-from parmpm.jit import helper_kernel
-from parmpm.kinematics import det_d
+from parmpm.core.jit import helper_kernel
+from parmpm.materials.kinematics import det_d
 
 
 @helper_kernel

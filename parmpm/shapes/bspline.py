@@ -31,7 +31,7 @@ message (pad the grid, as for uGIMP domains).
 """
 import math
 
-from parmpm.jit import helper_kernel
+from parmpm.core.jit import helper_kernel
 
 
 @helper_kernel

@@ -7,7 +7,7 @@ Domain vectors ``R = [r1 … rd]``; corners ``x_α = x_p + Σ_k s_αk r_k`` with
 ``(S_i(b) − S_i(a))/(b − a)``. Each corner scatters to its cell's 2^d nodes, so a particle yields
 4^d (node, weight, gradient) entries, some for the same node — sums are unaffected.
 """
-from parmpm.jit import helper_kernel
+from parmpm.core.jit import helper_kernel
 from parmpm.shapes.hat import hat_axis
 
 

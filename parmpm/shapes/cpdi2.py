@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from parmpm.jit import helper_kernel
+from parmpm.core.jit import helper_kernel
 from parmpm.shapes.cpdi import cofactor_3d
 from parmpm.shapes.hat import hat_axis
 

@@ -19,13 +19,13 @@ are visited.
 
 CPDI2 (tracked corners, :mod:`parmpm.shapes.cpdi2`) freezes the same way here; its weights read
 neither ``r0`` nor ``rf``, but G2P stops moving a frozen particle's corners relative to it
-(:mod:`parmpm.transfer`; the choice is discussed in ``docs/cpdi2.md``).
+(:mod:`parmpm.transfer.generic`; the choice is discussed in ``docs/cpdi2.md``).
 """
 import math
 
 import numpy as np
 
-from parmpm.jit import kernel
+from parmpm.core.jit import kernel
 from parmpm.materials import COL_DAMAGE, COL_FREEZE
 from parmpm.shapes.cpdi import cofactor
 

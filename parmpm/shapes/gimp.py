@@ -10,7 +10,7 @@ closed form assumes ``l ≤ Δx/2``). uGIMP keeps ``l = Δx/(2·ppc)``; cpGIMP u
 """
 import math
 
-from parmpm.jit import helper_kernel
+from parmpm.core.jit import helper_kernel
 from parmpm.shapes.hat import SNAP
 
 

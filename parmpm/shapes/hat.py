@@ -5,7 +5,7 @@ a point in cell ``⌊ξ⌋`` touches nodes ``⌊ξ⌋`` and ``⌊ξ⌋ + 1`` wit
 ``f = ξ − ⌊ξ⌋``, and gradients ``∓1/Δx``.
 
 Standard MPM gives a point exactly on node ``j`` (``f = 0``) the fraction ``F_MIN = 2⁻⁶⁰``
-instead (:func:`mpm_axis`; :func:`parmpm.kernels2d.cells.hat_cell_of` in the 2D/3D kernels): node
+instead (:func:`mpm_axis`; :func:`parmpm.transfer.kernels2d.cells.hat_cell_of` in the 2D/3D kernels): node
 ``j + 1`` then gets a weight far below round-off (``1 − f`` still rounds to 1, so node ``j``'s
 weight is unchanged) but not zero, so every node that the particle's gradient ``±1/Δx`` reaches
 also holds some of its mass and the grid gives it the particle's velocity, not an empty node's
@@ -14,7 +14,7 @@ exact hat: its gradient weights vanish with its weights.
 """
 import math
 
-from parmpm.jit import helper_kernel
+from parmpm.core.jit import helper_kernel
 
 SNAP = 1e-9  # grid units: round-off tolerance at the edge of the grid or of a patch's box
 F_MIN = 2.0 ** -60  # smallest fraction in a cell: 1 − F_MIN == 1 (see the module doc)
@@ -50,7 +50,7 @@ def hat_axis(xi, base, nloc, nglob, inv_h, jk, wk, dwk, a):
 def mpm_axis(xi, base, nloc, nglob, inv_h, jk, wk, dwk, a):
     """:func:`hat_axis` for standard MPM: a point exactly on its cell's first node gives the
     other node the weight ``F_MIN`` (module doc), as the 2D/3D kernels'
-    :func:`parmpm.kernels2d.cells.hat_cell_of` does."""
+    :func:`parmpm.transfer.kernels2d.cells.hat_cell_of` does."""
     n = hat_axis(xi, base, nloc, nglob, inv_h, jk, wk, dwk, a)
     if n > 0 and wk[a, 1] < F_MIN:
         wk[a, 1] = F_MIN

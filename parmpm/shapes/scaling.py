@@ -13,7 +13,7 @@ When no vector exceeds ``l_cr``, ``R`` is returned unchanged (bit for bit).
 """
 import math
 
-from parmpm.jit import helper_kernel
+from parmpm.core.jit import helper_kernel
 
 
 @helper_kernel

@@ -10,8 +10,8 @@ Entries: ``idx[e]`` flat local node index in the patch's ghost-inclusive box, ``
 a node outside the grid or beyond the patch's ghost layer; -2 (``INVERTED``, cpdi2 only) that
 its domain's volume is not positive (:mod:`parmpm.shapes.cpdi2`).
 """
-from parmpm.jit import helper_kernel
-from parmpm.kernel_records import NO_SCALING
+from parmpm.core.jit import helper_kernel
+from parmpm.core.records import NO_SCALING
 from parmpm.shapes import BSPLINE, CPDI, CPDI2, CPGIMP, MPM
 from parmpm.shapes.bspline import bspline_axis
 from parmpm.shapes.cpdi import cpdi_support

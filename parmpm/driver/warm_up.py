@@ -1,0 +1,328 @@
+"""Filling numba's cache: the kernels a run uses, compiled once and loaded by every later run.
+
+Every kernel is ``@njit(cache=True)`` (:mod:`parmpm.core.jit`): the first run of a dimension and
+interpolator compiles for 20–40 s, later runs load the machine code from numba's cache in well
+under a second. Three things here deal with that first run:
+
+* :func:`compile_notice`: one info line as soon as numba starts compiling a cached kernel that is
+  not in its cache (numba's own ``numba:compile`` event, fired only on a cache miss, so the line
+  is never printed for a run that merely loads), naming the cache folder; with ``-v`` every
+  compiled kernel and its time at DEBUG.
+* :func:`compile_kernels` (``parmpm compile``): one tiny run of each dimension × interpolator ×
+  USL/MUSL × transfer the interpolator takes (FLIP; for ``bspline`` also APIC and MLS,
+  :mod:`parmpm.transfer.affine`), in-process, two steps each, with everything a run switches on around the step
+  (damage and CPDI freeze, fixed and slip regions, gravity, metrics with the separation count,
+  history with probes, snapshots with domains), then what a rank of a multi-rank run does that
+  one rank alone does not: the separation count's shared pairs, a patch-set change, and a step
+  with no patch and no particle (the idle ranks of a run on more ranks than occupied patches).
+  A batch job runs it once before ``srun``; a run on any number of ranks then compiles nothing.
+* :func:`compile_first`: under MPI, rank 0 runs the tiny run of the scene's dimension, method,
+  update and transfer first while the other ranks wait, so that P ranks do not compile the same kernels P
+  times at once (on an oversubscribed node that multiplies the start-up; with a warm cache it
+  costs rank 0 a few tenths of a second). The other ranks wait in a polled, non-blocking barrier:
+  MPICH's blocking one spins and would take the cores rank 0 compiles on.
+
+Not covered by the tiny runs (compiled by the run that needs them): the manufactured solution's
+body force.
+"""
+from __future__ import annotations
+
+import contextlib
+import logging
+import shutil
+import tempfile
+import time
+
+from parmpm.transfer.affine import AFFINE_TRANSFERS, APIC_INTERPOLATORS, TRANSFERS
+from parmpm.core.log import get_logger
+from parmpm.scene.schema import UPDATES
+from parmpm.shapes import INTERPOLATORS
+
+log = get_logger(__name__)
+
+DIMS = (1, 2, 3)
+METHODS = tuple(INTERPOLATORS)
+#: the updates a tiny run is made for: "auto" is one of these two
+COMPILED_UPDATES = ("usl", "musl")
+#: the cache is keyed to the sources (:mod:`parmpm.core.cache_key`): the first run after any edit or
+#: upgrade compiles too
+NOTICE = ("compiling kernels (first run of these sources: about a minute; cached afterwards "
+          "in {where})")
+
+
+# --- the notice ---------------------------------------------------------------------------------
+def _name(dispatcher) -> str:
+    fn = dispatcher.py_func
+    return f"{fn.__module__}.{fn.__qualname__}"
+
+
+def _cached(dispatcher) -> bool:
+    """Whether ``dispatcher`` keeps its machine code in numba's on-disk cache."""
+    return type(getattr(dispatcher, "_cache", None)).__name__ not in ("NullCache", "NoneType")
+
+
+class CompileNotice:
+    """A numba event listener: the first cache miss of a cached kernel logs :data:`NOTICE`;
+    every top-level compilation is timed (``seconds``, ``kernels``) and logged at DEBUG."""
+
+    def __init__(self):
+        from numba.core import event
+
+        class _Listener(event.Listener):
+            def on_start(inner, ev):  # noqa: N805 (the outer self is the state)
+                self._start(ev.data["dispatcher"])
+
+            def on_end(inner, ev):  # noqa: N805
+                self._end(ev.data["dispatcher"])
+
+        self.listener = _Listener()
+        self.announced = False
+        self.seconds, self.kernels = 0.0, 0
+        self._stack: list[float] = []
+
+    def _start(self, dispatcher) -> None:
+        self._stack.append(time.perf_counter())
+        if not self.announced and _cached(dispatcher):
+            self.announced = True
+            where = getattr(dispatcher._cache, "_cache_path", "numba's cache folder")
+            log.info(NOTICE.format(where=where))
+
+    def _end(self, dispatcher) -> None:
+        if not self._stack:
+            return
+        took = time.perf_counter() - self._stack.pop()
+        if not self._stack:  # a kernel compiled for its own sake, not inside another's compile
+            self.seconds += took
+            self.kernels += 1
+            log.debug("compiled %s in %.2f s", _name(dispatcher), took)
+
+
+@contextlib.contextmanager
+def compile_notice():
+    """Listen for numba's compilations while the block runs; yields the :class:`CompileNotice`."""
+    from numba.core import event
+
+    notice = CompileNotice()
+    with event.install_listener("numba:compile", notice.listener):
+        yield notice
+
+
+# --- tiny runs ----------------------------------------------------------------------------------
+def _vec(values) -> str:
+    return "[" + ", ".join(f"{v:g}" for v in values) + "]"
+
+
+def transfers_of(method: str) -> tuple[str, ...]:
+    """The transfers ``method`` can run with: FLIP always, APIC and MLS with the B-spline."""
+    return TRANSFERS if method in APIC_INTERPOLATORS else ("flip",)
+
+
+def tiny_scene_toml(dim: int, method: str, update: str, transfer: str = "flip") -> str:
+    """A scene of a few hundred particles that takes every path of a step around the kernels:
+    a damageable neo-Hookean block (damage never starts, but the CPDI freeze check runs) and a
+    linear-elastic one, moving fast enough to cross a patch face, under gravity, between a fixed
+    and a slip face (and a symmetry face in 2D and 3D), with a fixed and a slip region, hanging-bar metrics (the separation count),
+    a history with probes and snapshots with domains."""
+    if (dim not in DIMS or method not in METHODS or update not in UPDATES
+            or transfer not in transfers_of(method)):
+        raise ValueError(f"tiny scene: dim {dim}, method {method!r}, update {update!r}, "
+                         f"transfer {transfer!r}")
+    zeros, cells = [0.0] * dim, [10] * dim
+    lo_a, hi_a = [0.2] * dim, [0.5] * dim
+    lo_b, hi_b = [0.2] * (dim - 1) + [0.6], [0.5] * (dim - 1) + [0.8]
+    velocity = [200.0] + [0.0] * (dim - 1)
+    g = [0.0] * (dim - 1) + [-10.0]
+    faces = "x_min = \"fixed\"\n" + ("y_min = \"slip\"\ny_max = \"symmetry\"\n" if dim > 1
+                                      else "x_max = \"slip\"\n")
+    lcr = "" if method in ("cpdi", "cpdi2") else 'lcr = "none"\n'
+    if transfer in AFFINE_TRANSFERS:
+        lcr += f'transfer = "{transfer}"\n'
+    return f"""\
+name = "compile_{dim}d_{method}_{update}_{transfer}"
+dim = {dim}
+[grid]
+origin = {_vec(zeros)}
+cell_size = 0.1
+cells = {_vec(cells)}
+patch_size = 4
+[materials.solid]
+model = "neo_hookean"
+density = 1000.0
+youngs_modulus = 1.0e6
+poisson_ratio = 0.3
+[materials.solid.damage]
+onset = 5.0
+fracture = 6.0
+[materials.soft]
+model = "linear_elastic"
+density = 1000.0
+youngs_modulus = 1.0e5
+poisson_ratio = 0.2
+[[bodies]]
+min = {_vec(lo_a)}
+max = {_vec(hi_a)}
+material = "solid"
+velocity = {_vec(velocity)}
+[[bodies]]
+min = {_vec(lo_b)}
+max = {_vec(hi_b)}
+material = "soft"
+[method]
+interpolator = "{method}"
+update = "{update}"
+{lcr}[gravity]
+g = {_vec(g)}
+[boundary]
+{faces}fixed_regions = [{{ min = {_vec([0.0] * dim)}, max = {_vec([0.1] * dim)} }}]
+slip_regions = [{{ min = {_vec([0.85] * dim)}, max = {_vec([0.95] * dim)}, normal = "x" }}]
+[time]
+steps = 2
+[output]
+every_steps = 1
+figure = false
+[[output.history.probes]]
+name = "point"
+point = {_vec([0.3] * dim)}
+fields = ["u.x", "stress.xx", "J"]
+[[output.history.probes]]
+name = "body"
+body = 0
+fields = ["v.x", "damage"]
+stats = ["mean", "max"]
+[metrics]
+kind = "hanging_bar"
+"""
+
+
+@contextlib.contextmanager
+def _only_compile_messages():
+    """The tiny run's own info lines (folders, patch sizes) are noise here; the notice is not."""
+    root, own = logging.getLogger("parmpm"), logging.getLogger(log.name)
+    saved = root.level, own.level
+    own.setLevel(root.getEffectiveLevel())
+    root.setLevel(max(root.level, logging.WARNING))
+    try:
+        yield
+    finally:
+        root.setLevel(saved[0])
+        own.setLevel(saved[1])
+
+
+def warm_up(dim: int, method: str, update: str, transfer: str = "flip") -> float:
+    """Run the tiny scene of (dim, method, update, transfer) on this process alone (two steps,
+    output in a temporary folder, removed); returns its wall time in seconds."""
+    from decomposition import SerialComm
+    from parmpm.driver.measures import components
+    from parmpm.scene.load import scene_from_toml
+    from parmpm.driver.simulation import Simulation
+
+    class ClaimsTwoRanks(SerialComm):
+        """One rank that says there are two: the separation count then takes its multi-rank
+        path (pairs shared with other ranks, merged on rank 0) and compiles its kernels too."""
+
+        def Get_size(self) -> int:
+            return 2
+
+    scene = scene_from_toml(tiny_scene_toml(dim, method, update, transfer),
+                            f"compile-{dim}d-{method}")
+    tmp = tempfile.mkdtemp(prefix="parmpm-compile-")
+    t0 = time.perf_counter()
+    try:
+        with _only_compile_messages():
+            sim = Simulation(scene, tmp, quiet=True, comm=SerialComm())
+            sim.stepper.compile_lazy_order()
+            sim.run()
+            sim.domain_corners()  # the figure's (2D; the tiny run draws none)
+            sim.state.comm = ClaimsTwoRanks()
+            components(sim.state)
+            sim.state.comm = SerialComm()
+            _patch_set_change(sim)
+            _idle_rank_step(sim)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return time.perf_counter() - t0
+
+
+def _patch_set_change(sim) -> None:
+    """What a rank does when its patches change but its particles stay (a patch became occupied
+    or empty, or a re-balance moved other ranks' patches): the particles' runs move to their
+    new slots (:meth:`parmpm.particles.store.Particles.group_by_patch`). The tiny grid's patches are
+    all active from the start, so its run never changes them."""
+    P, ps = sim.particles, sim.patches
+    P.group_by_patch(P.rows.patch, ps.slot_of, ps.n_local, force=True)
+
+
+def _idle_rank_step(sim) -> None:
+    """One step as a rank without work takes it (more ranks than patches holding particles): no
+    particle and no patch, so every array it hands the kernels is empty. numba types an empty
+    array as contiguous where a working rank's node-major grid views are strided: P2G, G2P and
+    the halo copies of other types, which every idle rank once compiled at its first step (the
+    stepper now gives such a rank views of spare slots; this step keeps anything else an idle
+    rank would compile in the cache too). Last: it empties the tiny run."""
+    import numpy as np
+
+    st, ps = sim.stepper, sim.patches
+    sim.particles.permute(np.zeros(0, np.int64))
+    ps.update(np.zeros(sim.disc.layout.n_patches, np.int64))  # nothing occupied: no patch
+    st._patches_changed()
+    dt = sim.last_dt or 1e-6
+    st.step(dt, sim.gravity(sim.t), sim.t)
+
+
+def compile_kernels(dims=DIMS, methods=METHODS, updates=COMPILED_UPDATES,
+                    transfers=TRANSFERS) -> list[dict]:
+    """Fill numba's cache for every (dim, method, update, transfer) given (the transfers a
+    method does not take are skipped); one row per case (seconds, kernels compiled: 0 when all
+    came from the cache)."""
+    rows = []
+    with compile_notice() as notice:
+        for dim in dims:
+            for method in methods:
+                for update in updates:
+                    for transfer in (t for t in transfers if t in transfers_of(method)):
+                        before = notice.kernels
+                        seconds = warm_up(dim, method, update, transfer)
+                        rows.append({"dim": dim, "method": method, "update": update,
+                                     "transfer": transfer, "seconds": seconds,
+                                     "compiled": notice.kernels - before})
+                        log.info("%dD %-7s %-4s %-4s  %5.1f s  %s", dim, method, update,
+                                 transfer, seconds,
+                                 f"{rows[-1]['compiled']} kernels compiled"
+                                 if rows[-1]["compiled"] else "all cached")
+    return rows
+
+
+# --- rank 0 first -------------------------------------------------------------------------------
+#: (dim, method, update, transfer) warmed up in this process already: staged once, then never
+#: again
+_WARMED: set = set()
+
+
+def wait_for_all(comm, poll: float = 0.01) -> None:
+    """A barrier that sleeps while it waits (``Ibarrier`` polled): a blocking MPI barrier spins
+    on its core, which a compiling rank on the same node needs."""
+    request = comm.Ibarrier()
+    while not request.Test():
+        time.sleep(poll)
+
+
+def compile_first(data: dict, comm) -> None:
+    """Collective: rank 0 runs the tiny run of the scene's dimension, interpolator, update and
+    transfer (compiling what is not cached) while the other ranks wait; then they all load from the
+    cache. Once per process and case; a failed warm-up is only a debug message (the run then
+    compiles as before). ``data``: the resolved scene."""
+    m = data["method"]
+    key = (data["dim"], m["interpolator"], m["update"], m.get("transfer", "flip"))
+    if comm is None or comm.Get_size() == 1 or key in _WARMED:
+        return
+    _WARMED.add(key)
+    try:
+        if comm.Get_rank() == 0:
+            try:
+                seconds = warm_up(*key)
+                log.debug("rank 0 warmed up the kernels in %.1f s", seconds)
+            except Exception as exc:  # the run itself will meet (and report) any real problem
+                log.debug("kernel warm-up failed (%s: %s); every rank compiles", type(exc).__name__,
+                          exc)
+    finally:
+        wait_for_all(comm)

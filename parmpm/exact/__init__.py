@@ -1,0 +1,1 @@
+"""Exact solutions parmpm is verified against (pure numpy)."""

@@ -1,0 +1,1 @@
+"""Geometry of bodies: primitives, their placement and inside tests (pure numpy)."""

@@ -1,0 +1,1 @@
+"""The grid: nodal update, boundary and symmetry conditions, patch-box arithmetic for kernels."""

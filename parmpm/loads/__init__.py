@@ -1,0 +1,1 @@
+"""Loads and forcings applied to bodies (body forces, the manufactured solution)."""

@@ -1,0 +1,1 @@
+"""What a run reports: history, energy ledger, metrics, particle domains, connectivity."""

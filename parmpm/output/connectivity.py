@@ -1,0 +1,126 @@
+"""Connected pieces of material across ranks (numerical separation detection).
+
+Particles are connected when they share a grid node with nonzero weight. Each rank labels the
+components of its own particles (union-find over the nodes they touch), then reports, for every
+touched node that a patch of another rank could also touch (a node inside another rank's
+ghost-inclusive patch box), the pair (node, component label). Rank 0 unites labels that meet at a
+node; the global count is ``Σ local components − successful unions``. An integer, so it is the
+same on any number of ranks.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from parmpm.core.jit import kernel
+from parmpm.grid.patch_index import patches_holding_node
+
+
+@kernel
+def _find(parent, i):
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
+@kernel
+def local_components(nodes, count, n_nodes):
+    """(number of components, component label 0..k-1 of every particle) for particles linked
+    through shared nodes; ``nodes[p, :count[p]]`` are compact node ids < ``n_nodes``."""
+    n = nodes.shape[0]
+    parent = np.arange(n)
+    first = np.full(n_nodes, -1, np.int64)
+    for p in range(n):
+        for k in range(count[p]):
+            node = nodes[p, k]
+            q = first[node]
+            if q < 0:
+                first[node] = p
+                continue
+            a, b = _find(parent, p), _find(parent, q)
+            if a != b:
+                if a < b:
+                    parent[b] = a
+                else:
+                    parent[a] = b
+    label = np.full(n, -1, np.int64)
+    root_label = np.full(n, -1, np.int64)
+    k = 0
+    for p in range(n):
+        r = _find(parent, p)
+        if root_label[r] < 0:
+            root_label[r] = k
+            k += 1
+        label[p] = root_label[r]
+    return k, label
+
+
+@kernel
+def shared_pairs(nodes, count, label, nglob, psize, ghost, ppa, rank_of, me):
+    """(node, label) pairs of touched nodes that lie in the ghost-inclusive box of a patch owned
+    by another rank (duplicates possible). ``nodes`` hold global flat node ids."""
+    out_node = np.empty(nodes.shape[0] * nodes.shape[1], np.int64)
+    out_label = np.empty_like(out_node)
+    m = 0
+    idx = np.zeros(3, np.int64)
+    lo = np.zeros(3, np.int64)
+    hi = np.zeros(3, np.int64)
+    for p in range(nodes.shape[0]):
+        for e in range(count[p]):
+            g = nodes[p, e]
+            idx[0] = g % nglob[0]
+            idx[1] = (g // nglob[0]) % nglob[1]
+            idx[2] = g // (nglob[0] * nglob[1])
+            for a in range(3):
+                lo[a], hi[a] = patches_holding_node(idx[a], psize[a], ghost[a], ppa[a])
+            shared = False
+            for c2 in range(lo[2], hi[2] + 1):
+                for c1 in range(lo[1], hi[1] + 1):
+                    for c0 in range(lo[0], hi[0] + 1):
+                        r = rank_of[c0 + ppa[0] * (c1 + ppa[1] * c2)]
+                        if r >= 0 and r != me:
+                            shared = True
+            if shared:
+                out_node[m] = g
+                out_label[m] = label[p]
+                m += 1
+    return out_node[:m], out_label[:m]
+
+
+@kernel
+def merge_count(node, label, n_labels):
+    """Successful unions of labels that meet at the same node (``node`` sorted ascending)."""
+    parent = np.arange(n_labels)
+    unions = 0
+    for i in range(1, node.size):
+        if node[i] == node[i - 1]:
+            a, b = _find(parent, label[i]), _find(parent, label[i - 1])
+            if a != b:
+                parent[max(a, b)] = min(a, b)
+                unions += 1
+    return unions
+
+
+def compact_nodes(nodes: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, int]:
+    """Node ids renumbered 0..k-1 (memory follows the particles, not the grid)."""
+    valid = np.arange(nodes.shape[1])[None, :] < count[:, None]
+    uniq, inverse = np.unique(nodes[valid], return_inverse=True)
+    compact = np.zeros_like(nodes)
+    compact[valid] = inverse.ravel()
+    return compact, max(int(uniq.size), 1)
+
+
+def global_components(comm, local: int, pairs: tuple[np.ndarray, np.ndarray]) -> int:
+    """Number of components over all ranks from each rank's count and shared (node, label)."""
+    parts = comm.gather((local, pairs[0], pairs[1]), root=0)
+    total = None
+    if comm.Get_rank() == 0:
+        offset, nodes, labels = 0, [], []
+        for k, nd, lb in parts:
+            nodes.append(nd)
+            labels.append(lb + offset)
+            offset += k
+        nodes, labels = np.concatenate(nodes), np.concatenate(labels)
+        order = np.lexsort((labels, nodes))
+        total = offset - int(merge_count(nodes[order], labels[order], max(offset, 1)))
+    return int(comm.bcast(total, root=0))

@@ -1,0 +1,234 @@
+"""The energy in the body, and a watch that stops a run which blows up.
+
+An explicit MPM step beyond its stability limit (CFL too large for the update order, a stiff
+material on a coarse step) does not always end in NaN: the vibrating bar under USL at CFL 0.99
+gains fifteen times its energy and runs on. The cheap invariant that catches it is the energy
+balance of an elastic body under gravity,
+
+    K + Ψ = K₀ + Ψ₀ + W_g,      W_g = Σ_p m_p g · (x_p − X_p),
+
+with ``K = Σ ½ m |v|²`` and ``Ψ = Σ V₀ (1 − D) ψ(F)`` (:func:`parmpm.materials.stored_energy`).
+Damping, fixed supports and the dissipation of MPM's grid projections only take energy out, so
+the residual ``R = K + Ψ − (K₀ + Ψ₀ + W_g)`` of a sound run stays at or below zero. A ramped
+gravity makes ``W_g`` (evaluated with today's g) an overestimate of the work done, which only
+lowers ``R``. The watch stops the run when ``R`` exceeds ``limit`` times the largest energy the
+body has held or been given, ``S = max(K₀ + Ψ₀ + W_g)`` over the samples so far. Runs driven by a
+body force that does work (the manufactured solution) are not watched.
+
+Totals are per-patch partial sums added in patch order (:func:`decomposition.ordered_sum`), so
+the decision is the same on any number of ranks.
+
+:class:`EnergyLedger` keeps the full account a history needs (:mod:`parmpm.output.history`): the work
+of gravity, of the boundary constraints and of damping, summed on the grid every step, exactly as
+the grid update applies them. ``docs/energy.md`` derives the balance and what its residual
+measures.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from decomposition import ordered_sum
+from parmpm.grid.update import apply_bc, apply_regions, near_region, beyond_mirror
+from parmpm.core.jit import kernel
+from parmpm.materials.laws import stored_energy
+
+#: steps between two samples of the watch: a blow-up grows geometrically, so a sample every few
+#: steps catches it early, at a cost of one particle pass per ENERGY_EVERY steps
+ENERGY_EVERY = 10
+
+
+@kernel
+def energy_sums(d, start, order, mass, vol0, v, x, x0, F, mat, damage, params, g):
+    """Per patch slot, over its particles ``order[start[p]:start[p + 1]]`` in that order:
+    (kinetic energy, stored elastic energy, work of gravity ``m g·(x − X)``). Summed as it goes
+    (no per-particle array, one pass): the same sums, in the same order, as per-particle terms
+    added up by :func:`parmpm.output.metrics.sums.patch_sums`, in 0.7× their time (measured)."""
+    out = np.zeros((start.size - 1, 3))
+    for p in range(start.size - 1):
+        o = out[p]
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+            i = order[kk]
+            ke = 0.0
+            w = 0.0
+            for a in range(d):
+                ke += v[i, a] * v[i, a]
+                w += g[a] * (x[i, a] - x0[i, a])
+            o[0] += 0.5 * mass[i] * ke
+            o[1] += vol0[i] * stored_energy(d, params[mat[i]], F[i], damage[i])
+            o[2] += mass[i] * w
+    return out
+
+
+def energy_totals(comm, patch_ids, P, params, g) -> np.ndarray:
+    """(K, Ψ, W_g) over all ranks (collective), the same on any number of ranks."""
+    R = P.rows  # as they lie (no copy into canonical order): summed in P.order()
+    return ordered_sum(comm, patch_ids, energy_sums(
+        P.dim, P.start, P.order(), R.mass, R.vol0, R.v, R.x, R.x0, R.F, R.mat, R.damage, params,
+        np.ascontiguousarray(g[:P.dim], dtype=np.float64)))
+
+
+@kernel
+def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fused):
+    """Per patch slot: (work of internal and body forces, work of gravity, damping dissipation,
+    work of the boundary constraints) of one grid update, over the slot's owned nodes.
+
+    :func:`parmpm.grid.update.grid_update` forms ``v = (mv)/m`` and the free update
+    ``v⁺ = [v + Δt(f/m + g)]/(1 + cΔt)``, then zeroes the constrained components of both. This
+    kernel finds those components with the same helpers and recomputes ``v`` and ``v⁺`` with the
+    same expressions (the same rounding). On a free component ``v_new − v = Δt(f/m + g) − cΔt v⁺``,
+    so with ``v̄ = (v + v_new)/2`` the grid's kinetic energy changes by exactly
+    ``Σ ½m(|v_new|² − |v|²) = W_f + W_g − D_c + W_bc``: ``W_f = Δt Σ f·v̄``,
+    ``W_g = Δt Σ m g·v̄``, ``D_c = cΔt Σ m v⁺·v̄`` over free components, and
+    ``W_bc = −Σ ½m v²`` over constrained ones (the momentum a support takes out; a held node
+    does not move, so the forces on it do no work). Under MLS (``fused``: the momentum rows hold
+    ``mv + Δt f``, the force rows ``f`` for this account alone) ``v = (mv + Δt f − Δt f)/m``,
+    equal to the grid's up to round-off, and every node with mass takes its force."""
+    own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
+    bc, regions, normal, ranges, origin, h = constraints
+    out = np.zeros((gsum.shape[0], 5))
+    L0, L1 = nloc[0], nloc[1]
+    free = np.ones(3)
+    gidx = np.zeros(3, np.int64)
+    nreg = ranges.shape[0]
+    for p in range(gsum.shape[0]):
+        G = gsum[p]
+        wf = wg = dc = wbc = wx = 0.0
+        for i2 in range(own_lo[p, 2], own_hi[p, 2]):
+            for i1 in range(own_lo[p, 1], own_hi[p, 1]):
+                row0 = L0 * (i1 + L1 * i2)
+                for i0 in range(own_lo[p, 0], own_hi[p, 0]):
+                    node = row0 + i0
+                    m = G[0, node]
+                    if not m > 0.0:
+                        continue
+                    gidx[0], gidx[1], gidx[2] = (base[p, 0] + i0, base[p, 1] + i1,
+                                                 base[p, 2] + i2)
+                    for a in range(3):
+                        free[a] = 1.0
+                    edge = False
+                    for k in range(d):
+                        if gidx[k] <= face_lo[k] or gidx[k] >= face_hi[k]:
+                            edge = True
+                    if edge:
+                        if beyond_mirror(d, gidx, face_lo, face_hi, bc):
+                            continue  # the mirror image's node (parmpm.grid.symmetry)
+                        apply_bc(d, gidx, face_lo, face_hi, bc, free)
+                    if nreg and near_region(gidx[0], gidx[1], gidx[2], ranges):
+                        apply_regions(d, gidx, origin, h, regions, normal, free)
+                    heavy = fused or m > mass_eps
+                    for a in range(d):
+                        vold = ((G[1 + a, node] - dt * G[1 + d + a, node]) / m if fused
+                                else G[1 + a, node] / m)
+                        if free[a] == 0.0:
+                            wbc -= 0.5 * m * vold * vold
+                            continue
+                        fm = G[1 + d + a, node] / m if heavy else 0.0
+                        vnew = (vold + dt * (fm + gvec[a])) / (1.0 + damping * dt)
+                        vbar = 0.5 * (vold + vnew)
+                        if heavy:
+                            wf += dt * G[1 + d + a, node] * vbar
+                            wx += dt * G[1 + d + a, node] * (vnew - vbar)
+                        wg += dt * m * gvec[a] * vbar
+                        dc += damping * dt * m * vnew * vbar
+        out[p, 0], out[p, 1], out[p, 2], out[p, 3], out[p, 4] = wf, wg, dc, wbc, wx
+    return out
+
+
+class EnergyLedger:
+    """The energy given to and taken from the body since the ledger started, summed every step
+    on the grid (:func:`grid_work`): ``forces`` (internal and body forces), ``gravity``,
+    ``damping`` (dissipated, ≥ 0) and ``boundary`` (the constraints' work, ≤ 0). Each step's
+    per-patch sums are added in patch order (:func:`decomposition.ordered_sum`), so every total
+    is the same on any number of ranks. The stepper calls :meth:`add` after its force update
+    when a history is written."""
+
+    FIELDS = ("forces", "gravity", "damping", "boundary", "increment")
+
+    def __init__(self):
+        self.totals = np.zeros(len(self.FIELDS))
+        self.baseline = None   # (K₀, Ψ₀, step) where the ledger started
+        self.steps = 0
+        self.power = None      # the last step's internal power −W_f/Δt
+        self.estimate = 0.0    # ½ Σ Δt_k (P_k − P_{k−1}): the residual's leading term
+
+    def add(self, stepper, dt: float, gravity: np.ndarray) -> None:
+        """Add one grid update's work (collective: every rank calls it in the same step)."""
+        nodes, constraints = stepper.grid_records()
+        per_patch = grid_work(stepper.disc.dim, nodes, constraints, dt, gravity, stepper.damping,
+                              stepper.mass_eps, stepper.gsum_block, stepper.gnew_block,
+                              stepper.mls)
+        step = ordered_sum(stepper.comm, stepper.patches.local_ids, per_patch)
+        self.totals += step
+        power = -float(step[0]) / dt  # power stored by the internal forces in this step
+        if self.power is not None:
+            self.estimate += 0.5 * dt * (power - self.power)
+        self.power = power
+        self.steps += 1
+
+    def work(self) -> dict:
+        return dict(zip(self.FIELDS, (float(v) for v in self.totals)))
+
+    def state(self) -> dict:
+        return {"totals": [float(v) for v in self.totals], "baseline": self.baseline,
+                "steps": self.steps, "power": self.power, "estimate": self.estimate}
+
+    def restore(self, state: dict | None) -> None:
+        if state:
+            totals = np.array(state["totals"], float)
+            self.totals = np.zeros(len(self.FIELDS))
+            self.totals[:totals.size] = totals  # a checkpoint written before a column was added
+            self.baseline = state["baseline"]
+            self.steps = int(state["steps"])
+            self.power, self.estimate = state["power"], float(state["estimate"])
+
+
+class EnergyWatch:
+    """Residual of the energy balance over a run; :meth:`sample` says when it has blown up."""
+
+    def __init__(self, limit: float | None):
+        self.limit = limit
+        self.initial = None       # K₀ + Ψ₀
+        self.scale = 0.0          # max(K₀ + Ψ₀ + W_g) so far
+        self.growth = 0.0         # max R / S so far
+        self.last = None          # (K, Ψ, W_g) of the last sample
+        self.ledger = EnergyLedger()  # fed by the stepper only while a history is written
+        self.balance = None           # the history's last energy balance (parmpm.output.history)
+
+    def state(self) -> dict:
+        return {"initial": self.initial, "scale": self.scale, "growth": self.growth,
+                "ledger": self.ledger.state()}
+
+    def restore(self, state: dict | None) -> None:
+        if state:
+            self.initial, self.scale = state["initial"], state["scale"]
+            self.growth = state["growth"]
+            self.ledger.restore(state.get("ledger"))
+
+    def sample(self, totals: np.ndarray) -> float | None:
+        """Record (K, Ψ, W_g); return R/S when it exceeds the limit, else None."""
+        k, psi, work = (float(v) for v in totals)
+        self.last = (k, psi, work)
+        if self.initial is None:
+            self.initial = k + psi
+        given = self.initial + work
+        self.scale = max(self.scale, given, self.initial)
+        if not self.scale > 0.0:
+            return None
+        growth = (k + psi - given) / self.scale
+        if not np.isfinite(growth):
+            growth = np.inf
+        self.growth = max(self.growth, growth)
+        if self.limit is not None and growth > self.limit:
+            return growth
+        return None
+
+    def report(self) -> dict:
+        """The watch's figures for ``summary.json``."""
+        out = {"limit": self.limit, "max_growth": self.growth, "initial": self.initial}
+        if self.last is not None:
+            k, psi, work = self.last
+            out.update(kinetic=k, elastic=psi, gravity_work=work,
+                       residual=k + psi - ((self.initial or 0.0) + work))
+        if self.balance is not None:
+            out["balance"] = self.balance
+        return out

@@ -1,0 +1,1 @@
+"""Particles: the structure-of-arrays store, its canonical order, and seeding bodies into it."""

@@ -1,0 +1,152 @@
+"""Scene schema, bodies: ``[[bodies]]`` tables — shape, placement (turned boxes), material,
+particles per cell and the initial velocity field (uniform, affine, spin, vibration mode).
+
+Split from :mod:`parmpm.scene.schema` (which calls :func:`check_bodies`); the same conventions: every
+problem is a one-line ``SceneError`` naming the key, the value and what was expected.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from parmpm.geometry.primitives import rotated_box_bounds
+from parmpm.scene.check import AXIS_NAMES, Checker, show
+
+SHAPE_DIMS = {"box": (1, 2, 3), "disk": (2,), "sphere": (3,)}
+BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration",
+             "angular_velocity", "angle", "velocity_gradient")
+SHAPE_KEYS = {"box": ("min", "max"), "disk": ("center", "radius"), "sphere": ("center", "radius")}
+_SHAPE_ONLY_KEYS = ("min", "max", "center", "radius")
+VIBRATION_KEYS = ("amplitude", "mode", "axis")
+
+
+#: the most particles per cell per axis: beyond it one cell holds more particles than a machine
+#: does, and counts overflow the integers arrays are indexed with (the memory check,
+#: parmpm.driver.footprint, bounds the whole scene)
+MAX_PPC = 1000
+
+
+def check_bodies(c: Checker, raw: Any, dim: int, grid: dict, materials: dict) -> list:
+    if isinstance(raw, dict):
+        c.fail("bodies", "expected an array of tables ([[bodies]]), got a single table [bodies]")
+    if not isinstance(raw, list) or not raw:
+        c.expected("bodies", "at least one [[bodies]] table", raw)
+    lo = grid["origin"]
+    hi = [o + n * h for o, n, h in zip(lo, grid["cells"], grid["cell_size"])]
+    return [_body(c, f"bodies.{i}", spec, dim, lo, hi, grid, materials)
+            for i, spec in enumerate(raw)]
+
+
+def _body(c: Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: dict,
+          materials: dict) -> dict:
+    t = c.table(key, raw, BODY_KEYS)
+    shape = c.choice(f"{key}.shape", t.get("shape", "box"), tuple(SHAPE_DIMS))
+    if dim not in SHAPE_DIMS[shape]:
+        allowed = ", ".join(f'"{s}"' for s, dims in SHAPE_DIMS.items() if dim in dims)
+        c.fail(f"{key}.shape", f'expected {allowed} in a {dim}D scene, got "{shape}" '
+                               f"(only for dim {' or '.join(map(str, SHAPE_DIMS[shape]))})")
+    for name in _SHAPE_ONLY_KEYS:
+        if name in t and name not in SHAPE_KEYS[shape]:
+            c.fail(f"{key}.{name}", f'not used by shape "{shape}" (expected '
+                                    f"{' and '.join(SHAPE_KEYS[shape])})")
+    material = c.string(f"{key}.material", c.required(key, t, "material", "a material name"))
+    if material not in materials:
+        c.fail(f"{key}.material", f"unknown material {show(material)} (defined: "
+                                  + ", ".join(show(m) for m in materials) + ")")
+    out: dict[str, Any] = {"shape": shape}
+    if shape == "box":
+        pts = f"{dim} numbers"
+        bmin = c.vector(f"{key}.min", c.required(key, t, "min", pts), dim, "float", False)
+        bmax = c.vector(f"{key}.max", c.required(key, t, "max", pts), dim, "float", False)
+        if any(b <= a for a, b in zip(bmin, bmax)):
+            c.expected(f"{key}.max", f"each component > {key}.min {show(bmin)}", bmax)
+        out.update(min=bmin, max=bmax)
+        out["angle"] = _angle(c, f"{key}.angle", t.get("angle"), dim)
+        if out["angle"]:  # the rotated box's bounding box is what must fit in the grid
+            bmin, bmax = rotated_box_bounds(bmin, bmax, out["angle"])
+    else:
+        if t.get("angle") is not None:
+            c.fail(f"{key}.angle", f'expected only on shape "box" (a {shape} looks the same '
+                                   "at every angle), got shape " + show(shape))
+        out["angle"] = None
+        center = c.vector(f"{key}.center", c.required(key, t, "center", f"{dim} numbers"),
+                          dim, "float", False)
+        radius = c.number(f"{key}.radius", c.required(key, t, "radius", "a number > 0"),
+                          "a number > 0", lambda x: x > 0)
+        out.update(center=center, radius=radius)
+        bmin = [x - radius for x in center]
+        bmax = [x + radius for x in center]
+    for axis in range(dim):
+        tol = 1e-9 * grid["cell_size"][axis]
+        below, above = bmin[axis] < lo[axis] - tol, bmax[axis] > hi[axis] + tol
+        if below or above:
+            side = "center" if shape != "box" else ("min" if below else "max")
+            c.fail(f"{key}.{side}", f"body {key.split('.')[1]} spans [{bmin[axis]!r}, {bmax[axis]!r}] on "
+                        f"axis {axis} ({AXIS_NAMES[axis]}), expected it inside the grid "
+                        f"[{lo[axis]!r}, {hi[axis]!r}]")
+    out["material"] = material
+    out["ppc"] = c.vector(f"{key}.ppc", t.get("ppc", 2), dim, "int>0")
+    if max(out["ppc"]) > MAX_PPC:
+        c.expected(f"{key}.ppc", f"integers from 1 to {MAX_PPC} (particles per cell per axis)",
+                   t.get("ppc"))
+    out["velocity"] = c.vector(f"{key}.velocity", t.get("velocity", [0.0] * dim), dim, "float",
+                               False)
+    out["angular_velocity"] = None
+    if t.get("angular_velocity") is not None:
+        akey = f"{key}.angular_velocity"
+        if dim == 1:
+            c.fail(akey, "expected no angular velocity in a 1D scene (nothing to rotate about)")
+        if dim == 2:
+            out["angular_velocity"] = c.number(akey, t["angular_velocity"],
+                                               "a number (rad/s, counter-clockwise)")
+        else:
+            out["angular_velocity"] = c.vector(akey, t["angular_velocity"], 3, "float", False)
+    out["velocity_gradient"] = _velocity_gradient(c, f"{key}.velocity_gradient",
+                                                  t.get("velocity_gradient"), dim)
+    out["vibration"] = None
+    if t.get("vibration") is not None:
+        vkey = f"{key}.vibration"
+        v = c.table(vkey, t["vibration"], VIBRATION_KEYS)
+        if shape != "box":
+            c.fail(vkey, f'expected only on shape "box", got shape "{shape}"')
+        out["vibration"] = {
+            "amplitude": c.number(f"{vkey}.amplitude",
+                                  c.required(vkey, v, "amplitude", "a number (velocity)")),
+            "mode": c.integer(f"{vkey}.mode", v.get("mode", 1), "an integer >= 1",
+                              lambda n: n >= 1),
+            "axis": c.integer(f"{vkey}.axis", v.get("axis", 0),
+                              f"an integer in [0, {dim})", lambda a: 0 <= a < dim),
+        }
+    return out
+
+
+def _angle(c: Checker, key: str, raw: Any, dim: int) -> float | None:
+    """A box's rotation about its centre in the x-y plane (degrees, counter-clockwise)."""
+    if raw is None:
+        return None
+    if dim == 1:
+        c.fail(key, "expected no angle in a 1D scene (nothing to rotate)")
+    return c.number(key, raw, "a number (degrees, counter-clockwise about the box centre)")
+
+
+
+
+
+
+def _velocity_gradient(c: Checker, key: str, raw: Any, dim: int) -> list | None:
+    """``L`` of the initial affine velocity ``v += L·(x − centre)`` (rows: velocity components)."""
+    if raw is None:
+        return None
+    what = f"a {dim}x{dim} matrix (a list of {dim} rows of {dim} numbers, 1/s)"
+    if dim == 1 and not isinstance(raw, list):
+        raw = [[raw]]
+    if dim == 1 and isinstance(raw, list) and raw and not isinstance(raw[0], list):
+        raw = [raw]
+    if not isinstance(raw, list) or len(raw) != dim:
+        c.expected(key, what, raw)
+    rows = []
+    for row in raw:
+        if not isinstance(row, list) or len(row) != dim:
+            c.expected(key, what, raw)
+        rows.append(c.vector(key, row, dim, "float", False))
+    return rows

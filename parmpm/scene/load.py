@@ -1,0 +1,380 @@
+"""Scenes: load a TOML scene (built-in or file), apply ``--set`` overrides, validate, resolve.
+
+Configuration is layered: defaults in code (``parmpm.scene.schema``), then the scene TOML, then
+the command line (``--set a.b=c``); the result is validated once, at load time, and the resolved
+scene (``Scene.to_toml()``) is what checkpoints and summaries store. No MPI, no per-rank arrays.
+
+    scene = load_scene("hanging_bar", overrides=["method.interpolator=mpm", "time.end=0.1"])
+    scene.data["grid"]["cells"]     # [20, 30]
+    scene.lcr                       # resolved CPDI l_cr in metres, or None
+
+Scene reference (resolved form; "(default X)" marks optional keys; per-axis quantities take a
+scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors (``min``,
+``max``, ``center``, ``velocity``, ``g``) take a list of ``dim`` numbers, or a scalar in 1D):
+
+* top level: ``name`` (default: file stem / built-in name; 1 to 100 letters, digits, spaces,
+  ``_ - . +``, starting with a letter or digit: it names the output files), ``description``
+  (default ""), ``dim`` (1, 2 or 3; required). A scene file is a regular file of at most 1 MiB,
+  UTF-8 (a byte order mark is allowed); an integer has at most 4300 digits (Python's limit).
+* ``[grid]``: ``origin`` (default 0), ``cell_size`` (> 0, required), ``cells`` (ints > 0,
+  required), ``patch_size`` ("auto" or ints > 0, default "auto": chosen from the scene
+  alone, :mod:`parmpm.scene.patch_size`; clipped to ``cells``),
+  ``ghost`` ("auto" or int from 1 to the largest cell count, default "auto"); every node
+  coordinate must resolve a cell (``|origin|`` and the extent below 1e12 cells), ``exterior`` ("auto" or int 0..64, default
+  "auto": cells kept outside the faces, the face conditions staying on the faces; "auto" gives the
+  ghost width on each face a body starts within one cell of, :func:`parmpm.step.stepper.exterior_cells`).
+* ``[materials.NAME]`` (at least one): ``model`` ("linear_elastic" | "neo_hookean"),
+  ``density`` (> 0), ``youngs_modulus`` (> 0), ``poisson_ratio`` (-1 < nu < 0.5); all required,
+  and together they must give a positive, finite wave speed (no subnormal moduli).
+  Optional ``[materials.NAME.damage]``: ``onset`` (stretch >= 1, required), ``fracture``
+  (> onset, required), ``softening`` ("linear" | "exponential", default linear), ``criterion``
+  ("max_principal_stretch", the only one), ``freeze`` (0 < D <= 1 or "never", default 1: the damage at which a CPDI
+  domain freezes, :mod:`parmpm.shapes.freeze`).
+* ``[[bodies]]`` (at least one): ``shape`` ("box", "disk" in 2D, "sphere" in 3D; default "box");
+  box: ``min``, ``max``; disk/sphere: ``center``, ``radius``; ``material`` (required);
+  ``ppc`` (particles per cell per axis, 1 to 1000, default 2; a disk or sphere must hold at
+  least one point of its lattice); ``velocity`` (default 0); optional
+  ``[bodies.vibration]`` (box only): ``amplitude`` (required), ``mode`` (default 1), ``axis``
+  (default 0): initial velocity along ``axis`` is ``amplitude·sin(β_n (X − min[axis]))`` with
+  ``β_n = (2n − 1)π / (2L)``, ``L`` the box length along ``axis`` (the first mode of a bar fixed
+  at ``min[axis]`` and free at ``max[axis]``; Sulsky et al. 1995, Bardenhagen 2002);
+  ``angular_velocity`` (2D: a number, rad/s counter-clockwise; 3D: a vector; default none): adds
+  the rigid spin ``ω × (x − centre)`` about the body's centre; ``velocity_gradient`` (a
+  ``dim``×``dim`` list of rows, 1/s; default none): adds the affine field ``L·(x − centre)`` (a
+  bar stretched at a rate from the start); ``angle`` (box only, 2D/3D, degrees counter-clockwise
+  about the box centre in the x-y plane; default none): turns the box, its particle lattice and
+  its CPDI domains (GIMP domains stay axis-aligned). Every body's (turned) bounding box lies
+  inside the grid.
+* ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi" | "bspline" | "cpdi2",
+  default "cpdi"), ``lcr``
+  (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none", at most the largest
+  cell count or 64 cells, whichever is more; default "2dx" for cpdi and cpdi2,
+  "none" otherwise, and any other value is an error with another interpolator), ``update``
+  ("auto" | "usl" | "musl", default "auto": USL for cpdi and cpdi2, whose domains then keep tiling the body exactly, MUSL for the others, which USL destabilises through nearly empty nodes — see README), ``flip`` (0..1, default 1.0;
+  not with APIC or MLS), ``transfer`` ("flip" | "apic" | "mls", default "flip"; "apic" and
+  "mls" need "bspline": :mod:`parmpm.transfer.affine`).
+* ``[gravity]``: ``g`` (default 0), ``ramp_time`` (>= 0 s, default 0: applied suddenly).
+* ``[damping]``: ``coefficient`` (>= 0 1/s, default 0).
+* ``[boundary]``: ``x_min`` ... ``z_max`` for the scene's axes only: "fixed" | "slip" |
+  "symmetry" (a mirror) | "clamped" (held, with the odd mirror beyond: :mod:`parmpm.grid.symmetry`)
+  | "free" (default "free"); the resolved table has all ``2·dim`` keys. ``fixed_regions`` (list of
+  ``{min, max}``: every node inside has ``v = 0``, e.g. a grip) and ``slip_regions`` (list of
+  ``{min, max, normal}`` with ``normal`` "x" | "y" | "z": every node inside has zero velocity
+  along ``normal``, a symmetry plane inside the grid); both default to none.
+* ``[manufactured]`` (optional): ``amplitude`` (> 0 m, required): drive the scene with the
+  axis-aligned manufactured solution (``parmpm.loads.manufactured``; one neo-Hookean material; particles
+  start on the exact field and get its body force every step).
+* ``[time]``: ``end`` (> 0 s) and/or ``steps`` (int > 0), at least one; the run stops at
+  whichever comes first (a missing one resolves to None). ``cfl`` (0 < cfl < 1, default 0.4),
+  ``dt_max`` (> 0 s, default None), ``max_energy_growth`` (> 0 or "off", default 1.0: the run
+  stops when the body holds more energy than it started with plus the work of gravity by more
+  than this fraction of that; :mod:`parmpm.output.energy`).
+* ``[output]``: ``every`` (simulated seconds) and/or ``every_steps``; a snapshot is due whenever
+  either schedule fires. If neither is given: ``every_steps = max(1, steps // 20)`` when
+  ``time.steps`` is set, else ``every = end / 20``. ``snapshots``, ``figure`` (bools, default true).
+  ``domains`` (bool, default true): the particle domains as cells in the snapshots.
+  ``[output.history]`` (or ``output.history = false``): ``every`` / ``every_steps`` (default
+  about 200 rows per run), ``probes`` (an array of tables: ``name``, one of ``point`` /
+  ``region = {min, max}`` / ``body`` / ``material``, ``field`` or ``fields``, ``stats``); see
+  :mod:`parmpm.scene.history` and :mod:`parmpm.output.history` for the columns.
+* ``[metrics]``: ``kind`` ("hanging_bar" | "vibrating_bar" | "tension_bar" | "manufactured" |
+  "rotation" | "none", default "none"; see ``parmpm.output.metrics``), ``stop_on_separation`` (bool,
+  default false; hanging_bar and tension_bar only: stop the run once the material is in more
+  than one piece), ``grip`` (tension_bar only, default "grip": the material of the two box
+  bodies that pull the bar; every other body is the bar),
+  ``every_steps`` (default 1), ``axis`` (default: the first vibration axis for vibrating_bar,
+  else ``dim − 1``, the axis along which a hanging bar's gravity acts).
+* ``[decomposition]``: ``rebalance_threshold`` (>= 0, default 0.1: re-partition the patches when
+  the busiest rank holds more than 1.1 × the mean particle count), ``rebalance_cooldown``
+  (int >= 1, default 50: imbalance checks skipped after a re-partition that would not help).
+* ``[checkpoint]``: ``every_steps`` (int >= 1), ``every`` (simulated s), ``wall_minutes``
+  (wall-clock minutes) — a checkpoint is written whenever any set schedule fires (default: none);
+  ``keep`` (int >= 1, default 3: older ones are deleted), ``at_end`` (bool, default false),
+  ``ranks_per_file`` (``"auto"``, default: one part file per rank up to 256 ranks, then groups of
+  ⌈ranks/256⌉ consecutive ranks; or an integer >= 1: each group's lowest rank writes the group's
+  particles; as many as the ranks: one file; snapshots are written in the same groups). A SIGTERM or SIGINT always writes a final
+  checkpoint before the run stops.
+
+Absent optional values (``time.end``, ``time.dt_max``, ``output.every``, ``bodies.N.vibration``,
+...) are ``None`` in ``Scene.data`` and omitted from ``Scene.to_toml()``.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import sys
+import tomllib
+from collections.abc import Iterable
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from parmpm.core.errors import SceneError
+from parmpm.scene.check import lcr_length, one_line, short_text, show, toml_key, toml_value
+from parmpm.scene.schema import resolve
+
+__all__ = ["Scene", "load_scene", "scene_from_toml", "builtin_scenes", "parse_lcr",
+           "read_scene_text", "scene_identity"]
+
+_SECTION_ORDER = ("grid", "materials", "bodies", "method", "gravity", "damping", "boundary",
+                  "manufactured", "time", "output", "metrics", "decomposition", "checkpoint")
+
+
+class Scene:
+    """A validated, fully resolved scene.
+
+    ``data`` is a plain nested dict (every default filled in); ``source`` is the path it was read
+    from or ``"builtin:NAME"``.
+    """
+
+    def __init__(self, data: dict, source: str):
+        self.data = data
+        self.source = source
+        #: a restart's record (:func:`parmpm.driver.restart_keys.check_restart`): the checkpoint, its
+        #: step and time, and the keys ``--set`` changed ({key: [stored, new]}); None otherwise
+        self.restart: dict | None = None
+
+    @property
+    def name(self) -> str:
+        return self.data["name"]
+
+    @property
+    def dim(self) -> int:
+        return self.data["dim"]
+
+    @property
+    def min_dx(self) -> float:
+        """Smallest grid spacing, min_k Δx_k."""
+        return min(self.data["grid"]["cell_size"])
+
+    @property
+    def lcr(self) -> float | None:
+        """CPDI domain-scaling length l_cr in metres; None unless cpdi or cpdi2 with scaling."""
+        method = self.data["method"]
+        if method["interpolator"] not in ("cpdi", "cpdi2"):
+            return None
+        return lcr_length(method["lcr"], self.min_dx)
+
+    def to_toml(self) -> str:
+        """The resolved scene as TOML text; ``scene_from_toml`` on it gives back ``data``."""
+        lines = [f"# parmpm scene, resolved from {one_line(self.source)}"]
+        if self.restart:  # what ran: the stored scene continued, with these changes
+            r = self.restart
+            lines.append(f"# a restart: continues from step {r['step']} (t = {r['time']!r} s) "
+                         "of that checkpoint's run")
+            for key, (was, now) in r["changed"].items():
+                lines.append(f"# changed on restart: {key} = {toml_value(now)} (was "
+                             f"{toml_value(was)})")
+        _emit_table(lines, [], {k: v for k, v in self.data.items() if k not in _SECTION_ORDER})
+        for section in _SECTION_ORDER:
+            if section in self.data:
+                _emit_table(lines, [], {section: self.data[section]})
+        return "\n".join(lines).strip() + "\n"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Scene) and self.data == other.data
+
+    def __repr__(self) -> str:
+        return f"Scene(name={self.name!r}, dim={self.dim}, source={self.source!r})"
+
+
+# ---------------------------------------------------------------- TOML emitter
+
+
+def _is_table_array(value: Any) -> bool:
+    return isinstance(value, list) and bool(value) and all(isinstance(v, dict) for v in value)
+
+
+def _emit_table(lines: list[str], path: list[str], table: dict) -> None:
+    """Append ``table`` as TOML: plain keys first, then [sub.tables] and [[arrays.of.tables]].
+
+    ``None`` values are left out (TOML has no null; the schema resolves them back to None).
+    """
+    for key, value in table.items():
+        if value is None or isinstance(value, dict) or _is_table_array(value):
+            continue
+        lines.append(f"{toml_key(str(key))} = {toml_value(value)}")
+    for key, value in table.items():
+        sub = path + [toml_key(str(key))]
+        if isinstance(value, dict):
+            only_tables = value and all(isinstance(v, dict) or _is_table_array(v) or v is None
+                                        for v in value.values())
+            if not only_tables:  # [materials] needs no header of its own before [materials.bar]
+                lines.extend(["", f"[{'.'.join(sub)}]"])
+            _emit_table(lines, sub, value)
+        elif _is_table_array(value):
+            for item in value:
+                lines.extend(["", f"[[{'.'.join(sub)}]]"])
+                _emit_table(lines, sub, item)
+
+
+# ---------------------------------------------------------------- loading
+
+
+def _scenes_dir():
+    return resources.files("parmpm.scene") / "builtin"
+
+
+def builtin_scenes() -> dict[str, str]:
+    """Built-in scene name -> its one-line description, sorted by name."""
+    out = {}
+    for entry in _scenes_dir().iterdir():
+        if entry.name.endswith(".toml"):
+            name = entry.name[: -len(".toml")]
+            try:
+                description = tomllib.loads(entry.read_text(encoding="utf-8")).get("description")
+            except tomllib.TOMLDecodeError:
+                description = None
+            out[name] = one_line(str(description or ""))
+    return dict(sorted(out.items()))
+
+
+#: a scene file is a page of TOML; anything this large is not one (and would be read whole)
+MAX_SCENE_BYTES = 1 << 20
+
+
+def load_scene(source: str | Path, overrides: Iterable[str] = ()) -> Scene:
+    """Load a scene: a built-in name (``"hanging_bar"``) or a path to a ``.toml`` file.
+
+    ``overrides`` are ``"dotted.key=value"`` strings (the CLI's ``--set``) applied on top of the
+    file before validation. Any problem raises a one-line ``SceneError``.
+    """
+    body, label, default_name = read_scene_text(source)
+    return scene_from_toml(body, label, overrides, default_name=default_name)
+
+
+def scene_identity(source: str | Path) -> str:
+    """What ``source`` names, without reading it: ``"builtin:NAME"`` or the file's absolute path
+    (two ranks given the same identity read the same file: :mod:`parmpm.scene.agreement`)."""
+    text = str(source)
+    is_path = isinstance(source, Path) or text.endswith(".toml") or "/" in text or "\\" in text
+    if not is_path and text in builtin_scenes():
+        return f"builtin:{text}"
+    return os.path.abspath(text)
+
+
+def read_scene_text(source: str | Path) -> tuple[str, str, str]:
+    """(TOML text, source label, default name) of a built-in name or a scene file; a file that
+    cannot be read is a one-line ``SceneError``. A UTF-8 byte order mark is dropped."""
+    text = str(source)
+    is_path = isinstance(source, Path) or text.endswith(".toml") or "/" in text or "\\" in text
+    if not is_path and text in builtin_scenes():
+        body = (_scenes_dir() / f"{text}.toml").read_text(encoding="utf-8")
+        return body, f"builtin:{text}", text
+    path = Path(text)
+    if not is_path and not path.is_file():
+        raise SceneError(one_line(
+            f"scene '{text}': not a file and not a built-in scene (built-ins: "
+            + ", ".join(builtin_scenes()) + ")"))
+    if path.exists() and not path.is_file():  # a FIFO or device would block or never end
+        raise SceneError(one_line(f"scene '{text}': not a regular file"))
+    try:
+        if path.stat().st_size > MAX_SCENE_BYTES:
+            raise SceneError(one_line(f"scene '{text}': {path.stat().st_size} bytes; a scene "
+                                      f"file is at most {MAX_SCENE_BYTES} bytes"))
+        body = path.read_text(encoding="utf-8-sig")  # an editor's byte order mark is no error
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+        raise SceneError(one_line(f"scene '{text}': cannot read file: {reason}")) from None
+    return body, text, path.stem
+
+
+def scene_from_toml(text: str, source: str = "<string>", overrides: Iterable[str] = (),
+                    default_name: str | None = None) -> Scene:
+    """Build a scene from TOML text (e.g. the scene stored in a checkpoint).
+
+    ``source`` names it in error messages and in ``Scene.source``.
+    """
+    where = f"scene '{source}'"
+    try:
+        raw = tomllib.loads(text.removeprefix(BOM))
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(one_line(f"{where}: TOML syntax error: {exc}")) from None
+    except ValueError as exc:  # Python's limit on the digits of an integer (4300 by default)
+        raise SceneError(f"{where}: {huge_integer(exc)}") from None
+    except RecursionError:
+        raise SceneError(f"{where}: TOML nested too deeply (arrays or tables within each other "
+                         "hundreds of levels deep)") from None
+    origins = apply_overrides(raw, overrides, where)
+    if default_name is None:
+        default_name = source.removeprefix("builtin:")
+    data = resolve(raw, where, default_name, origins)
+    return Scene(data, source)
+
+
+# ---------------------------------------------------------------- --set overrides
+
+
+BOM = "\ufeff"
+
+
+def huge_integer(exc: ValueError) -> str:
+    """The one line for an integer literal past Python's int-string conversion limit."""
+    digits = re.search(r"value has (\d+) digits", str(exc))
+    return (f"an integer of {digits[1] + ' ' if digits else 'too many '}digits; Python reads at "
+            f"most {sys.get_int_max_str_digits() or 'unlimited'} and no scene value needs "
+            "more than a few (write a float, e.g. 1e300, if a huge number is meant)")
+
+
+def parse_override_value(text: str) -> Any:
+    """A ``--set`` value: a TOML value (``3``, ``0.1``, ``[0, -9.81]``, ``true``, ``"s"``) or,
+    if it does not parse as one, the plain string (``mpm``, ``2dx``). An integer past Python's
+    digit limit raises ``ValueError``."""
+    try:
+        parsed = tomllib.loads("v = " + text)
+    except tomllib.TOMLDecodeError:
+        return text.strip()
+    return parsed["v"] if set(parsed) == {"v"} else text.strip()
+
+
+def apply_overrides(raw: dict, overrides: Iterable[str], where: str) -> dict[str, str]:
+    """Apply ``"a.b.c=value"`` strings to ``raw`` in place; integer parts index arrays
+    (``bodies.0.ppc=3``). Returns {normalised dotted key: override text} for error messages."""
+    if isinstance(overrides, str):
+        overrides = [overrides]
+    origins = {}
+    for item in overrides:
+        text = str(item)
+        said = short_text(text)  # as an error message quotes it
+        key, sep, value = text.partition("=")
+        parts = [p.strip() for p in key.strip().split(".")]
+        if not sep or not all(parts):
+            raise SceneError(one_line(
+                f"{where}: --set {said!r}: expected KEY=VALUE with a dotted KEY "
+                "(e.g. method.interpolator=mpm)"))
+        node: Any = raw
+        for depth, part in enumerate(parts):
+            last = depth == len(parts) - 1
+            here = ".".join(parts[:depth]) or "the scene"
+            if isinstance(node, list):
+                if not part.isdigit() or len(part) > 18 or int(part) >= len(node):
+                    raise SceneError(one_line(
+                        f"{where}: --set {said}: {here} has {len(node)} entries, expected an "
+                        f"index 0..{len(node) - 1}, got {short_text(part)!r}"))
+                part = int(part)
+            elif not isinstance(node, dict):
+                raise SceneError(one_line(
+                    f"{where}: --set {said}: {here} is {show(node)}, not a table"))
+            if last:
+                try:
+                    node[part] = parse_override_value(value)
+                except ValueError as exc:
+                    raise SceneError(f"{where}: --set {said}: {huge_integer(exc)}") from None
+            else:
+                if isinstance(node, dict) and node.get(part) is None:
+                    node[part] = {}
+                node = node[part]
+        # the latest --set of a key goes last: an error blames the one that took effect
+        origins.pop(".".join(parts), None)
+        origins[".".join(parts)] = text.strip()
+    return origins
+
+
+def parse_lcr(spec: Any, min_dx: float) -> float | None:
+    """CPDI critical length l_cr in metres from a spec: ``"2dx"`` -> 2·min_dx,
+    ``"1.8dx/3"`` -> 0.6·min_dx, ``"dx"`` -> min_dx, ``0.25`` -> 0.25, ``"none"`` -> None."""
+    try:
+        return lcr_length(spec, min_dx)
+    except ValueError as exc:
+        raise SceneError(one_line(f"method.lcr: expected {exc}, got {toml_value(spec)}")) from None

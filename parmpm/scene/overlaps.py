@@ -1,0 +1,107 @@
+"""Bodies that overlap: the space two ``[[bodies]]`` share is seeded by both, so the scene holds
+that material twice (two boxes overlapping by a third: 1722 kg where their union weighs 1554;
+issue 28). Said once, on rank 0, before the first step, naming the bodies, the volume seeded
+twice and its mass.
+
+Why a warning and not an error: the scene runs as written (every particle is a valid particle),
+and a scene that means its bodies to overlap can still say what it means once bodies can be
+combined (union, difference: CSG bodies, issue 30, whose bodies "say so" when they overlap
+another); the warning gives the numbers to judge it by.
+
+What is measured is what was seeded twice: for bodies ``i < j`` whose bounds meet, the particles
+of the later body ``j`` whose reference position lies inside body ``i`` (strictly: a particle on
+``i``'s surface is not counted, so bodies that only touch are silent). Their count, times
+body ``j``'s particle volume and mass, is the overlap's volume (to the particle spacing: exact for
+boxes whose lattices align with the overlap, ``O(Δx)`` of its surface otherwise) and the extra
+mass. Each rank counts its own particles (``O(N/P)``: a body's particles are a range of global
+ids, and the test is elementwise) and the counts are summed over the ranks, integers, so the
+message is the same on any number of ranks.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from decomposition import is_parallel
+from parmpm.core.log import get_logger
+from parmpm.geometry.primitives import body_bounds, inside
+
+log = get_logger(__name__)
+
+#: volume units by dimension
+UNITS = {1: "m", 2: "m²", 3: "m³"}
+
+
+
+
+def candidate_pairs(bodies: list[dict], dim: int) -> list[tuple[int, int]]:
+    """Pairs ``(i, j)``, ``i < j``, whose bounds overlap with positive volume."""
+    bounds = [tuple(np.asarray(v, float) for v in body_bounds(b)) for b in bodies]
+    pairs = []
+    for j in range(len(bodies)):
+        for i in range(j):
+            lo = np.maximum(bounds[i][0], bounds[j][0])
+            hi = np.minimum(bounds[i][1], bounds[j][1])
+            if np.all(hi > lo):
+                pairs.append((i, j))
+    return pairs
+
+
+def local_counts(bodies: list[dict], dim: int, pairs, first: np.ndarray, gid: np.ndarray,
+                 x0: np.ndarray) -> np.ndarray:
+    """Per pair ``(i, j)``: how many of these particles (global ids ``gid``, increasing, at
+    reference positions ``x0``) are body ``j``'s (ids ``first[j] ≤ gid < first[j + 1]``) and
+    lie inside body ``i``."""
+    out = np.zeros(len(pairs), np.int64)
+    gid = np.asarray(gid, np.int64)
+    for k, (i, j) in enumerate(pairs):
+        a, b = np.searchsorted(gid, [first[j], first[j + 1]])
+        if b > a:
+            out[k] = int(np.count_nonzero(inside(bodies[i], dim, x0[a:b])))
+    return out
+
+
+def seeded_twice(comm, data: dict, seeds, gid: np.ndarray, x0: np.ndarray) -> list[dict]:
+    """The pairs of bodies with particles seeded twice, summed over every rank (collective:
+    every rank calls it with its own particles, global ids ``gid`` at reference positions
+    ``x0``; ``seeds``: the :class:`parmpm.particles.seeding.Seeds` they came from): for each, ``bodies``
+    ``(i, j)``, ``particles`` (body ``j``'s inside body ``i``), their ``volume`` and ``mass``.
+    The same on every rank."""
+    dim, bodies = int(data["dim"]), data["bodies"]
+    pairs = candidate_pairs(bodies, dim)
+    if not pairs:
+        return []
+    first = np.concatenate([[0], np.cumsum([len(c[0]) for c in seeds.chunks])]).astype(np.int64)
+    gid, x0 = np.asarray(gid, np.int64), np.asarray(x0, float).reshape(-1, dim)
+    if np.any(np.diff(gid) < 0):
+        order = np.argsort(gid, kind="stable")
+        gid, x0 = gid[order], x0[order]
+    counts = local_counts(bodies, dim, pairs, first, gid, x0)
+    if is_parallel(comm):
+        counts = np.sum(comm.allgather(counts), axis=0)
+    out = []
+    for (i, j), n in zip(pairs, counts):
+        if n > 0:
+            volume = float(n) * float(np.prod(seeds.chunks[j][2]))
+            density = float(data["materials"][bodies[j]["material"]]["density"])
+            out.append({"bodies": (i, j), "particles": int(n), "volume": volume,
+                        "mass": density * volume})
+    return out
+
+
+def message(overlap: dict, dim: int) -> str:
+    """The warning's line for one :func:`seeded_twice` pair."""
+    (i, j), n = overlap["bodies"], overlap["particles"]
+    return (f"bodies.{i} and bodies.{j} overlap: {overlap['volume']:.4g} {UNITS[dim]} of "
+            f"bodies.{j} ({n} particles, {overlap['mass']:.4g} kg) lies inside bodies.{i} and "
+            "is seeded twice (the scene holds that material twice; make the bodies touch, not "
+            "overlap)")
+
+
+def check_overlaps(comm, data: dict, seeds, gid: np.ndarray, x0: np.ndarray) -> list[str]:
+    """:func:`seeded_twice`, as warnings logged once, by rank 0 (collective). Returns the lines
+    (the same on every rank)."""
+    lines = [message(o, int(data["dim"])) for o in seeded_twice(comm, data, seeds, gid, x0)]
+    if comm is None or comm.Get_rank() == 0:
+        for line in lines:
+            log.warning("%s", line)
+    return lines

@@ -1,0 +1,398 @@
+"""Particle ↔ grid transfers over any interpolator, patch by patch.
+
+Every kernel walks patches in order and each patch's particles in their stored order
+(sorted by global id within the patch), scattering into that patch's ghost-inclusive node box —
+so each patch's partial sums are a deterministic function of its own particles.
+
+* ``p2g``: ``m_i = Σ φ_ip m_p``, ``(mv)_i = Σ φ_ip m_p v_p``,
+  ``f_i = −Σ V_p σ_p ∇φ_ip (+ Σ φ_ip m_p b_p)`` with ``V_p = J_p V0_p`` (the material volume, never
+  the scaled CPDI domain's) and ``b_p`` a per-particle body force when one is given (an empty
+  ``bforce`` means none; gravity is added on the grid);
+* ``p2g_momentum``: the MUSL re-map of particle momentum;
+* ``g2p``: FLIP/PIC velocity ``v_p ← α(v_p + Σ φ Δv_i) + (1−α) Σ φ v_i``, position
+  ``x_p += Δt Σ φ v_i``, velocity gradient ``L_p = Σ v_i ⊗ ∇φ_ip``, ``F ← (I + Δt L) F`` and stress.
+
+Under APIC (``how.apic``, :mod:`parmpm.transfer.affine`) the momentum scattered is the particle's affine
+field at the node, ``m_p φ_ip (v_p + C_p (x_i − x_p))``, and G2P sets ``v_p = Σ φ v_i`` and
+``C_p = Σ φ v_i ⊗ (x_i − x_p) D_p⁻¹`` with the B-spline's ``D_p⁻¹ = diag(4/Δx_k²)``.
+
+Under MLS (``how.mls``, :mod:`parmpm.transfer.affine`) the transfers are APIC's and the weight gradient is
+``∇̃φ_ip = φ_ip D_p⁻¹ (x_i − x_p)``: P2G adds ``Δt f_i`` (the step's, ``dt``) to the momentum and
+still writes ``f_i`` (the grid update skips it, the energy ledger reads it), and G2P's velocity
+gradient is ``L_p = C_p``.
+
+Under cpdi2 (:mod:`parmpm.shapes.cpdi2`) G2P also moves the particle's tracked corners with the
+grid, after the particle's motion: ``c_α ← c_α + Δt (v(x_p + ĉ_α) − v_move)``, ``v(y) = Σ_i S_i(y)
+v_i`` the linear hat of the grid velocity, ``ĉ_α`` the corner as interpolated (after the ``l_cr``
+cap) and ``v_move = Σ φ v_i``. Under MUSL the corners move in the deformation pass, with the
+re-mapped grid velocity (the field that deforms F), and not in the motion pass: the re-map must
+scatter momentum with the weights the mass was scattered with (the corners before the step), or a
+node the old domain barely touched gets momentum without mass and a huge velocity. A
+frozen particle's (``rf ≠ 0``, :mod:`parmpm.shapes.freeze`) corners no longer move relative to it
+(docs/cpdi2.md).
+
+A support that leaves the grid or the ghost layer sets ``err[0]`` (the first such particle) and
+``err[1]`` its return code (-1 reach, -2 an inverted cpdi2 domain), and that particle is skipped:
+the step still ends on every rank, and the caller stops the run.
+
+Each public kernel allocates its scratch and hands it to a ``@loop_kernel`` body (``_*_loop``)
+that runs the particle loop without reference counting (see :mod:`parmpm.core.jit`). The hot bodies
+(P2G, the momentum re-map, G2P) are compiled once per dimension — ``literal_unroll(DIMS)`` passes
+``d`` as a compile-time constant — so LLVM fully unrolls every ``range(d)`` loop, the helpers'
+included (1.2–1.4× over a runtime ``d``; three compilations instead of one).
+"""
+import math
+
+import numpy as np
+from numba import literal_unroll, literally
+
+from parmpm.transfer.affine_kernels import affine_gather, affine_scatter, mls_gradients, offsets
+from parmpm.core.jit import DIMS, helper_kernel, kernel, loop_kernel
+from parmpm.materials.kinematics import det_d, flip_pic, update_F
+from parmpm.materials.damage import damage_update
+from parmpm.materials.laws import cauchy_stress, wave_speed
+from parmpm.shapes import CPDI2
+from parmpm.shapes.cpdi2 import SCRATCH_SHAPE
+from parmpm.shapes.hat import hat_axis
+from parmpm.shapes.support import domain_matrix, particle_support
+from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
+
+
+@kernel
+def _scratch(nloc, d):
+    """Per-call scratch of the particle loops: ``R, C`` (CPDI domain and cofactor), ``xi`` (grid
+    coordinates), the per-axis rows ``nk, jk, wk, dwk`` of :func:`particle_support`, its entries
+    ``idx, w, g``, ``Lg, Fn`` (velocity gradient and new F in G2P) and ``r`` (each entry's node
+    minus the particle, physical units: APIC), ``sc`` (cpdi2's capped corners and weights) and
+    ``vm`` (the velocity that moved the particle: cpdi2's corner update)."""
+    M = max(nloc[0], nloc[1], nloc[2], 4)
+    K = 64
+    prod = 1
+    for k in range(d):
+        prod *= nloc[k]
+    K = max(K, prod)
+    return (np.zeros((3, 3)), np.zeros((3, 3)), np.zeros(3), np.zeros(3, np.int64),
+            np.zeros((3, M), np.int64), np.zeros((3, M)), np.zeros((3, M)),
+            np.zeros(K, np.int64), np.zeros(K), np.zeros((K, 3)),
+            np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((K, 3)), np.zeros(SCRATCH_SHAPE),
+            np.zeros(3))
+
+
+@helper_kernel
+def _entries(method, d, lcr, boxes, fields, i, p, err, scratch):
+    """Particle ``i``'s (node, weight, gradient) entries in the scratch's ``idx, w, g`` for the
+    node box of slot ``p``; their count, or -1 (noted in ``err``) when its support leaves the
+    grid or the ghost layer, -2 (cpdi2: an inverted domain); a negative count is noted in
+    ``err`` (particle, code) for the first such particle."""
+    R, C, xi, nk, jk, wk, dwk, idx, w, g, _, _, _, sc, _ = scratch
+    x, F = fields.x, fields.F
+    origin, inv_h = boxes.origin, boxes.inv_h
+    for k in range(d):
+        xi[k] = (x[i, k] - origin[k]) * inv_h[k]
+    domain_matrix(d, method, lcr, F[i], fields.r0[i], R)
+    n = particle_support(method, d, xi, F[i], fields.lh0[i], R, C, boxes.base[p], boxes.nloc,
+                         boxes.nglob, inv_h, nk, jk, wk, dwk, idx, w, g, fields.corners, i, lcr,
+                         sc)
+    if n < 0 and err[0] < 0:
+        err[0] = i
+        err[1] = n
+    return n
+
+
+@helper_kernel
+def _move_corners(d, dt, gvel, p, base, nloc, nglob, inv_h, c, scratch):
+    """cpdi2: ``c_α += Δt (v(x_p + ĉ_α) − v_move)`` for the particle whose capped corners ``ĉ``
+    :func:`_entries` left in the scratch (``sc``), ``v(y) = Σ_i S_i(y) v_i`` the linear hat of
+    the grid velocity ``gvel`` of slot ``p`` (node box at ``base``; ``c`` the particle's
+    corners, the scratch's ``vm`` its ``v_move``). The capped corners' nodes are in the box: the
+    support held them."""
+    xi, jk, wk, dwk, sc, vm = scratch[2], scratch[4], scratch[5], scratch[6], scratch[13], scratch[14]
+    L0, L1 = nloc[0], nloc[1]
+    n1 = 2 if d > 1 else 1
+    n2 = 2 if d > 2 else 1
+    for alpha in range(1 << d):
+        for k in range(d):
+            hat_axis(xi[k] + sc[alpha, k] * inv_h[k], base[k], nloc[k], nglob[k], inv_h[k],
+                     jk, wk, dwk, k)
+        for a in range(d):
+            s = 0.0
+            for i2 in range(n2):
+                w2 = wk[2, i2] if d > 2 else 1.0
+                o2 = jk[2, i2] if d > 2 else 0
+                for i1 in range(n1):
+                    w1 = wk[1, i1] if d > 1 else 1.0
+                    o1 = jk[1, i1] if d > 1 else 0
+                    for i0 in range(2):
+                        s += wk[0, i0] * w1 * w2 * gvel[p, jk[0, i0] + L0 * (o1 + L1 * o2), a]
+            c[alpha, a] += dt * (s - vm[a])
+
+
+@helper_kernel
+def _frozen(d, rf):
+    """A frozen domain (:mod:`parmpm.shapes.freeze`): ``rf`` not zero."""
+    for a in range(d):
+        if rf[a, 0] != 0.0:
+            return True
+    return False
+
+
+@kernel
+def p2g(how, boxes, fields, bforce, dt, out, err):
+    """``out = (gm, gmv, gf)`` (node-major views of this rank's patch slots) from the particles;
+    ``how``, ``boxes``, ``fields``: :mod:`parmpm.core.records`; ``dt``: the step (MLS folds
+    ``Δt f`` into the momentum; unused otherwise)."""
+    d = how.dim
+    scratch = _scratch(boxes.nloc, d)
+    for dim in literal_unroll(DIMS):
+        if dim == d:
+            _p2g_loop(how, dim, boxes, boxes.order, fields, bforce, dt, out, err, scratch)
+
+
+@loop_kernel
+def _p2g_loop(how, dim, boxes, order, fields, bforce, dt, out, err, scratch):
+    literally(dim)
+    d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
+    method, lcr, apic, mls = how.code, how.lcr, how.apic, how.mls
+    start = boxes.start
+    v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
+    affine = fields.affine
+    gm, gmv, gf = out
+    idx, w, g = scratch[7], scratch[8], scratch[9]
+    forced = bforce.shape[0] > 0
+    gm[:] = 0.0
+    gmv[:] = 0.0
+    gf[:] = 0.0
+    for p in range(start.size - 1):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
+            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
+            if n < 0:
+                continue
+            m = mass[i]
+            V = det_d(d, F[i]) * vol0[i]
+            if apic:
+                offsets(d, boxes, p, n, scratch)
+                affine_scatter(d, n, m, v[i], affine[i], gmv, p, scratch)
+                if mls:
+                    mls_gradients(d, n, boxes.inv_h, scratch)
+            for e in range(n):
+                node = idx[e]
+                mw = m * w[e]
+                gm[p, node, 0] += mw
+                for a in range(d):
+                    if not apic:
+                        gmv[p, node, a] += mw * v[i, a]
+                    s = 0.0
+                    for b in range(d):
+                        s += stress[i, a, b] * g[e, b]
+                    gf[p, node, a] -= V * s
+                    if forced:
+                        gf[p, node, a] += mw * bforce[i, a]
+                    if mls:  # the grid update's Δt f, folded in (module doc)
+                        fa = mw * bforce[i, a] - V * s if forced else -V * s
+                        gmv[p, node, a] += dt * fa
+
+
+@kernel
+def p2g_momentum(how, boxes, fields, gmv, err):
+    """The MUSL re-map of particle momentum into ``gmv``."""
+    d = how.dim
+    scratch = _scratch(boxes.nloc, d)
+    for dim in literal_unroll(DIMS):
+        if dim == d:
+            _p2g_momentum_loop(how, dim, boxes, boxes.order, fields, gmv, err, scratch)
+
+
+@loop_kernel
+def _p2g_momentum_loop(how, dim, boxes, order, fields, gmv, err, scratch):
+    literally(dim)
+    d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
+    method, lcr, apic = how.code, how.lcr, how.apic
+    start, v, mass = boxes.start, fields.v, fields.mass
+    idx, w = scratch[7], scratch[8]
+    gmv[:] = 0.0
+    for p in range(start.size - 1):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
+            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
+            if n < 0:
+                continue
+            if apic:
+                offsets(d, boxes, p, n, scratch)
+                affine_scatter(d, n, mass[i], v[i], fields.affine[i], gmv, p, scratch)
+                continue
+            for e in range(n):
+                mw = mass[i] * w[e]
+                for a in range(d):
+                    gmv[p, idx[e], a] += mw * v[i, a]
+
+
+@kernel
+def g2p(mode, how, boxes, dt, flip, fields, material, grid, err):
+    """One of the three G2P modes (:mod:`parmpm.transfer.update_order`) from ``grid = (v, Δv)`` node-major
+    views. Returns the largest ``c_p + |v_p|`` over the particles (for the next CFL step) in the
+    deformation modes."""
+    d = how.dim
+    scratch = _scratch(boxes.nloc, d)
+    vmax = 0.0
+    for dim in literal_unroll(DIMS):
+        if dim == d:
+            vmax = _g2p_loop(mode, how, dim, boxes, boxes.order, dt, flip, fields, material, grid,
+                             err, scratch)
+    return vmax
+
+
+@loop_kernel
+def _g2p_loop(mode, how, dim, boxes, order, dt, flip, fields, material, grid, err, scratch):
+    literally(dim)
+    d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
+    method, lcr, apic, mls = how.code, how.lcr, how.apic, how.mls
+    start = boxes.start
+    x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
+    affine = fields.affine
+    mat, params, damage = material
+    gvel, gdv = grid
+    idx, w, g, Lg, Fn, vm = scratch[7], scratch[8], scratch[9], scratch[10], scratch[11], scratch[14]
+    corners, rf = fields.corners, fields.rf
+    tracked = method == CPDI2
+    vmax = 0.0
+    for p in range(start.size - 1):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
+            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
+            if n < 0:
+                continue
+            Fi = F[i]
+            if apic and mode != G2P_MUSL_DEFORM:
+                offsets(d, boxes, p, n, scratch)
+                affine_gather(d, n, gvel, p, boxes.inv_h, v[i], affine[i], scratch)
+                for a in range(d):
+                    if mode == G2P_USL:
+                        x[i, a] += dt * v[i, a]
+                    else:
+                        dx[i, a] = dt * v[i, a]
+            elif mode != G2P_MUSL_DEFORM:
+                for a in range(d):
+                    vi = 0.0
+                    dvi = 0.0
+                    for e in range(n):
+                        vi += w[e] * gvel[p, idx[e], a]
+                        dvi += w[e] * gdv[p, idx[e], a]
+                    if mode == G2P_USL:
+                        x[i, a] += dt * vi
+                    else:
+                        dx[i, a] = dt * vi
+                    v[i, a] = flip_pic(flip, v[i, a], dvi, vi)
+                    vm[a] = vi
+            if tracked and mode != G2P_MUSL_MOTION and not _frozen(d, rf[i]):
+                if mode == G2P_MUSL_DEFORM:  # the re-mapped field moves the corners (see above)
+                    for a in range(d):
+                        vi = 0.0
+                        for e in range(n):
+                            vi += w[e] * gvel[p, idx[e], a]
+                        vm[a] = vi
+                _move_corners(d, dt, gvel, p, boxes.base[p], boxes.nloc, boxes.nglob,
+                              boxes.inv_h, corners[i], scratch)
+            if mode == G2P_MUSL_MOTION:
+                continue
+            if mls and mode == G2P_USL:  # L = C, gathered above
+                for a in range(d):
+                    for b in range(d):
+                        Lg[a, b] = affine[i, a, b]
+            elif mls:  # the re-mapped field's C, not stored: the particle keeps the motion's
+                offsets(d, boxes, p, n, scratch)
+                affine_gather(d, n, gvel, p, boxes.inv_h, vm, Lg, scratch)
+            else:
+                for a in range(d):
+                    for b in range(d):
+                        s = 0.0
+                        for e in range(n):
+                            s += gvel[p, idx[e], a] * g[e, b]
+                        Lg[a, b] = s
+            update_F(d, dt, Lg, Fi, Fn)
+            if mode == G2P_MUSL_DEFORM:
+                for a in range(d):
+                    x[i, a] += dx[i, a]
+            prm = params[mat[i]]
+            damage[i] = damage_update(d, prm, Fi, damage[i])
+            cauchy_stress(d, prm, Fi, damage[i], stress[i])
+            speed2 = 0.0
+            for a in range(d):
+                speed2 += v[i, a] * v[i, a]
+            s = wave_speed(d, prm, Fi) + math.sqrt(speed2)
+            if not (s <= vmax):
+                vmax = s if s == s else math.inf  # a NaN stays visible as inf
+    return vmax
+
+
+@loop_kernel
+def max_speed(d, v, F, mat, params):
+    """Largest ``c_p + |v_p|`` (current-configuration wave speed plus particle speed)."""
+    vmax = 0.0
+    for i in range(v.shape[0]):
+        s = 0.0
+        for a in range(d):
+            s += v[i, a] * v[i, a]
+        vmax = max(vmax, wave_speed(d, params[mat[i]], F[i]) + math.sqrt(s))
+    return vmax
+
+
+@kernel
+def support_nodes(how, boxes, fields, nodes, count, err):
+    """Global flat ids of the nodes each particle touches with nonzero weight (for separation
+    detection: particles sharing no node exchange no momentum). ``nodes`` is (N, K)."""
+    _support_nodes_loop(how, boxes, boxes.order, fields, nodes, count, err,
+                        _scratch(boxes.nloc, how.dim))
+
+
+@loop_kernel
+def _support_nodes_loop(how, boxes, order, fields, nodes, count, err, scratch):
+    method, d, lcr = how.code, how.dim, how.lcr
+    start, base, nloc, nglob = boxes.start, boxes.base, boxes.nloc, boxes.nglob
+    idx, w = scratch[7], scratch[8]
+    for p in range(start.size - 1):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
+            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
+            if n < 0:
+                continue
+            c = 0
+            for e in range(n):
+                if w[e] <= 0.0:
+                    continue
+                if c >= nodes.shape[1]:  # more than the ghost layer allows: the reach error
+                    if err[0] < 0:
+                        err[0] = i
+                        err[1] = -1
+                    break
+                loc = idx[e]
+                i0 = loc % nloc[0]
+                i1 = (loc // nloc[0]) % nloc[1]
+                i2 = loc // (nloc[0] * nloc[1])
+                nodes[i, c] = (base[p, 0] + i0) + nglob[0] * ((base[p, 1] + i1) + nglob[1] * (base[p, 2] + i2))
+                c += 1
+            count[i] = c
+
+
+@loop_kernel
+def stress_pass(d, F, mat, params, damage, stress):
+    """Stress and wave speed of every particle on their own (G2P fuses them into its loop; the
+    benchmark times this to report the stress update's share)."""
+    vmax = 0.0
+    for i in range(F.shape[0]):
+        prm = params[mat[i]]
+        cauchy_stress(d, prm, F[i], damage[i], stress[i])
+        vmax = max(vmax, wave_speed(d, prm, F[i]))
+    return vmax

@@ -1,0 +1,298 @@
+"""3D CPDI2 transfers over a particle's eight tracked hexahedron corners.
+
+The corners (relative to the particle, bit order of :mod:`parmpm.shapes.cpdi2`) are capped at
+``l_cr`` one by one, and the hexahedron's weights ``wf_α`` and ``wg_α`` are those of
+:func:`parmpm.shapes.cpdi2.domain_weights` (2×2×2 Gauss points, exact for the trilinear map), with
+``J`` assembled from the map's coefficients (:func:`hex_weights`).
+Then, as :mod:`parmpm.transfer.kernels3d.cpdi` does for CPDI1's corners: P2G scatters, per corner,
+``wf_α m_p`` (mass), ``wf_α m_p v_p`` (momentum) and ``−V_p σ_p wg_α (+ wf_α m_p b_p)`` (force)
+into the eight nodes of the corner's cell; G2P gathers ``v(x_α)``, ``Δv(x_α)`` there and forms
+``v_p = Σ wf_α v(x_α)`` (FLIP blend with ``Δv``), ``L_p = Σ v(x_α) ⊗ wg_α``, and moves the
+corners, ``c_α += Δt (v(x_α) − Σ wf v(x_α))``, in USL and in MUSL's deformation pass (not a
+frozen particle's; :mod:`parmpm.transfer.generic` says why). Errors as in :mod:`parmpm.transfer.kernels2d.cpdi2`.
+
+The per-particle scratch (capped corners and weights, the corners' cells and fractions) comes from
+the ``@kernel`` wrappers; the loops run without reference counting.
+"""
+import numpy as np
+
+from parmpm.core.jit import inline_kernel, kernel, loop_kernel
+from parmpm.transfer.kernels2d.cells import cell_of, note_patch
+from parmpm.transfer.kernels2d.cpdi2 import note_error
+from parmpm.transfer.kernels3d.cells import frame_3d, slot_3d
+from parmpm.transfer.kernels3d.cpdi import gather6, scatter7, scatter_momentum
+from parmpm.transfer.kernels3d.material import update_F_stress
+from parmpm.materials.kinematics import det_3d, flip_pic
+from parmpm.grid.patch_index import next_patch_3d
+from parmpm.shapes.cpdi2 import GAUSS, SCRATCH_SHAPE, WF, WG, cap_corners, corner_shape
+from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
+
+
+@inline_kernel
+def _scratch():
+    return np.zeros(SCRATCH_SHAPE), np.zeros((8, 3), np.int64), np.zeros((8, 3))
+
+
+def _shape_table() -> np.ndarray:
+    """``N_α`` and ``∂N_α/∂ξ_m`` at the eight Gauss points (q, α, (N, dN0, dN1, dN2)): constants
+    numba folds into the kernels, where :func:`parmpm.shapes.cpdi2.corner_shape` would recompute
+    them per particle."""
+    out = np.zeros((8, 8, 4))
+    for q in range(8):
+        e = [GAUSS if (q >> m) & 1 else -GAUSS for m in range(3)]
+        for al in range(8):
+            out[q, al] = corner_shape.py_func(al, 3, e[0], e[1], e[2])
+    return out
+
+
+SHAPES = _shape_table()
+
+
+@inline_kernel
+def coefficients(sc, k):
+    """Component ``k`` of the trilinear map ``x(ξ) = A0 + A1 ξ + A2 η + A3 ζ + A12 ξη + A23 ηζ
+    + A13 ξζ + A123 ξηζ`` of the corners in ``sc`` (bit order): ``(A1, A2, A3, A12, A23, A13,
+    A123)``; ``A0`` does not enter the weights."""
+    c0, c1, c2, c3 = sc[0, k], sc[1, k], sc[2, k], sc[3, k]
+    c4, c5, c6, c7 = sc[4, k], sc[5, k], sc[6, k], sc[7, k]
+    return (0.125 * ((c1 - c0) + (c3 - c2) + (c5 - c4) + (c7 - c6)),
+            0.125 * ((c2 - c0) + (c3 - c1) + (c6 - c4) + (c7 - c5)),
+            0.125 * ((c4 - c0) + (c5 - c1) + (c6 - c2) + (c7 - c3)),
+            0.125 * ((c0 - c1) + (c3 - c2) + (c4 - c5) + (c7 - c6)),
+            0.125 * ((c0 - c2) + (c1 - c3) + (c6 - c4) + (c7 - c5)),
+            0.125 * ((c0 - c1) + (c2 - c3) + (c5 - c4) + (c7 - c6)),
+            0.125 * ((c1 - c0) + (c2 - c3) + (c4 - c5) + (c7 - c6)))
+
+
+@inline_kernel
+def hex_weights(sc):
+    """:func:`parmpm.shapes.cpdi2.domain_weights` for a hexahedron, with ``J`` from the map's
+    coefficients (3 × 4 terms per Gauss point instead of a sum over the eight corners): fills
+    ``sc[α, WF]``, ``sc[α, WG:WG+3]`` and returns ``V``."""
+    x1, x2, x3, x12, x23, x13, x123 = coefficients(sc, 0)
+    y1, y2, y3, y12, y23, y13, y123 = coefficients(sc, 1)
+    z1, z2, z3, z12, z23, z13, z123 = coefficients(sc, 2)
+    for a in range(8):
+        for k in range(WF, WG + 3):
+            sc[a, k] = 0.0
+    vol = 0.0
+    for q in range(8):
+        e0 = GAUSS if q & 1 else -GAUSS
+        e1 = GAUSS if (q >> 1) & 1 else -GAUSS
+        e2 = GAUSS if (q >> 2) & 1 else -GAUSS
+        # columns of J = ∂x/∂ξ
+        a0 = x1 + x12 * e1 + x13 * e2 + x123 * e1 * e2
+        a1 = y1 + y12 * e1 + y13 * e2 + y123 * e1 * e2
+        a2 = z1 + z12 * e1 + z13 * e2 + z123 * e1 * e2
+        b0 = x2 + x12 * e0 + x23 * e2 + x123 * e0 * e2
+        b1 = y2 + y12 * e0 + y23 * e2 + y123 * e0 * e2
+        b2 = z2 + z12 * e0 + z23 * e2 + z123 * e0 * e2
+        c0 = x3 + x13 * e0 + x23 * e1 + x123 * e0 * e1
+        c1 = y3 + y13 * e0 + y23 * e1 + y123 * e0 * e1
+        c2 = z3 + z13 * e0 + z23 * e1 + z123 * e0 * e1
+        # cofactor columns k1 = b × c, k2 = c × a, k3 = a × b; det = a · k1
+        k1x, k1y, k1z = b1 * c2 - b2 * c1, b2 * c0 - b0 * c2, b0 * c1 - b1 * c0
+        k2x, k2y, k2z = c1 * a2 - c2 * a1, c2 * a0 - c0 * a2, c0 * a1 - c1 * a0
+        k3x, k3y, k3z = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+        det = a0 * k1x + a1 * k1y + a2 * k1z
+        vol += det
+        for al in range(8):
+            n, g0, g1, g2 = SHAPES[q, al, 0], SHAPES[q, al, 1], SHAPES[q, al, 2], SHAPES[q, al, 3]
+            sc[al, WF] += n * det
+            sc[al, WG] += k1x * g0 + k2x * g1 + k3x * g2
+            sc[al, WG + 1] += k1y * g0 + k2y * g1 + k3y * g2
+            sc[al, WG + 2] += k1z * g0 + k2z * g1 + k3z * g2
+    if vol > 0.0:
+        inv_v = 1.0 / vol
+        for al in range(8):
+            for k in range(WF, WG + 3):
+                sc[al, k] *= inv_v
+    return vol
+
+
+@inline_kernel
+def prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr):
+    """Capped corners and weights of particle ``i`` into ``sc`` and its corners' local cells and
+    fractions into ``cells``, ``fr``; returns ``(V, code)``: code 0, −2 (inverted) or −1 (a
+    corner's nodes leave the box)."""
+    cap_corners(3, c[i], lcr, sc)
+    V = hex_weights(sc)
+    if not V > 0.0:
+        return V, -2
+    bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
+    base, jlo, jhi = (bx, by, bz), (jlx, jly, jlz), (jhx, jhy, jhz)
+    ok = True
+    for a in range(8):
+        for k in range(3):
+            j, f = cell_of((x[i, k] - o[k]) * ih[k] + sc[a, k] * ih[k], base[k], jlo[k], jhi[k])
+            cells[a, k] = j
+            fr[a, k] = f
+            ok = ok and j >= 0
+    return V, 0 if ok else -1
+
+
+@kernel
+def p2g_cpdi2(lcr, boxes, order, fields, bforce, gsum, err):
+    """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
+    sc, cells, fr = _scratch()
+    _p2g_loop(lcr, boxes, order, fields, bforce, gsum, err, sc, cells, fr)
+
+
+@loop_kernel
+def _p2g_loop(lcr, boxes, order, fields, bforce, gsum, err, sc, cells, fr):
+    start = boxes.start
+    x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
+                                   fields.stress)
+    c = fields.corners
+    forced = bforce.shape[0] > 0
+    gsum[:] = 0.0
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
+    o, ih = (ox, oy, oz), (ihx, ihy, ihz)
+    for p in range(start.size - 1):
+        g = gsum[p]
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
+            V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
+            if code < 0:
+                note_error(err, i, code)
+                continue
+            Vp = det_3d(F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1], F[i, 1, 2],
+                        F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]) * vol0[i]
+            t00, t01, t02 = Vp * stress[i, 0, 0], Vp * stress[i, 0, 1], Vp * stress[i, 0, 2]
+            t10, t11, t12 = Vp * stress[i, 1, 0], Vp * stress[i, 1, 1], Vp * stress[i, 1, 2]
+            t20, t21, t22 = Vp * stress[i, 2, 0], Vp * stress[i, 2, 1], Vp * stress[i, 2, 2]
+            m = mass[i]
+            vx, vy, vz = v[i, 0], v[i, 1], v[i, 2]
+            bfx = m * bforce[i, 0] if forced else 0.0
+            bfy = m * bforce[i, 1] if forced else 0.0
+            bfz = m * bforce[i, 2] if forced else 0.0
+            for a in range(8):
+                wf, gx, gy, gz = sc[a, WF], sc[a, WG], sc[a, WG + 1], sc[a, WG + 2]
+                mw = m * wf
+                scatter7(g, L0, L01, cells[a, 0], cells[a, 1], cells[a, 2], fr[a, 0], fr[a, 1],
+                         fr[a, 2], mw, mw * vx, mw * vy, mw * vz,
+                         bfx * wf - (t00 * gx + t01 * gy + t02 * gz),
+                         bfy * wf - (t10 * gx + t11 * gy + t12 * gz),
+                         bfz * wf - (t20 * gx + t21 * gy + t22 * gz))
+
+
+@kernel
+def p2g_momentum_cpdi2(lcr, boxes, order, fields, gsum, err):
+    """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
+    sc, cells, fr = _scratch()
+    _p2g_momentum_loop(lcr, boxes, order, fields, gsum, err, sc, cells, fr)
+
+
+@loop_kernel
+def _p2g_momentum_loop(lcr, boxes, order, fields, gsum, err, sc, cells, fr):
+    start = boxes.start
+    x, v, mass = fields.x, fields.v, fields.mass
+    c = fields.corners
+    gsum[:, 1:4, :] = 0.0
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
+    o, ih = (ox, oy, oz), (ihx, ihy, ihz)
+    for p in range(start.size - 1):
+        g = gsum[p]
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
+            V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
+            if code < 0:
+                note_error(err, i, code)
+                continue
+            m = mass[i]
+            for a in range(8):
+                mw = m * sc[a, WF]
+                scatter_momentum(g, L0, L01, cells[a, 0], cells[a, 1], cells[a, 2], fr[a, 0],
+                                 fr[a, 1], fr[a, 2], mw * v[i, 0], mw * v[i, 1], mw * v[i, 2])
+
+
+@kernel
+def g2p_cpdi2(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate):
+    """G2P in one of the three modes, moving the tracked corners in USL and MUSL's deformation
+    pass; returns (largest ``c_p + |v_p|`` when the stress is updated, particles that changed
+    patch, first particle off the grid)."""
+    sc, cells, fr = _scratch()
+    u = np.zeros((8, 6))
+    return _g2p_loop(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate,
+                     sc, cells, fr, u)
+
+
+@loop_kernel
+def _g2p_loop(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate, sc, cells, fr,
+              u):
+    start = boxes.start
+    x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
+    c, rf = fields.corners, fields.rf
+    mat, params, damage = material
+    slot_patch, new_patch = locate.slot_patch, locate.new_patch
+    vmax = 0.0
+    moved = 0
+    first_out = -1
+    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
+    o, ih = (ox, oy, oz), (ihx, ihy, ihz)
+    for p in range(start.size - 1):
+        g = gnew[p]
+        sp = slot_patch[p]
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            if order is None:  # rows in canonical order (compiled apart: no load)
+                i = kk
+            else:
+                i = order[kk]  # the physical row (Particles.order)
+            V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
+            if code < 0:
+                note_error(err, i, code)
+                new_patch[i] = sp
+                continue
+            vx = vy = vz = dvx = dvy = dvz = 0.0
+            l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
+            for a in range(8):
+                u0, u1, u2, u3, u4, u5 = gather6(g, L0, L01, cells[a, 0], cells[a, 1],
+                                                 cells[a, 2], fr[a, 0], fr[a, 1], fr[a, 2])
+                u[a, 0], u[a, 1], u[a, 2] = u0, u1, u2
+                wf, gx, gy, gz = sc[a, WF], sc[a, WG], sc[a, WG + 1], sc[a, WG + 2]
+                vx += wf * u0
+                vy += wf * u1
+                vz += wf * u2
+                dvx += wf * u3
+                dvy += wf * u4
+                dvz += wf * u5
+                l00 += u0 * gx
+                l01 += u0 * gy
+                l02 += u0 * gz
+                l10 += u1 * gx
+                l11 += u1 * gy
+                l12 += u1 * gz
+                l20 += u2 * gx
+                l21 += u2 * gy
+                l22 += u2 * gz
+            xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
+            if mode != G2P_MUSL_DEFORM:
+                v[i, 0] = flip_pic(flip, v[i, 0], dvx, vx)
+                v[i, 1] = flip_pic(flip, v[i, 1], dvy, vy)
+                v[i, 2] = flip_pic(flip, v[i, 2], dvz, vz)
+                if mode == G2P_MUSL_MOTION:
+                    dx[i, 0], dx[i, 1], dx[i, 2] = dt * vx, dt * vy, dt * vz
+                    continue
+                x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
+            else:
+                x[i, 0], x[i, 1], x[i, 2] = xx + dx[i, 0], xy + dx[i, 1], xz + dx[i, 2]
+            if rf[i, 0, 0] == 0.0 and rf[i, 1, 0] == 0.0 and rf[i, 2, 0] == 0.0:  # not frozen
+                for a in range(8):
+                    c[i, a, 0] += dt * (u[a, 0] - vx)
+                    c[i, a, 1] += dt * (u[a, 1] - vy)
+                    c[i, a, 2] += dt * (u[a, 2] - vz)
+            pid = next_patch_3d(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, locate, p,
+                                sp)
+            moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
+            vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
+                                             dt * l12, dt * l20, dt * l21, dt * l22),
+                                   (F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
+                                    F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]),
+                                   v, F, stress, mat, params, damage)
+    return vmax, moved, first_out
