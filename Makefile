@@ -12,6 +12,9 @@
 #   make lint                     only the linter
 #   make figures                  run_scripts/make_figures.py, where it exists (the only target
 #                                 that writes docs/figures/)
+#   make docs                     the documentation site: installs the docs extra into the venv
+#                                 (once) and runs mkdocs build --strict into site/ (open
+#                                 site/index.html); a broken link or anchor fails it
 #   make clean                    caches and build files only; results (parmpm-out/) are kept
 #
 # PYTHON picks the interpreter that creates the venv (Python >= 3.11): make test PYTHON=python3.12
@@ -28,15 +31,19 @@ PYTEST_WORKERS ?= 2
 
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+DOCS_STAMP := $(VENV)/.installed-docs
 EXTRAS := mpich,test,plot
+# mkdocs-material and a mkdocs plugin print banners about MkDocs 2.0 on every build
+DOCS_ENV := NO_MKDOCS_2_WARNING=1 DISABLE_MKDOCS_2_WARNING=true
 
-.PHONY: help venv run test lint figures clean
+.PHONY: help venv run test lint figures docs clean
 
 help:
 	@echo "make run      run the default scene on $(NP) MPI ranks (creates $(VENV) on first use)"
 	@echo "make test     run the linter and the test suite (PYTEST_ARGS='...' passes options to pytest)"
 	@echo "make lint     run the linter (ruff check)"
-	@echo "make figures  regenerate the README figures (run_scripts/make_figures.py)"
+	@echo "make figures  regenerate the figures in docs/figures (run_scripts/make_figures.py)"
+	@echo "make docs     build the documentation site into site/ (mkdocs build --strict)"
 	@echo "make venv     only create $(VENV) and install parmpm[$(EXTRAS)] into it"
 	@echo "make clean    remove caches and build files (keeps results: parmpm-out/, run_scripts/out/; keeps $(VENV))"
 
@@ -60,6 +67,13 @@ test: lint
 
 lint: $(STAMP)
 	$(BIN)/ruff check .
+
+$(DOCS_STAMP): pyproject.toml $(STAMP)
+	$(BIN)/python -m pip install -e '.[$(EXTRAS),docs]'
+	@touch $@
+
+docs: $(DOCS_STAMP)
+	$(DOCS_ENV) $(BIN)/mkdocs build --strict --site-dir site
 
 figures: $(STAMP)
 	@if [ -f run_scripts/make_figures.py ]; then \

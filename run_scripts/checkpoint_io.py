@@ -18,6 +18,7 @@ the numbers there (one record per ``--ranks-per-file`` setting; ``run_scripts/io
 reads it).
 """
 import argparse
+import dataclasses
 import json
 import shutil
 import tempfile
@@ -90,7 +91,9 @@ def main() -> None:
         print(f"{size} rank(s), {summary['particles']:,} particles, {args.dim}D, step {step:.3f} s")
     for k, setting in enumerate(args.ranks_per_file):
         rpf = size if setting == "all" else (setting if setting == "auto" else int(setting))
-        sim.data["checkpoint"]["ranks_per_file"] = rpf
+        scene = sim.state.scene  # the writer reads the typed scene (parmpm.scene.records)
+        scene.spec = dataclasses.replace(
+            scene.spec, checkpoint=dataclasses.replace(scene.spec.checkpoint, ranks_per_file=rpf))
         comm.Barrier()
         t0 = time.perf_counter()
         path = sim.write_checkpoint()

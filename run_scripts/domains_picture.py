@@ -2,7 +2,7 @@
 domains that tile it, and with domains capped at too small an l_cr.
 
     python run_scripts/domains_picture.py                          # runs + domains.png in run_scripts/out/
-    python run_scripts/domains_picture.py --figures docs/figures   # the README's figure
+    python run_scripts/domains_picture.py --figures docs/figures   # the documentation's figure
     mpirun -n 2 python run_scripts/domains_picture.py              # the same picture on 2 ranks
 
 Runs the built-in ``hanging_bar`` (CPDI, 2D, 1000 m/s² gravity switched on at t = 0) to

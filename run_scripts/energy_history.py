@@ -1,7 +1,7 @@
 """Energy history of a user's scene: the colliding blocks of docs/examples, every term of the balance.
 
     python run_scripts/energy_history.py                 # the runs and figures in run_scripts/out/
-    python run_scripts/energy_history.py --figures docs/figures      # the README's figure
+    python run_scripts/energy_history.py --figures docs/figures      # the documentation's figure
     mpirun -n 2 python run_scripts/energy_history.py     # the same numbers on any rank count
     python run_scripts/energy_history.py --methods cpdi,bspline_apic
 

@@ -156,7 +156,7 @@ def io_rows(particles, ranks, step_seconds: dict, storages: dict, dim: int = 3) 
 
 
 def io_table(rows: list[dict], label: str) -> str:
-    """The README's table for one file system: checkpoint time and the 1 % interval."""
+    """The table of docs/results/memory-io.md for one file system: checkpoint time and the 1 % interval."""
     mine = [r for r in rows if r["file_system"] == label]
     sizes = sorted({r["particles"] for r in mine})
     ranks = sorted({r["ranks"] for r in mine})

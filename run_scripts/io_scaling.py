@@ -20,7 +20,7 @@ a constant: the grid, the patches' descriptions, MPI and HDF5 buffers), bytes re
 (``run_scripts/io_model.py``): the one-writer write and restart rates measured here as the
 per-writer rates ``b_w``, ``b_r``; an *assumed* file-system aggregate ``B_fs`` (100 GB/s, a
 Lustre-class system, and 10 GB/s); the step time of ``cost_model.py`` for the 3D cpdi cube (its
-constants as measured by ``scaling.py``, from ``--cost-json`` when given, else the README's);
+constants as measured by ``scaling.py``, from ``--cost-json`` when given, else the ones docs/results/scaling.md states);
 gives the checkpoint time and the shortest checkpoint interval under 1 % of run time at 10²,
 10³, 10⁴ ranks for 10⁸, 10⁹, 10¹⁰ particles, parts against the old one-writer strategy.
 
@@ -57,8 +57,8 @@ import study
 DIM = 2
 WARM = 2000  # particles of the warm-up run
 HERE = Path(__file__).resolve().parent
-#: the step-time model's constants as the README states them (scaling.py on this machine) and
-#: its assumed network; --cost-json replaces the measured ones with a cost_model.json's
+#: the step-time model's constants as docs/results/scaling.md states them (scaling.py on the
+#: 2-core machine) and its assumed network; --cost-json replaces the measured ones with a cost_model.json's
 STEP_MODEL = {"t_p": 377e-9, "alpha": 1.6e-6, "beta": 10.5e9, "alpha_r": 3.8e-6,
               "alpha_net": 1.5e-6, "beta_net": 12.5e9, "ppc": 2, "patch_size": 16, "ghost": 2,
               "drift": 0.01}
@@ -242,7 +242,7 @@ def table(rows: list[dict]) -> str:
 
 # --- the I/O cost model ------------------------------------------------------------------------
 def step_model(cost_json: Path | None) -> dict:
-    """The step-time constants: README values, or a ``cost_model.json`` written by scaling.py."""
+    """The step-time constants: the documented values, or a ``cost_model.json`` written by scaling.py."""
     c = dict(STEP_MODEL)
     if cost_json is not None:
         rec = json.loads(Path(cost_json).read_text(encoding="utf-8"))
@@ -393,7 +393,7 @@ def main() -> None:
     ap.add_argument("--particles", type=float, default=None, help="2D particles (default 4e6; --quick 2e4)")
     ap.add_argument("--ranks", default=None, help="comma-separated (default 1,2,4,8; --quick 1,2)")
     ap.add_argument("--cost-json", type=Path, default=None,
-                    help="a cost_model.json from scaling.py (default: the README's constants)")
+                    help="a cost_model.json from scaling.py (default: the documented constants)")
     ap.add_argument("--measured", type=Path, default=None,
                     help="an io_scaling.csv from an earlier run: redo the model and the figure only")
     ap.add_argument("--worker", action="store_true", help=sm.argparse_hidden())
@@ -404,7 +404,7 @@ def main() -> None:
         worker(particles, args.json)
         return
     ranks = [int(p) for p in (args.ranks or ("1,2" if args.quick else "1,2,4,8")).split(",")]
-    from parmpm.io.checkpoint_parts import MAX_PARTS, ranks_per_file
+    from parmpm.io.checkpoint import MAX_PARTS, ranks_per_file
     assert MAX_PARTS == im.MAX_PARTS and all(
         ranks_per_file(P, "auto") == im.ranks_per_file(P) for P in (1, 256, 257, 1000, 10000))
     if args.measured is not None:

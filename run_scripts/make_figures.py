@@ -1,11 +1,11 @@
-"""Regenerate every README figure: run each study in full mode, one after the other.
+"""Regenerate every documentation figure: run each study in full mode, one after the other.
 
     python run_scripts/make_figures.py                 # all studies, one rank each
     python run_scripts/make_figures.py --np 2          # each under mpirun -n 2 (same numbers)
     python run_scripts/make_figures.py gallery rotation
 
 (``make figures`` runs the first line.) Each study is given ``--figures docs/figures``, so its
-PNGs replace the README's, and writes its CSV into ``run_scripts/out/<study>/``; run on its own,
+PNGs replace the documentation's, and writes its CSV into ``run_scripts/out/<study>/``; run on its own,
 a study writes both into its ``--out`` folder and leaves ``docs/figures/`` alone. Runtime on a
 2-core machine: ~25–35 minutes for the first seven, most of it the stability gallery's 3D bars
 and the convergence study's 3D resolutions; ``fe_bar`` adds ~10 minutes, ``throughput`` and

@@ -58,7 +58,7 @@ STEPS = (20, 40)
 #: one rank's row writes fail: the collective path must still end on every rank with one line
 INJECT = """
 import errno, os, sys
-import parmpm.driver.checkpoint_writer as g
+import parmpm.driver.checkpoint_writer.collective as g
 if os.environ.get("OMPI_COMM_WORLD_RANK", os.environ.get("PMI_RANK")) == "1":
     def _full(*args, **kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
@@ -143,8 +143,7 @@ def by_gid(path: Path) -> tuple[dict, dict]:
     dataset's (virtual, chunks); checks the reader verifies every segment."""
     import h5py
 
-    from parmpm.io.checkpoint import FIELDS
-    from parmpm.io.checkpoint_parts import CheckpointReader
+    from parmpm.io.checkpoint import FIELDS, CheckpointReader
 
     with h5py.File(path, "r") as f:
         g = f["particles"]

@@ -52,7 +52,7 @@ Found (a run of every case but the 64-cell ones, one core, shared machine):
 * Quadratic B-splines on the mirror faces (the manufactured rows re-run after
   ``parmpm.grid.symmetry``; with the slip planes before, both were first order, 15–16× CPDI's error
   at 32 cells): manufactured, ppc 2: FLIP 9.0e-3, 2.2e-3, 5.6e-4, 3.6e-4 m at 8 → 64 cells
-  (orders 2.04, 1.97, 0.62: second order, then the stall of README's convergence section),
+  (orders 2.04, 1.97, 0.62: second order, then the stall of docs/results/convergence.md),
   APIC 5.0e-3, 1.2e-3, 3.2e-4, 2.1e-4 (2.07, 1.88, 0.64). APIC at ppc 1 is on the time front
   from 8 to 32 cells (3.6e-3, 1.1e-3, 3.8e-4 m: 2.3×, 2.2×, 1.6× below CPDI at the same
   resolution, 1.24–1.35× its step time) and not at 64 (3.1e-4 against CPDI's 1.4e-4). At ppc 1

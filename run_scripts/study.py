@@ -8,7 +8,7 @@ rank (``main_guard``), so a study never hangs under mpirun.
 
 Outputs: ``--out`` (default ``run_scripts/out/<study>``) gets the CSV and the figures;
 ``--figures DIR`` puts the figures elsewhere. Only ``make figures`` (run_scripts/make_figures.py,
-which passes ``--figures docs/figures``) writes the README's committed figures: a study run by
+which passes ``--figures docs/figures``) writes the documentation's committed figures: a study run by
 hand, or by the tests, never overwrites them.
 
 Methods: :data:`METHODS` names every method the studies compare (an interpolator with a
@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-#: the README's figures: written only when asked (``--figures``; ``make figures`` asks)
+#: the documentation's figures: written only when asked (``--figures``; ``make figures`` asks)
 FIGURES = ROOT / "docs" / "figures"
 
 

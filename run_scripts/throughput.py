@@ -2,11 +2,12 @@
 
 What it measures: ``python -m parmpm bench --dim 2 --method M --update U --particles N`` (the
 whole step: patches, ghost layers, sorting, boundary conditions, the CFL reduction) and the
-yardstick ``shared/bench/ref_step.py --method cpdi|hat --n N`` (one plain numba USL step, no
-patches, no MPI; not part of parmpm, run from where it lies) alternately, ``--repeat`` times each,
+yardstick ``--yardstick PATH`` (an external script, not part of parmpm, run from where it lies:
+``PATH --method cpdi|hat --n N`` takes one plain numba USL step, no patches, no MPI, and prints a
+``RESULT`` line) alternately, ``--repeat`` times each,
 keeping each one's fastest. Cases: 2D cpdi (USL, its default), 2D mpm with USL (the yardstick's
 algorithm), 2D mpm with MUSL (parmpm's default for mpm: a second P2G/G2P pass, so ~1.5× the
-work), and 2D bspline with APIC and with MLS (USL) against ``ref_step.c``'s ``mls`` case, a
+work), and 2D bspline with APIC and with MLS (USL) against the yardstick's C ``mls`` case (``ref_step.c`` beside the script), a
 quadratic B-spline MLS-MPM step in C (compiled here with ``gcc -O3 -march=native``; skipped without
 gcc). The C case fuses the stress into the affine matrix and uses ``C_p`` as the velocity gradient
 (MLS-MPM): parmpm's ``transfer = "mls"`` is that algorithm, its APIC keeps the force field and the
@@ -23,8 +24,8 @@ found): ~20 s.
     python run_scripts/throughput.py --quick
 
 Output: ``throughput.csv`` and ``throughput.png`` in ``--out`` (default
-``run_scripts/out/throughput``; ``--figures docs/figures`` for the README's figure). ``--yardstick
-PATH`` (default ``../shared/bench/ref_step.py`` beside the repository; ``none`` skips it)."""
+``run_scripts/out/throughput``; ``--figures docs/figures`` for the documentation's figure).
+Without ``--yardstick PATH`` (or with ``none``) parmpm runs alone."""
 from __future__ import annotations
 
 import json
@@ -44,7 +45,6 @@ CASES = (("cpdi", "usl", "cpdi", "flip"), ("mpm", "usl", "hat", "flip"),
          ("mpm", "musl", "hat", "flip"), ("bspline", "usl", "mls", "apic"),
          ("bspline", "usl", "mls", "mls"), ("cpdi2", "usl", "cpdi", "flip"))
 PHASE_ORDER = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "sort", "reduce")
-DEFAULT_YARDSTICK = study.ROOT.parent / "shared" / "bench" / "ref_step.py"
 
 
 def parmpm_bench(method: str, update: str, particles: float, steps: int,
@@ -158,8 +158,8 @@ def main(argv=None) -> int:
     p.add_argument("--particles", type=float, default=1e6)
     p.add_argument("--steps", type=int, default=10)
     p.add_argument("--repeat", type=int, default=3)
-    p.add_argument("--yardstick", default=str(DEFAULT_YARDSTICK),
-                   help="path of shared/bench/ref_step.py, or 'none'")
+    p.add_argument("--yardstick", default="none",
+                   help="path of the yardstick script, or 'none' (the default)")
     args = p.parse_args(argv)
     if args.quick:
         args.particles, args.steps, args.repeat = 2e4, 4, 1

@@ -13,7 +13,7 @@ REPO = Path(__file__).resolve().parents[1]
 SCRIPTS = REPO / "run_scripts"
 
 
-def run_quick(script: str, out: Path, prefix=(), extra=(), timeout=150) -> Path:
+def run_quick(script: str, out: Path, prefix=(), extra=(), timeout=600) -> Path:
     """``python run_scripts/<script> --quick --out <out> <extra>`` (after ``prefix``, e.g.
     mpirun); fails the test with the script's output if it exits non-zero."""
     out.mkdir(parents=True, exist_ok=True)

@@ -80,20 +80,20 @@ def test_long_name_with_out_folder(tmp_path):
 
 # --- the memory check ------------------------------------------------------------------------------
 def test_estimate_counts_what_a_run_holds():
-    data = load_scene("hanging_bar").data
+    data = load_scene("hanging_bar").spec
     est = estimate(data, ghost=2)
     assert est["particles"] == 900  # 30 x 30 particles, counted from the lattice
     assert est["nodes_per_patch"] == (8 + 2 * 2 + 1) ** 2
     for scene in ("spinning_disk", "hanging_bar_3d"):
-        sd = load_scene(scene).data
-        seeded = seed_bodies(sd, {n: i for i, n in enumerate(sorted(sd["materials"]))}).n
+        sd = load_scene(scene).spec
+        seeded = seed_bodies(sd.grid, sd.bodies, {n: i for i, n in enumerate(sorted(sd.materials))}).n
         assert 0.9 < estimate(sd, ghost=2)["particles"] / seeded < 1.1, scene
     # more ranks: less each (the metrics' whole-scene share stays)
     assert estimate(data, 2, ranks=4)["bytes_per_rank"] < est["bytes_per_rank"]
 
 
 def test_check_memory_refuses_with_one_line_and_respects_the_limit(monkeypatch):
-    data = load_scene("hanging_bar").data
+    data = load_scene("hanging_bar").spec
     need = estimate(data, 2)["bytes_per_rank"]
     check_memory(data, 2, available=2 * need)  # fits
     with pytest.raises(ParmpmError) as info:

@@ -143,7 +143,7 @@ def test_throughput_study_quick(tmp_path):
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])))
     proc = subprocess.run([sys.executable, str(REPO / "run_scripts" / "throughput.py"), "--quick",
                            "--out", str(tmp_path), "--yardstick", str(fake)],
-                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     rows = list(csv.DictReader((tmp_path / "throughput.csv").open()))
     assert [(r["method"], r["update"], r["transfer"]) for r in rows] == [

@@ -32,7 +32,8 @@ from parmpm.core.errors import ParmpmError
 from parmpm.io.checkpoint import FIELDS as ALL_FIELDS
 from parmpm.io.checkpoint import OPTIONAL, parts_folder, remove_stale_tmp, segments_of
 from parmpm.driver.checkpoint_writer import load_patches, write_checkpoint, write_collective
-from parmpm.io.checkpoint_parts import CheckpointReader, rank_rows, ranks_per_file
+from parmpm.io.checkpoint import CheckpointReader, ranks_per_file
+from parmpm.io.checkpoint.parts import rank_rows
 from parmpm.particles.store import Particles
 
 QUIET = ["--quiet"]
@@ -92,7 +93,7 @@ def test_a_rank_reads_exactly_the_rows_of_its_patches(tmp_path, how):
         order = np.lexsort((P.gid, P.patch))
         ids, counts = np.unique(P.patch[order], return_counts=True)
         first, index = rank_rows([(ids, counts)], disc.layout.n_patches)
-        from parmpm.io.checkpoint_parts import layout_record
+        from parmpm.io.checkpoint.parts import layout_record
         top = {**_attrs(P.n), "layout": layout_record(disc)}
         write_collective(SerialComm(), P, order, path, top, {k: getattr(P, k)[:0] for k in FIELDS},
                          [(ids, counts)], first, index, 3, "L", driver=None)
@@ -121,11 +122,11 @@ from pathlib import Path
 from decomposition import world
 import test_checkpoint_parts as t
 from parmpm.core.errors import ParmpmError
-from parmpm.io import checkpoint
+from parmpm.io.checkpoint import space
 from parmpm.driver.checkpoint_writer import write_checkpoint
 comm = world()
 if comm.Get_rank() == {full_rank}:  # this rank's disk is (nearly) full
-    checkpoint._free_bytes = lambda folder: 10_000
+    space.free_bytes = lambda folder: 10_000
 P, disc = t._synthetic()
 mine = P.patch % comm.Get_size() == comm.Get_rank()
 P.permute(np.flatnonzero(mine))
@@ -266,7 +267,7 @@ def _cli(mpirun, n, *args, timeout=TIMEOUT):
 RESTART = """
 import json, sys
 from pathlib import Path
-import parmpm.driver.set_up as rs
+import parmpm.driver.restart as rs
 from decomposition import world
 from parmpm.core.log import setup_logging
 from parmpm.driver.simulation import Simulation
@@ -393,7 +394,8 @@ def test_a_bad_part_is_one_line_naming_it(runs, tmp_path, mpirun, how):
 
 KILL = """
 import os, sys
-from parmpm.io import checkpoint, checkpoint_gather
+from parmpm.io import checkpoint
+from parmpm.driver.checkpoint_writer import groups as checkpoint_gather
 from parmpm.cli.main import main
 how = os.environ["KILL_HOW"]
 write, top = checkpoint.CheckpointWriter.write, checkpoint_gather.write_top
@@ -451,7 +453,7 @@ def _write_in_parts(path: Path, n_parts: int = 2, names=None, where=None) -> Non
     the writer's own) and each part file written at ``where[k]`` (default: where it is named):
     what a crafted file with valid (keyless) digests looks like."""
     from parmpm.io.checkpoint import PART_FORMAT, CheckpointWriter, part_name
-    from parmpm.io.checkpoint_parts import layout_record, top_tables, write_top
+    from parmpm.io.checkpoint.parts import layout_record, top_tables, write_top
 
     P, disc = _synthetic()
     order = np.lexsort((P.gid, P.patch))

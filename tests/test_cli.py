@@ -70,7 +70,7 @@ def test_run_and_restart_help_name_logging_options(tmp_path):
 def test_help_does_not_import_numba_or_mpi(tmp_path):
     """``parmpm --help`` builds every command's options, the benchmark's too: without numba
     (about a second) and without starting MPI."""
-    code = ("import sys; from parmpm.cli.main import build_parser; build_parser()\n"
+    code = ("import sys; from parmpm.cli.parser import build_parser; build_parser()\n"
             "print(sorted(m for m in ('numba', 'mpi4py') if m in sys.modules))")
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env,

@@ -13,6 +13,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -21,7 +22,7 @@ from parmpm.cli.compile import run_compile
 from parmpm.scene.load import scene_from_toml
 
 REPO = Path(__file__).resolve().parents[1]
-TIMEOUT_S = 600
+TIMEOUT_S = 900
 
 
 @pytest.mark.parametrize("dim", comp.DIMS)
@@ -62,8 +63,10 @@ def warm_ups(monkeypatch):
     return calls
 
 
-def _data(dim=2, method="cpdi", update="auto"):
-    return {"dim": dim, "method": {"interpolator": method, "update": update}}
+def _data(dim=2, method="cpdi", update="auto", transfer="flip"):
+    """What compile_first reads of a scene's records (``scene.spec``)."""
+    return SimpleNamespace(dim=dim, method=SimpleNamespace(interpolator=method, update=update,
+                                                           transfer=transfer))
 
 
 def test_rank_0_compiles_first_once_per_case(warm_ups):
@@ -71,9 +74,7 @@ def test_rank_0_compiles_first_once_per_case(warm_ups):
     comp.compile_first(_data(), comm)
     comp.compile_first(_data(), comm)  # the same case again in this process: nothing
     comp.compile_first(_data(3, "mpm"), comm)
-    mls = _data(2, "bspline")
-    mls["method"]["transfer"] = "mls"  # its own kernels: a case of its own
-    comp.compile_first(mls, comm)
+    comp.compile_first(_data(2, "bspline", transfer="mls"), comm)  # its own kernels: a case
     comp.compile_first(_data(2, "bspline"), comm)
     assert warm_ups == [(2, "cpdi", "auto", "flip"), (3, "mpm", "auto", "flip"),
                         (2, "bspline", "auto", "mls"), (2, "bspline", "auto", "flip")]

@@ -35,7 +35,7 @@ def _read(path: Path) -> list[dict]:
         return list(csv.DictReader(f))
 
 
-def _run(prefix: list[str], out: Path, extra=(), timeout=120) -> Path:
+def _run(prefix: list[str], out: Path, extra=(), timeout=600) -> Path:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])))
     proc = subprocess.run(prefix + [sys.executable, str(SCRIPT), "--quick", "--out", str(out), *extra],
                           cwd=out.parent, env=env, capture_output=True, text=True, timeout=timeout)
@@ -108,7 +108,7 @@ def test_quick_writes_figures(quick):
 def test_two_ranks_give_the_same_csv(quick, tmp_path, mpirun):
     """2D manufactured solution and the bars (their observers gather and reduce over ranks)."""
     out = _run([mpirun, "-n", "2"], tmp_path / "np2",
-               ["--only", "manufactured-2d,vibrating-bar,hanging-static,hanging-dynamic"], timeout=120)
+               ["--only", "manufactured-2d,vibrating-bar,hanging-static,hanging-dynamic"], timeout=600)
     for name, keep in (("convergence.csv", lambda r: r["dim"] == "2"), ("verification.csv", None)):
         serial = [r for r in _read(quick / name) if keep is None or keep(r)]
         rows = _read(out / name)

@@ -169,7 +169,7 @@ def test_damaging_run_specialised_equals_generic(softening, tmp_path):
         if not specialised:
             sim.stepper.use_kernels("generic")
         else:
-            assert sim.stepper.kernels is KERNELS_2D[sim.stepper.disc.method]
+            assert tuple(sim.stepper.transfers.kernels) == KERNELS_2D[sim.stepper.disc.method]
         sim.run()
         results.append(sim.particles)
     fast, gen = results

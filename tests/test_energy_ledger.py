@@ -38,7 +38,7 @@ def test_ledger_steps_against_an_independent_account(interpolator):
     scene = load_scene("spinning_disk", [*COARSE_DISK, f"method.interpolator={interpolator}",
                                          "output.history=false", "grid.patch_size=12",
                                          "method.update=usl"])
-    sim = Simulation(scene, None, quiet=True, stage_compile=False)
+    sim = Simulation(scene, None, quiet=True)
     S, P, ledger = sim.stepper, sim.particles, sim.energy.ledger
     S.ledger = ledger
     d, dt, g = 2, 5e-4, np.zeros(3)
@@ -51,9 +51,9 @@ def test_ledger_steps_against_an_independent_account(interpolator):
         S.step(dt, g, t)
         t += dt
         step = ledger.totals - before
-        G, N = S.gsum_block, S.gnew_block
+        G, N = S.grid.gsum_block, S.grid.gnew_block
         mi = G[:, 0, :][:, None, :]  # one patch: every node with mass is its own, none a ghost
-        forced = mi > S.mass_eps
+        forced = mi > S.grid_phase.mass_eps
         f, vnew, dv = G[:, 1 + d:1 + 2 * d, :], N[:, :d, :], N[:, d:2 * d, :]
         vi = vnew - dv  # the grid update's v = (mv)/m (G2P may reuse the momentum rows)
         x_numpy = 0.5 * dt * np.sum(np.where(forced, f * (vnew - vi), 0.0))

@@ -24,6 +24,7 @@ import parmpm
 from parmpm.transfer.discretisation import Discretisation, exterior_cells
 from parmpm.core.errors import SceneError, SimulationError
 from parmpm.driver.simulation import Simulation
+from parmpm.scene.records import Grid
 
 HERE = Path(__file__).parent
 QUIET = ["output.snapshots=false", "output.figure=false"]
@@ -96,8 +97,8 @@ def _nodes(sim):
                                    indexing="ij"), axis=-1).reshape(-1, 3)
         flat = loc[:, 0] + L[0] * (loc[:, 1] + L[1] * loc[:, 2])
         idx.append(loc + D.base[s])
-        mass.append(st.gm[s, flat, 0])
-        vel.append(st.gvel[s, flat])
+        mass.append(st.grid.gm[s, flat, 0])
+        vel.append(st.grid.gvel[s, flat])
     return np.concatenate(idx), np.concatenate(mass), np.concatenate(vel)
 
 
@@ -194,7 +195,7 @@ def test_auto_adds_no_layer_to_builtin_scenes(name):
     sc = parmpm.load_scene(name)
     assert sc.data["grid"]["exterior"] == "auto"
     for ghost in (1, 2, 3):
-        lo, hi = exterior_cells(sc.data, ghost)
+        lo, hi = exterior_cells(sc.spec.grid, sc.spec.bodies, ghost)
         if name == "manufactured":
             assert list(lo) == list(hi) == [ghost, ghost]
         elif name == "vibrating_bar":
@@ -205,14 +206,16 @@ def test_auto_adds_no_layer_to_builtin_scenes(name):
 
 def test_auto_pads_only_the_faces_a_body_comes_near():
     sc = parmpm.load_scene("hanging_bar", ["bodies.0.min=[-0.45, -1.0]", "bodies.0.max=[1.0, 0.15]"])
-    lo, hi = exterior_cells(sc.data, 2)
+    lo, hi = exterior_cells(sc.spec.grid, sc.spec.bodies, 2)
     assert list(lo) == [2, 0] and list(hi) == [0, 2]
-    lo, hi = exterior_cells(parmpm.load_scene("hanging_bar", ["grid.exterior=4"]).data, 2)
+    wide = parmpm.load_scene("hanging_bar", ["grid.exterior=4"]).spec
+    lo, hi = exterior_cells(wide.grid, wide.bodies, 2)
     assert list(lo) == [4, 4] and list(hi) == [4, 4]
 
 
 def test_discretisation_keeps_the_physical_grid():
-    grid = {"origin": [-0.5, -3.0], "cell_size": [0.1, 0.2], "cells": [20, 32], "patch_size": [8, 8]}
+    grid = Grid(origin=(-0.5, -3.0), cell_size=(0.1, 0.2), cells=(20, 32), patch_size=(8, 8),
+                ghost="auto", exterior="auto")
     D = Discretisation.from_grid(2, 0, None, grid, 2, (np.array([2, 1]), np.array([3, 0])))
     assert D.layout.cells == (25, 33) and list(D.cells) == [20, 32]
     np.testing.assert_allclose(D.physical_origin, [-0.5, -3.0], rtol=0, atol=1e-15)

@@ -66,7 +66,7 @@ def test_first_peak_and_rebound_of_a_cosine():
 
 
 def test_metrics_pick_the_bottom_left_particle_and_report_its_history():
-    scene = parmpm.load_scene("hanging_bar").data
+    scene = parmpm.load_scene("hanging_bar").spec
     h = 1.0 / 6
     xs, ys = np.meshgrid((np.arange(6) + 0.5) * h, -1.0 + (np.arange(6) + 0.5) * h, indexing="ij")
     x0 = np.stack([xs.ravel(), ys.ravel()], axis=1)
@@ -91,7 +91,7 @@ def test_metrics_pick_the_bottom_left_particle_and_report_its_history():
 
 
 def test_3d_corner_is_the_bottom_corner_on_both_other_axes():
-    scene = parmpm.load_scene("hanging_bar_3d").data
+    scene = parmpm.load_scene("hanging_bar_3d").spec
     g = (np.arange(3) + 0.5) / 3
     x0 = np.stack(np.meshgrid(g, g - 1.0, g, indexing="ij"), axis=-1).reshape(-1, 3)
     m = make_metrics(scene, x0, np.ones(x0.shape[0]))
@@ -99,7 +99,7 @@ def test_3d_corner_is_the_bottom_corner_on_both_other_axes():
 
 
 def test_old_checkpoint_state_without_the_corner_history_restores():
-    scene = parmpm.load_scene("hanging_bar").data
+    scene = parmpm.load_scene("hanging_bar").spec
     x0 = np.array([[0.1, -0.9], [0.1, -0.1]])
     m = make_metrics(scene, x0, np.ones(2))
     m.restore({"times": [0.0, 0.1], "tip_history": [0.0, -0.1], "max_stretch_history": [1.0, 1.1],

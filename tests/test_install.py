@@ -104,7 +104,7 @@ def test_pip_install_without_extras_runs_on_one_rank(tmp_path):
     assert [Path(r).name for r in roots] == ["parmpm", "decomposition"]
     assert site.resolve().is_relative_to(venv.resolve())  # the install, not this checkout
     assert flags == [True, True]
-    assert Path(cache).resolve() == (site / "parmpm" / "__pycache__").resolve()
+    assert Path(cache).resolve() == (site / "parmpm" / "transfer" / "__pycache__").resolve()
 
 
 #: what the installed parmpm says about its kernels' cache: roots, keyed flags, a cache folder

@@ -2,6 +2,7 @@
 
 import json
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -100,6 +101,19 @@ def test_count_components_wrapper():
 
 
 # --------------------------------------------------------------------------------------------
+def _spec(scene):
+    """A hand-made resolved-scene dict read as its records are (``scene.spec``,
+    :mod:`parmpm.scene.records`): tables as attributes, lists as tuples, materials by name."""
+    if isinstance(scene, list):
+        return tuple(_spec(v) for v in scene)
+    if not isinstance(scene, dict):
+        return scene
+    fields = {k: _spec(v) for k, v in scene.items() if k != "materials"}
+    if "materials" in scene:
+        fields["materials"] = {n: _spec(m) for n, m in scene["materials"].items()}
+    return SimpleNamespace(**fields)
+
+
 def _scene_1d(L=1.0, n=32, E=1e6, nu=0.0, rho=1050.0, g=1000.0, model="neo_hookean"):
     # the resolved-scene layout of parmpm.scene.schema
     scene = {
@@ -117,7 +131,7 @@ def _scene_1d(L=1.0, n=32, E=1e6, nu=0.0, rho=1050.0, g=1000.0, model="neo_hooke
 
 def test_hanging_bar_1d_exact_static_state():
     scene, x0, mass = _scene_1d()
-    m = make_metrics(scene, x0, mass)
+    m = make_metrics(_spec(scene), x0, mass)
     assert isinstance(m, HangingBarMetrics)
     L = 1.0
     law = nominal_stress_1d("neo_hookean", 1e6, 0.0)
@@ -145,7 +159,7 @@ def test_hanging_bar_1d_exact_static_state():
 
 def test_hanging_bar_1d_linear_law():
     scene, x0, mass = _scene_1d(model="linear_elastic", nu=0.25, g=10.0)
-    m = HangingBarMetrics(scene, x0, mass)
+    m = HangingBarMetrics(_spec(scene), x0, mass)
     lam_l = 1e6 * 0.25 / (1.25 * 0.5)
     mu = 1e6 / 2.5
     k = 1050.0 * 10.0 / (lam_l + 2 * mu)
@@ -166,7 +180,7 @@ def test_hanging_bar_2d_separation():
     xs, ys = np.meshgrid((np.arange(4) + 0.5) * W / 4, -L + (np.arange(n) + 0.5) * L / n, indexing="ij")
     x0 = np.stack([xs.ravel(), ys.ravel()], axis=1)
     mass = np.ones(x0.shape[0])
-    m = make_metrics(scene, x0, mass)
+    m = make_metrics(_spec(scene), x0, mass)
     assert m.axis == 1 and m.tip.size == 4
     F = np.tile(np.eye(2), (x0.shape[0], 1, 1))
     v = np.zeros_like(x0)
@@ -193,7 +207,7 @@ def test_hanging_bar_2d_separation():
 def test_hanging_bar_gravity_along_plus_axis():
     scene, x0, mass = _scene_1d()
     scene["gravity"]["g"] = [1000.0]
-    m = HangingBarMetrics(scene, x0, mass)
+    m = HangingBarMetrics(_spec(scene), x0, mass)
     assert m.tip.tolist() == [x0.shape[0] - 1]  # lowest = largest coordinate
     x = x0.copy()
     x[-1, 0] += 0.2  # moves along gravity: downward
@@ -224,7 +238,7 @@ def _vib_scene(dim=1, nu=0.0, n=200):
 @pytest.mark.parametrize("scale, expected", [(1.0, 0.0), (1.02, 0.02)])
 def test_vibrating_bar_metric(scale, expected):
     scene, x0, mass, (E, rho, L, v0) = _vib_scene()
-    m = make_metrics(scene, x0, mass)
+    m = make_metrics(_spec(scene), x0, mass)
     assert isinstance(m, VibratingBarMetrics)
     assert m.period == pytest.approx(10.0)
     beta = math.pi / (2 * L)
@@ -247,7 +261,7 @@ def test_vibrating_bar_wave_modulus_by_dimension():
     mu = E / (2 * (1 + nu))
     for dim, modulus in [(1, lam + 2 * mu), (2, E / (1 - nu**2)), (3, E)]:
         scene, x0, mass, _ = _vib_scene(dim=dim, nu=nu, n=20)
-        m = make_metrics(scene, x0, mass)
+        m = make_metrics(_spec(scene), x0, mass)
         assert m.modulus == pytest.approx(modulus)
         assert m.L == pytest.approx(25.0)
 
@@ -255,13 +269,13 @@ def test_vibrating_bar_wave_modulus_by_dimension():
 def test_make_metrics_kinds():
     scene, x0, mass = _scene_1d()
     scene["metrics"]["kind"] = "none"
-    assert make_metrics(scene, x0, mass) is None
+    assert make_metrics(_spec(scene), x0, mass) is None
     scene["metrics"] = {"kind": "teapot"}
     with pytest.raises(SceneError):
-        make_metrics(scene, x0, mass)
+        make_metrics(_spec(scene), x0, mass)
     scene["metrics"] = {"kind": "vibrating_bar"}
     with pytest.raises(SceneError):  # body 0 has no vibration table
-        make_metrics(scene, x0, mass)
+        make_metrics(_spec(scene), x0, mass)
 
 
 def test_lattice_fallback_without_box():
@@ -278,7 +292,7 @@ def test_lattice_fallback_without_box():
     c = (np.arange(16) + 0.5) / 16
     x0 = np.stack(np.meshgrid(c, c, indexing="ij"), axis=-1).reshape(-1, 2)
     x0 = x0[np.sum((x0 - 0.5) ** 2, axis=1) <= 0.25]
-    m = HangingBarMetrics(scene, x0, np.ones(x0.shape[0]))
+    m = HangingBarMetrics(_spec(scene), x0, np.ones(x0.shape[0]))
     assert m.L == pytest.approx(1.0)
     assert m.X_tip == pytest.approx(1.0 - 0.5 / 16)
 
@@ -288,16 +302,16 @@ def test_metrics_read_only_the_resolved_scene():
     import parmpm
 
     for name in parmpm.builtin_scenes():
-        data = parmpm.load_scene(name).data
-        kind = data["metrics"]["kind"]
+        spec = parmpm.load_scene(name).spec
+        kind = spec.metrics.kind
         if kind not in ("hanging_bar", "vibrating_bar"):
             continue
-        lo = np.asarray(data["bodies"][0]["min"])
-        hi = np.asarray(data["bodies"][0]["max"])
-        x0 = lo + (hi - lo) * np.array([[0.25] * data["dim"], [0.75] * data["dim"]])
-        m = make_metrics(data, x0, np.ones(2))
+        lo = np.asarray(spec.bodies[0].min)
+        hi = np.asarray(spec.bodies[0].max)
+        x0 = lo + (hi - lo) * np.array([[0.25] * spec.dim, [0.75] * spec.dim])
+        m = make_metrics(spec, x0, np.ones(2))
         assert m.kind == kind and m.axis == (
-            data["bodies"][0]["vibration"]["axis"] if kind == "vibrating_bar" else data["metrics"]["axis"])
+            spec.bodies[0].vibration.axis if kind == "vibrating_bar" else spec.metrics.axis)
 
 
 # --------------------------------------------------------------------------------------------
@@ -341,7 +355,7 @@ def _on_ranks(kind_scene, x0, mass, size, seed=0):
     def build(r):
         try:
             gid = np.random.default_rng(r).permutation(np.flatnonzero(owner == r))
-            out[r] = make_metrics(kind_scene, x0[gid], mass[gid], _ThreadComm(r, size, shared), gid)
+            out[r] = make_metrics(_spec(kind_scene), x0[gid], mass[gid], _ThreadComm(r, size, shared), gid)
         except Exception as exc:  # pragma: no cover - reported below
             errors.append(exc)
             shared[1].abort()
@@ -389,7 +403,7 @@ def test_metrics_built_per_rank_are_the_whole_scenes(size):
                              (scene2, x02, mass2, ("L", "bar_mass", "period")),
                              (vib, xv, mv * (1.0 + (xv[:, 0] > 0.5)), ("L", "bar_mass")),
                              (rot, xr, mr, ("stress_scale",))):
-        whole = make_metrics(data, x, m)
+        whole = make_metrics(_spec(data), x, m)
         for r, part in enumerate(_on_ranks(data, x, m, size)):
             assert part.x0 is None and part.mass is None
             for k in keys:
@@ -468,7 +482,7 @@ def test_trace_keeps_at_most_its_capacity_evenly_and_the_latest():
 def test_vibrating_bar_summary_streams_the_whole_history():
     """The error norms from running sums equal those of every sample kept (as before)."""
     scene, x0, mass, (E, rho, L, v0) = _vib_scene(n=40)
-    m = make_metrics(scene, x0, mass)
+    m = make_metrics(_spec(scene), x0, mass)
     beta = math.pi / (2 * L)
     omega = math.sqrt(E / rho) * beta
     for t in np.linspace(0.0, 20.0, 301):
@@ -492,7 +506,7 @@ def test_metrics_memory_and_checkpoint_state_stay_bounded():
     import tracemalloc
 
     scene, x0, mass, _ = _vib_scene(n=8)
-    m = make_metrics(scene, x0, mass)
+    m = make_metrics(_spec(scene), x0, mass)
     F = np.ones((x0.shape[0], 1, 1))
     v = np.zeros_like(x0)
 
@@ -523,14 +537,13 @@ def test_every_kind_restores_its_record_and_continues_the_same(kind):
     uninterrupted one reports."""
     import parmpm
 
-    scene = parmpm.load_scene(kind if kind != "rotation" else "spinning_disk").data
+    scene = parmpm.load_scene(kind if kind != "rotation" else "spinning_disk").spec
     from parmpm.particles.seeding import seed_bodies
-    from parmpm.materials import material_table
 
-    names = material_table(scene["materials"])[1]
-    seeds = seed_bodies(scene, {n: i for i, n in enumerate(names)})
+    names = sorted(scene.materials)  # the material table's rows
+    seeds = seed_bodies(scene.grid, scene.bodies, {n: i for i, n in enumerate(names)})
     params = np.zeros((len(names), 2))
-    params[:, 1] = [scene["materials"][n]["density"] for n in names]
+    params[:, 1] = [scene.materials[n].density for n in names]
     P = seeds.particles(params)
     a, b = make_metrics(scene, P.x0, P.mass), make_metrics(scene, P.x0, P.mass)
 

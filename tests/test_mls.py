@@ -19,7 +19,7 @@ def _node_positions(st):
     D = st.disc
     d = D.dim
     nloc = np.asarray(D.nloc)
-    loc = np.arange(st.gnew.shape[1])
+    loc = np.arange(st.grid.gnew.shape[1])
     idx = np.stack([loc % nloc[0], (loc // nloc[0]) % nloc[1], loc // (nloc[0] * nloc[1])], 1)
     glob = D.base[:, None, :] + idx[None, :, :]
     return (np.asarray(D.origin3)[None, None, :] + glob * np.asarray(D.h3)[None, None, :])[..., :d]
@@ -32,16 +32,16 @@ def test_the_mls_gradient_is_exact_for_an_affine_grid_velocity(dim, kind, tmp_pa
     (The gradient-weight sum of APIC is exact here too: this checks MLS's own path.)"""
     sim, st, P = deformed_stepper(dim, "bspline", "mls", tmp=tmp_path)
     st.use_kernels(kind)
-    assert (st.kernels is None) == (kind == "generic")
+    assert (st.transfers.kernels is None) == (kind == "generic")
     rng = np.random.default_rng(5)
     A, b = rng.normal(0.0, 2.0, (dim, dim)), rng.normal(0.0, 1.0, dim)
     xn = _node_positions(st)
-    st.gnew[:] = 0.0
-    st.gnew[:, :, :dim] = xn @ A.T + b
+    st.grid.gnew[:] = 0.0
+    st.grid.gnew[:, :, :dim] = xn @ A.T + b
     x0, F0 = P.x.copy(), P.F.copy()
     dt = 1e-4
-    st._g2p(G2P_USL, dt)
-    assert st.error is None
+    st.g2p(G2P_USL, dt)
+    assert st.faults.error is None
     scale = np.abs(A).max() * np.abs(xn).max()
     np.testing.assert_allclose(P.affine, np.broadcast_to(A, P.affine.shape), rtol=0,
                                atol=1e-12 * scale)
@@ -60,16 +60,16 @@ def test_p2g_folds_dt_times_the_force_into_the_momentum(dim, kind, forced, tmp_p
     st.ledger = sim.energy.ledger
     bforce = (np.random.default_rng(6).normal(0, 5.0, (P.n, dim)) if forced
               else np.zeros((0, dim)))
-    st._p2g(bforce, 0.0)
-    m0, mv0, f0 = st.gm.copy(), st.gmv.copy(), st.gf.copy()
+    st.p2g(bforce, 0.0)
+    m0, mv0, f0 = st.grid.gm.copy(), st.grid.gmv.copy(), st.grid.gf.copy()
     dt = 1e-3
-    st._p2g(bforce, dt)
-    assert st.error is None and np.abs(f0).max() > 0
-    np.testing.assert_array_equal(st.gm, m0)
-    np.testing.assert_array_equal(st.gf, f0)
+    st.p2g(bforce, dt)
+    assert st.faults.error is None and np.abs(f0).max() > 0
+    np.testing.assert_array_equal(st.grid.gm, m0)
+    np.testing.assert_array_equal(st.grid.gf, f0)
     scale = np.abs(mv0).max() + dt * np.abs(f0).max()
-    np.testing.assert_allclose(st.gmv, mv0 + dt * f0, rtol=0, atol=1e-13 * scale)
-    assert np.abs(st.gmv - mv0).max() > 1e-6 * scale  # the force is there to be folded
+    np.testing.assert_allclose(st.grid.gmv, mv0 + dt * f0, rtol=0, atol=1e-13 * scale)
+    assert np.abs(st.grid.gmv - mv0).max() > 1e-6 * scale  # the force is there to be folded
 
 
 def test_one_particle_per_cell_under_mls_is_warned_about():
@@ -79,11 +79,11 @@ def test_one_particle_per_cell_under_mls_is_warned_about():
     from parmpm.scene.load import load_scene
 
     over = ["method.interpolator=bspline", "bodies.0.ppc=[1, 2]"]
-    lines = sparse_mls_warnings(load_scene("hanging_bar", over + ["method.transfer=mls"]).data)
+    lines = sparse_mls_warnings(load_scene("hanging_bar", over + ["method.transfer=mls"]).spec)
     assert len(lines) == 1 and lines[0].startswith("bodies.0.ppc = [1, 2] with method.transfer")
-    assert sparse_mls_warnings(load_scene("hanging_bar", over + ["method.transfer=apic"]).data) == []
+    assert sparse_mls_warnings(load_scene("hanging_bar", over + ["method.transfer=apic"]).spec) == []
     assert sparse_mls_warnings(load_scene("hanging_bar", ["method.interpolator=bspline",
-                                                          "method.transfer=mls"]).data) == []
+                                                          "method.transfer=mls"]).spec) == []
 
 
 def test_the_energy_ledger_does_not_change_an_mls_run(tmp_path):

@@ -117,8 +117,8 @@ def test_stop_on_separation_only_for_the_kinds_that_count_pieces():
 
 
 def test_make_metrics_none():
-    data = parmpm.load_scene("hanging_bar", ["metrics.kind=none"]).data
-    assert make_metrics(data, None, None) is None
+    spec = parmpm.load_scene("hanging_bar", ["metrics.kind=none"]).spec
+    assert make_metrics(spec, None, None) is None
 
 
 # --- documentation -------------------------------------------------------------------------------
@@ -134,7 +134,7 @@ def test_scene_reference_lists_the_registered_names():
 
 
 def test_readme_and_cli_show_the_registry():
-    from parmpm.cli.main import build_parser
+    from parmpm.cli.parser import build_parser
 
     assert interpolator_table() in (ROOT / "README.md").read_text(encoding="utf-8")
     assert f"({interpolator_names()} " in build_parser().description

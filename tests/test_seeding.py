@@ -46,7 +46,7 @@ def test_counts_and_members_match_locating_every_particle(scene, over, block, tm
     sim = Simulation(sc, tmp_path, quiet=True)  # for its discretisation
     D, lay = sim.disc, sim.disc.layout
     _, names = material_table(sc.data["materials"])
-    seeds = seed_bodies(sc.data, {n: i for i, n in enumerate(names)})
+    seeds = seed_bodies(sc.spec.grid, sc.spec.bodies, {n: i for i, n in enumerate(names)})
     x = seeds.x
     if sc.data.get("manufactured"):  # the particles start displaced: found where they start
         seeds.motion = lambda X: X + 0.01 * np.sin(7.0 * X)
@@ -101,7 +101,7 @@ def test_outside_the_grid_names_the_particle(tmp_path):
 
     sc = load_scene("spinning_disk", ["grid.patch_size=6"])
     D = Simulation(sc, tmp_path, quiet=True).disc
-    seeds = seed_bodies(sc.data, {"disk": 0})
+    seeds = seed_bodies(sc.spec.grid, sc.spec.bodies, {"disk": 0})
     seeds.motion = lambda X: X + np.where(np.arange(len(X))[:, None] == 7, 5.0, 0.0)
     with pytest.raises(SimulationError, match=r"particle 7 at \(.*\) is outside the grid"):
         seeds.patch_counts(D)
@@ -160,10 +160,11 @@ def _overlap_scene(tmp_path, dim, bodies, cells=None):
 def _seeded_twice(path):
     from parmpm.scene.overlaps import seeded_twice
 
-    data = load_scene(path).data
+    scene = load_scene(path)
+    data, spec = scene.data, scene.spec
     names = material_table(data["materials"])[1]
-    seeds = seed_bodies(data, {n: i for i, n in enumerate(names)})
-    return seeded_twice(None, data, seeds, np.arange(seeds.n), seeds.x), data, seeds
+    seeds = seed_bodies(spec.grid, spec.bodies, {n: i for i, n in enumerate(names)})
+    return seeded_twice(None, spec, seeds, np.arange(seeds.n), seeds.x), data, seeds
 
 
 @pytest.mark.parametrize("dim", [1, 2, 3])

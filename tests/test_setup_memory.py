@@ -50,7 +50,8 @@ def _largest_metric_array(metrics) -> int:
 
 def main() -> None:
     from decomposition import world
-    from parmpm import Simulation, load_scene, seeding
+    from parmpm import Simulation, load_scene
+    from parmpm.particles import seeding
     from parmpm.driver.warm_up import compile_first
     from parmpm.core.log import setup_logging
 
@@ -60,7 +61,7 @@ def main() -> None:
     seeding.BLOCK = block
     for name, (scene, overrides) in CASES.items():
         sc = load_scene(scene, OFF + overrides)
-        compile_first(sc.data, comm)  # rank 0's tiny warm-up run seeds too: not this scene's
+        compile_first(sc.spec, comm)  # rank 0's tiny warm-up run seeds too: not this scene's
         seeding.WATCH.reset()
         sim = Simulation(sc, out / name, quiet=True, comm=comm, overwrite=True)
         m = sim.metrics

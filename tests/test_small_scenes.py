@@ -6,6 +6,7 @@ patches holding particles warns once, naming the idle ranks and a computed fix
 import json
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -64,7 +65,7 @@ def _ghost(scene) -> int:
 
 def _choose(scene) -> list[int]:
     g = _ghost(scene)
-    return auto_patch_size(scene.data, g, exterior_cells(scene.data, g))
+    return auto_patch_size(scene.spec, g, exterior_cells(scene.spec.grid, scene.spec.bodies, g))
 
 
 class _Comm:
@@ -88,8 +89,8 @@ def test_small_scene_gets_several_patches_and_the_default_stays_auto():
     assert scene.data["grid"]["patch_size"] == "auto"
     assert _scene(["grid.patch_size=auto"]).data == scene.data
     assert _choose(scene) == [8, 8]  # 64 and 32 (clipped to 20 x 32) hold it in one patch
-    assert covered_patches(scene.data, 8) == 4
-    assert covered_patches(scene.data, 32) == 1
+    assert covered_patches(scene.spec, 8) == 4
+    assert covered_patches(scene.spec, 32) == 1
     assert _scene(["grid.patch_size=32"]).data["grid"]["patch_size"] == [20, 32]  # clipped
     with pytest.raises(SceneError, match='grid.patch_size: expected "auto" or 2 positive'):
         _scene(["grid.patch_size=big"])
@@ -97,14 +98,14 @@ def test_small_scene_gets_several_patches_and_the_default_stays_auto():
 
 def test_choice_depends_on_the_scene_not_the_rank_count():
     for over in ([], ["bodies.0.max=[1.9, 3.1]"], ["grid.cells=[400, 400]"]):
-        data = _scene(over).data
+        spec = _scene(over).spec
         g = _ghost(_scene(over))
-        ext = exterior_cells(data, g)
-        chosen = [_patch_size(_Comm(n), data, g, ext)["patch_size"] for n in (1, 2, 3, 4, 7, 64)]
+        ext = exterior_cells(spec.grid, spec.bodies, g)
+        chosen = [_patch_size(_Comm(n), spec, g, ext).patch_size for n in (1, 2, 3, 4, 7, 64)]
         assert all(c == chosen[0] for c in chosen), over
-        assert chosen[0] == auto_patch_size(data, g, ext)
-    explicit = _scene(["grid.patch_size=4"]).data
-    assert _patch_size(_Comm(3), explicit, 2, None) is explicit["grid"]
+        assert list(chosen[0]) == auto_patch_size(spec, g, ext)
+    explicit = _scene(["grid.patch_size=4"]).spec
+    assert _patch_size(_Comm(3), explicit, 2, None) is explicit.grid
 
 
 def test_large_scenes_keep_the_default_and_halving_stops_at_the_target():
@@ -112,7 +113,7 @@ def test_large_scenes_keep_the_default_and_halving_stops_at_the_target():
     assert _choose(build_bench_scene(3, "cpdi", 1_000_000)) == [16, 16, 16]
     # 100 x 100 cells of body: 4 patches of 64, 16 of 32 -> 32
     wide = _scene(["grid.cells=[200, 200]", "bodies.0.max=[10.5, 10.5]"])
-    assert covered_patches(wide.data, 64) < 16 <= covered_patches(wide.data, 32)
+    assert covered_patches(wide.spec, 64) < 16 <= covered_patches(wide.spec, 32)
     assert _choose(wide) == [32, 32]
 
 
@@ -142,27 +143,30 @@ def test_covered_patches_are_the_seeded_ones_for_boxes(over):
     """Unturned boxes: the count is exact (seeding's coordinates and patch formula)."""
     scene = _scene(over)
     g = _ghost(scene)
-    ext = exterior_cells(scene.data, g)
-    seeds = seed_bodies(scene.data, {"rubber": 0})
+    spec = scene.spec
+    ext = exterior_cells(spec.grid, spec.bodies, g)
+    seeds = seed_bodies(spec.grid, spec.bodies, {"rubber": 0})
     for size in (64, 32, 16, 8, 4, 2):
-        grid = {**scene.data["grid"], "patch_size": [min(size, n) for n in scene.data["grid"]["cells"]]}
+        grid = replace(spec.grid, patch_size=tuple(min(size, n) for n in spec.grid.cells))
         D = Discretisation.from_grid(2, 0, None, grid, g, ext)
-        assert covered_patches(scene.data, size, ext) == np.count_nonzero(seeds.patch_counts(D)), size
+        assert covered_patches(spec, size, ext) == np.count_nonzero(seeds.patch_counts(D)), size
 
 
 def test_disks_and_turned_boxes_count_at_most_their_bounding_boxes():
     disk = _scene(["bodies.0={shape='disk', center=[1.0, 1.6], radius=0.55, material='rubber'}"])
     turned = _scene(["bodies.0.angle=30.0"])
     for scene in (disk, turned):
-        seeds = seed_bodies(scene.data, {"rubber": 0})
+        spec = scene.spec
+        seeds = seed_bodies(spec.grid, spec.bodies, {"rubber": 0})
+        ext = exterior_cells(spec.grid, spec.bodies, 2)
         for size in (16, 8, 4):
-            D = Discretisation.from_grid(2, 0, None, {**scene.data["grid"], "patch_size": [size] * 2},
-                                         2, exterior_cells(scene.data, 2))
+            D = Discretisation.from_grid(2, 0, None, replace(spec.grid, patch_size=(size,) * 2),
+                                         2, ext)
             where = np.zeros(seeds.n, np.int64)
             lay = D.layout
             locate_patches(2, seeds.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
                            lay.patches_per_axis, where, where)
-            assert covered_patches(scene.data, size, exterior_cells(scene.data, 2)) >= \
+            assert covered_patches(spec, size, ext) >= \
                 np.unique(where).size
     assert _choose(disk) == [8, 8]
 
@@ -172,9 +176,10 @@ def test_disks_and_turned_boxes_count_at_most_their_bounding_boxes():
 
 def _counts(scene, size):
     g = _ghost(scene)
-    grid = {**scene.data["grid"], "patch_size": [min(size, n) for n in scene.data["grid"]["cells"]]}
-    D = Discretisation.from_grid(2, 0, None, grid, g, exterior_cells(scene.data, g))
-    return D, seed_bodies(scene.data, {"rubber": 0}).patch_counts(D)
+    spec = scene.spec
+    grid = replace(spec.grid, patch_size=tuple(min(size, n) for n in spec.grid.cells))
+    D = Discretisation.from_grid(2, 0, None, grid, g, exterior_cells(spec.grid, spec.bodies, g))
+    return D, seed_bodies(spec.grid, spec.bodies, {"rubber": 0}).patch_counts(D)
 
 
 def _warning(scene, size, ranks):

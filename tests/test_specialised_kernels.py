@@ -1,6 +1,6 @@
 """The hand-specialised kernels (:mod:`parmpm.transfer.kernels2d`, :mod:`parmpm.transfer.kernels3d`) against the
 dimension-generic ones (:mod:`parmpm.transfer.generic`), for every entry of the kernel registry
-(:data:`parmpm.step.stepper.SPECIALISED`, and the MLS kernels of :data:`parmpm.step.stepper.SPECIALISED_MLS`)
+(:data:`parmpm.step.transfers.SPECIALISED`, and the MLS kernels of :data:`parmpm.step.transfers.SPECIALISED_MLS`)
 in 2D and 3D.
 
 On the hanging bar with several patches and a randomly deformed, moving, stressed particle state,
@@ -25,7 +25,7 @@ from parmpm.particles.store import locate_patches
 from parmpm.shapes import BSPLINE, CPDI, CPDI2, INTERPOLATORS
 from parmpm.shapes.cpdi2 import affine_corners
 from parmpm.driver.simulation import Simulation
-from parmpm.step.stepper import SPECIALISED, SPECIALISED_MLS
+from parmpm.step.transfers import SPECIALISED, SPECIALISED_MLS
 from parmpm.transfer.generic import stress_pass as generic_stress_pass
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 
@@ -141,28 +141,28 @@ def test_lcr_engages_on_some_domains(dim, tmp_path):
 @pytest.mark.parametrize("forced", [False, True])
 def test_p2g_matches_generic(dim, method, lcr, forced, tmp_path):
     sim, st, P = deformed_stepper(dim, method, lcr, tmp=tmp_path)
-    assert st.kernels is _registered(dim, st)
+    assert st.transfers.kernels is _registered(dim, st)
     bforce = (np.random.default_rng(2).normal(0, 5.0, (P.n, dim)) if forced
               else np.zeros((0, dim)))
     dt = 1e-4
     if st.mls:  # its force rows are written for the energy ledger alone
-        st._p2g(bforce, dt)
-        assert not np.any(st.gf) and np.any(st.gmv)
+        st.p2g(bforce, dt)
+        assert not np.any(st.grid.gf) and np.any(st.grid.gmv)
         st.ledger = sim.energy.ledger
-    st._p2g(bforce, dt)
-    fast = st.gsum.copy()
+    st.p2g(bforce, dt)
+    fast = st.grid.gsum.copy()
     st.use_kernels("generic")
-    assert st.kernels is None
-    st._p2g(bforce, dt)
-    assert np.max(st.gsum[:, :, 0]) > 0 and st.error is None
-    close(fast, st.gsum)
+    assert st.transfers.kernels is None
+    st.p2g(bforce, dt)
+    assert np.max(st.grid.gsum[:, :, 0]) > 0 and st.faults.error is None
+    close(fast, st.grid.gsum)
     st.use_kernels("specialised")
-    st._p2g_momentum()
-    fast_mv = st.gmv.copy()
-    st.gsum[:] = 0.0
+    st.p2g_momentum()
+    fast_mv = st.grid.gmv.copy()
+    st.grid.gsum[:] = 0.0
     st.use_kernels("generic")
-    st._p2g_momentum()
-    close(fast_mv, st.gmv)
+    st.p2g_momentum()
+    close(fast_mv, st.grid.gmv)
 
 
 @pytest.mark.parametrize("dim,method,lcr", CASES)
@@ -171,15 +171,15 @@ def test_p2g_matches_generic(dim, method, lcr, forced, tmp_path):
 def test_g2p_matches_generic(dim, method, lcr, mode, model, tmp_path):
     sim, st, P = deformed_stepper(dim, method, lcr, model, tmp=tmp_path)
     rng = np.random.default_rng(3)
-    st.gnew[:] = rng.normal(0.0, 1.0, st.gnew.shape)
+    st.grid.gnew[:] = rng.normal(0.0, 1.0, st.grid.gnew.shape)
     P.dx[:] = rng.normal(0.0, 1e-4, P.dx.shape)
     before = snapshot(P)
     dt, results = 1e-4, []
     for kind in ("specialised", "generic"):
         restore(P, before)
         st.use_kernels(kind)
-        vmax = st._g2p(mode, dt)
-        assert st.error is None
+        vmax = st.g2p(mode, dt)
+        assert st.faults.error is None
         results.append((snapshot(P), vmax))
     (fast, vf), (gen, vg) = results
     for k in fast:
@@ -206,15 +206,15 @@ def test_reach_past_ghost_layer_is_caught_like_generic(dim, tmp_path):
     P.F[7] = np.diag([30.0] + [1.0] * (dim - 1))  # 5 cells long: past the 2-cell ghost layer
     for kind in ("specialised", "generic"):
         st.use_kernels(kind)
-        st.err[0] = -1
-        st._p2g(np.zeros((0, dim)), 1e-4)
-        assert st.err[0] == -1 and st.error is not None and "reaches" in st.error
-        assert f"particle {P.gid[7]} " in st.error
-        st.error = None
-        st._g2p(G2P_USL, 1e-4)
+        st.faults.err[0] = -1
+        st.p2g(np.zeros((0, dim)), 1e-4)
+        assert st.faults.err[0] == -1 and st.faults.error is not None and "reaches" in st.faults.error
+        assert f"particle {P.gid[7]} " in st.faults.error
+        st.faults.error = None
+        st.g2p(G2P_USL, 1e-4)
         st._check("g2p")
-        assert st.error is not None and f"particle {P.gid[7]} " in st.error
-        st.error = None
+        assert st.faults.error is not None and f"particle {P.gid[7]} " in st.faults.error
+        st.faults.error = None
 
 
 def test_use_kernels_refuses_an_unknown_kind(tmp_path):
@@ -258,22 +258,22 @@ def test_kernels_through_py_func(dim, method, lcr, tmp_path, monkeypatch):
     registry, key = (SPECIALISED_MLS, dim) if st.mls else (SPECIALISED[dim], st.disc.method)
     compiled = registry[key]
     rng = np.random.default_rng(4)
-    gnew = rng.normal(0.0, 1.0, st.gnew.shape)
+    gnew = rng.normal(0.0, 1.0, st.grid.gnew.shape)
     before, out = snapshot(P), []
-    for kernels in (compiled, tuple(k.py_func for k in compiled)):
+    for kernels in (compiled, type(compiled)(*(k.py_func for k in compiled))):
         monkeypatch.setitem(registry, key, kernels)
         st.use_kernels("specialised")
-        assert st.kernels is kernels
+        assert st.transfers.kernels is kernels
         restore(P, before)
-        st.err[0] = -1
-        st._p2g(np.zeros((0, dim)), 1e-4)
-        sums = st.gsum.copy()
-        st._p2g_momentum()
-        momentum = st.gmv.copy()
-        st.gnew[:] = gnew
-        vmax = st._g2p(G2P_USL, 1e-4)
-        assert st.err[0] == -1 and st.error is None
-        out.append((sums, momentum, snapshot(P), vmax, st._located, st._new_patch.copy()))
+        st.faults.err[0] = -1
+        st.p2g(np.zeros((0, dim)), 1e-4)
+        sums = st.grid.gsum.copy()
+        st.p2g_momentum()
+        momentum = st.grid.gmv.copy()
+        st.grid.gnew[:] = gnew
+        vmax = st.g2p(G2P_USL, 1e-4)
+        assert st.faults.err[0] == -1 and st.faults.error is None
+        out.append((sums, momentum, snapshot(P), vmax, st.moves.located, st.moves.new_patch.copy()))
     (s0, m0, p0, v0, l0, n0), (s1, m1, p1, v1, l1, n1) = out
     assert s0[:, :, 0].sum() > 0
     close(s1, s0, 1e-15)
@@ -290,14 +290,14 @@ def test_g2p_locates_the_next_patch_like_locate_patches(dim, method, lcr, tmp_pa
     make): the same ids and moved count as :func:`locate_patches` on the new positions, with
     particles pushed across patch boundaries."""
     sim, st, P = deformed_stepper(dim, method, lcr, tmp=tmp_path)
-    st.gnew[:] = 0.0
+    st.grid.gnew[:] = 0.0
     h = st.disc.h[0]
-    st.gnew[:, :, 0] = 0.4 * h / 1e-3   # every particle moves 0.4 cells in x
-    st._g2p(G2P_USL, 1e-3)
-    first, moved = st._located
+    st.grid.gnew[:, :, 0] = 0.4 * h / 1e-3   # every particle moves 0.4 cells in x
+    st.g2p(G2P_USL, 1e-3)
+    first, moved = st.moves.located
     D, lay = st.disc, st.disc.layout
     ref = np.zeros(P.n, np.int64)
     bad, ref_moved = locate_patches(dim, P.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
                                     lay.patches_per_axis, P.patch, ref)
     assert moved == ref_moved > 0 and first == bad
-    np.testing.assert_array_equal(st._new_patch, ref)
+    np.testing.assert_array_equal(st.moves.new_patch, ref)

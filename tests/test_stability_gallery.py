@@ -29,7 +29,7 @@ MPI_CASES = "2d_mpm_ppc2_*,2d_cpdi_ppc2_*,2d_cpdi_lcr1.2dx3_ppc3_*"
 EXTENSION = ("mpm", "ugimp", "cpgimp")
 
 
-def _run(prefix: list[str], out: Path, extra=(), timeout=120) -> list[dict]:
+def _run(prefix: list[str], out: Path, extra=(), timeout=600) -> list[dict]:
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])))
     proc = subprocess.run(prefix + [sys.executable, str(SCRIPT), "--quick", "--out", str(out), *extra],
                           cwd=out.parent, env=env, capture_output=True, text=True, timeout=timeout)
@@ -129,7 +129,7 @@ def test_quick_writes_csv_and_figures(quick):
 
 def test_two_ranks_give_the_same_csv(quick, tmp_path, mpirun):
     _, serial = quick
-    rows = _run([mpirun, "-n", "2"], tmp_path / "np2", ["--cases", MPI_CASES], timeout=120)
+    rows = _run([mpirun, "-n", "2"], tmp_path / "np2", ["--cases", MPI_CASES], timeout=600)
     assert len(rows) == 3
     for r in rows:
         ref = dict(serial[r["case"]])

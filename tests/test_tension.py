@@ -103,8 +103,8 @@ def test_turned_box_seeds_a_turned_lattice_with_turned_domains():
     from parmpm.materials import material_table
     params, names = material_table(scene.data["materials"])
     rows = {n: i for i, n in enumerate(names)}
-    P = bodies_to_particles(scene.data, rows, params)
-    Q = bodies_to_particles(plain.data, rows, params)
+    P = bodies_to_particles(scene.spec.grid, scene.spec.bodies, rows, params)
+    Q = bodies_to_particles(plain.spec.grid, plain.spec.bodies, rows, params)
     a = math.radians(30.0)
     R = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
     c = np.array([1.0, 1.0])
@@ -209,7 +209,7 @@ def test_seeds_build_exactly_the_kept_particles():
 
     scene = load_scene("tension_bar", ["bodies.1.angle=3.0", "bodies.2.angular_velocity=1.5"])
     params, names = material_table(scene.data["materials"])
-    seeds = seed_bodies(scene.data, {n: i for i, n in enumerate(names)})
+    seeds = seed_bodies(scene.spec.grid, scene.spec.bodies, {n: i for i, n in enumerate(names)})
     full = seeds.particles(params)
     keep = np.sort(np.random.default_rng(3).choice(seeds.n, seeds.n // 3, replace=False))
     part = seeds.particles(params, keep)

@@ -256,7 +256,7 @@ def run_bench(args: argparse.Namespace, comm=None) -> dict:
     finally:
         if tmp:
             shutil.rmtree(tmp, ignore_errors=True)
-    rows = comm.allgather((setup, sim.stepper.migrated, _peak_rss_mb(), grown, stress))
+    rows = comm.allgather((setup, sim.stepper.moves.migrated, _peak_rss_mb(), grown, stress))
     result = summarise(summary, max(r[0] for r in rows), sum(r[1] for r in rows),
                        max(r[2] for r in rows))
     result.update(jit_warmup_seconds=warmup, bytes_per_particle=max(r[3] for r in rows),
@@ -300,7 +300,7 @@ def _time_stress(sim, repeats: int = 3) -> float:
 
     P, st = sim.particles, sim.stepper
     out = np.empty_like(P.stress)
-    if st.kernels is not None and P.dim in (2, 3):
+    if st.transfers.kernels is not None and P.dim in (2, 3):
         fast = stress_pass_2d if P.dim == 2 else stress_pass_3d
         run = lambda: fast(P.F, P.mat, st.params, out)  # noqa: E731
     else:

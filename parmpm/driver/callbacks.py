@@ -88,15 +88,15 @@ def unless_written(callback: Callback, sim) -> bool:
 def standard_callbacks(sim) -> list[Callback]:
     """The callbacks a scene asks for (see the module doc), with their schedules set from the
     run's clock (and, on restart, the checkpointed output schedule)."""
-    data, clock = sim.data, sim.clock
-    out, ck, me = data["output"], data["checkpoint"], data["metrics"]
+    spec, clock = sim.spec, sim.clock
+    out, ck, me = spec.output, spec.checkpoint, spec.metrics
     every_step = Schedule(every_steps=1)
-    sim.out_schedule = Schedule(out["every"], out["every_steps"], clock.t, sim.state.next_output)
-    ck_schedule = [Schedule(ck["every"], ck["every_steps"], clock.t)]
-    if ck["at_end"]:
+    sim.out_schedule = Schedule(out.every, out.every_steps, clock.t, sim.state.next_output)
+    ck_schedule = [Schedule(ck.every, ck.every_steps, clock.t)]
+    if ck.at_end:
         ck_schedule.append(AtEnd(clock))
-    if ck["wall_minutes"]:
-        ck_schedule.append(WallTime(ck["wall_minutes"], sim.comm))
+    if ck.wall_minutes:
+        ck_schedule.append(WallTime(ck.wall_minutes, sim.comm))
     # on a fresh run's initial state: metrics, output, then the energy watch's baseline (after
     # the observers, which may look at the state); after a step the watch comes first, so that
     # a blow-up stops the run before its state is sampled or written
@@ -104,27 +104,27 @@ def standard_callbacks(sim) -> list[Callback]:
         Callback("finite", check_finite, every_step),
         Callback("energy", check_energy, Schedule(every_steps=ENERGY_EVERY), start=2,
                  at_end=unless_due)]
-    hist = out["history"]
-    if hist["enabled"]:  # after the watch: a blown-up state is not sampled
+    hist = out.history
+    if hist.enabled:  # after the watch: a blown-up state is not sampled
         sim.history = HistoryOutput(sim)
         sim.stepper.ledger = sim.energy.ledger
         callbacks += [
             Callback("history", lambda sim: sim.history.sample(sim),
-                     Schedule(hist["every"], hist["every_steps"], clock.t), start=3,
+                     Schedule(hist.every, hist.every_steps, clock.t), start=3,
                      at_end=lambda cb, sim: True),
             Callback("history files", lambda sim: sim.history.finish(sim), NEVER,
                      at_end=lambda cb, sim: True)]
     callbacks += [
-        Callback("metrics", sample_metrics_of, Schedule(every_steps=me["every_steps"]), start=0)]
-    if me["stop_on_separation"]:
+        Callback("metrics", sample_metrics_of, Schedule(every_steps=me.every_steps), start=0)]
+    if me.stop_on_separation:
         callbacks.append(Callback("separation", stop_on_separation,
-                                  Schedule(every_steps=me["every_steps"])))
+                                  Schedule(every_steps=me.every_steps)))
     return callbacks + [
         Callback("output", output, AnyOf(sim.out_schedule, AtEnd(clock)), start=1),
         Callback("interrupt", check_interrupt, every_step),
         # at the end also when the run stopped early (separation), unless this step has one
         Callback("checkpoint", checkpoint, AnyOf(*ck_schedule),
-                 at_end=unless_written if ck["at_end"] else None)]
+                 at_end=unless_written if ck.at_end else None)]
 
 
 # --- the actions --------------------------------------------------------------------------------
@@ -166,7 +166,7 @@ def stop_on_separation(sim) -> str | None:
 
 def output(sim) -> None:
     """An output time: the snapshot (if enabled), then every observer."""
-    if sim.data["output"]["snapshots"]:
+    if sim.spec.output.snapshots:
         sim.files.write_snapshot(sim.t, snapshot_fields(sim))
     for observe in sim.observers:
         observe(sim)
@@ -202,10 +202,9 @@ class Checkpoints:
                  "lcr": s.lcr if s.lcr is not None else float("nan"), "ranks": s.size,
                  "particles": s.n_total, "dim": s.dim, "state": json.dumps(state),
                  "lineage": s.run_id}
-        ck = sim.data["checkpoint"]
+        ck = sim.spec.checkpoint
         path = write_checkpoint(s.comm, s.particles, sim.out_dir / checkpoint_name(clock.nstep),
-                                s.n_total, attrs, ck["keep"], s.run_id, s.disc,
-                                ck.get("ranks_per_file", "auto"))
+                                s.n_total, attrs, ck.keep, s.run_id, s.disc, ck.ranks_per_file)
         self.last_step, self.last_path = clock.nstep, path
         log.info("wrote %s (step %d, t = %.6g s)", path, clock.nstep, clock.t)
         return path

@@ -32,7 +32,7 @@ import os
 
 from parmpm.core.errors import ParmpmError
 from parmpm.output.metrics import separation_kinds
-from parmpm.geometry.primitives import body_bounds
+from parmpm.scene.records import Body, SceneSpec
 
 #: measured peak over the bare fields (a 2D cpdi run at 1e6 particles: 360 B per particle over
 #: 256 B of fields; the node blocks' halo buffers likewise)
@@ -53,25 +53,26 @@ def field_bytes(dim: int) -> int:
     return 8 * (3 + 5 * dim + 3 + 4 * dim * dim)
 
 
-def _body_particles(body: dict, h: list[float], dim: int) -> float:
-    ppc = body["ppc"]
-    if body["shape"] == "box":
+def _body_particles(body: Body, h: tuple[float, ...], dim: int) -> float:
+    ppc = body.ppc
+    if body.shape == "box":
         return math.prod(max(1.0, round((hi - lo) / hk * p))
-                         for lo, hi, hk, p in zip(body["min"], body["max"], h, ppc))
+                         for lo, hi, hk, p in zip(body.min, body.max, h, ppc))
     inscribed = {1: 1.0, 2: math.pi / 4, 3: math.pi / 6}[dim]
-    return inscribed * math.prod(2 * body["radius"] / hk * p + 1 for hk, p in zip(h, ppc))
+    return inscribed * math.prod(2 * body.radius / hk * p + 1 for hk, p in zip(h, ppc))
 
 
-def estimate(data: dict, ghost: int, ranks: int = 1) -> dict:
-    """The estimate for a resolved scene (``scene.data``) with ``ghost`` ghost cells on ``ranks``
-    ranks: particles, patches, nodes per patch and the peak bytes per rank."""
-    d, grid = data["dim"], data["grid"]
-    h, origin, cells = grid["cell_size"], grid["origin"], grid["cells"]
-    psize = grid["patch_size"]
-    particles = sum(_body_particles(b, h, d) for b in data["bodies"])
+def estimate(spec: SceneSpec, ghost: int, ranks: int = 1) -> dict:
+    """The estimate for a scene (``scene.spec``, its ``grid.patch_size`` chosen) with ``ghost``
+    ghost cells on ``ranks`` ranks: particles, patches, nodes per patch and the peak bytes per
+    rank."""
+    d, grid = spec.dim, spec.grid
+    h, origin, cells = grid.cell_size, grid.origin, grid.cells
+    psize = grid.patch_size
+    particles = sum(_body_particles(b, h, d) for b in spec.bodies)
     patches = 0.0
-    for body in data["bodies"]:
-        lo, hi = body_bounds(body)
+    for body in spec.bodies:
+        lo, hi = body.bounds()
         count = 1.0
         for k in range(d):
             a = max(0, math.floor((lo[k] - origin[k]) / h[k]) - ghost - 1)
@@ -83,7 +84,7 @@ def estimate(data: dict, ghost: int, ranks: int = 1) -> dict:
     nodes = math.prod(p + 2 * ghost + 1 for p in psize)
     per_rank = PEAK_FACTOR * (particles * field_bytes(d) + patches * nodes * 8 * (1 + 4 * d)) / ranks
     per_rank += DENSE_PATCH_BYTES * dense  # every rank indexes every patch of the bounding grid
-    kind = data["metrics"]["kind"]
+    kind = spec.metrics.kind
     if kind != "none":  # whole-scene x0, mass and patch of every particle
         per_rank += particles * 8 * (d + 2)
     if kind in separation_kinds():  # the separation check's node table: K node ids per particle
@@ -126,16 +127,16 @@ def _gb(n: float) -> str:
     return f"{n / _UNITS['K']:.3g} KiB"
 
 
-def check_memory(data: dict, ghost: int, ranks: int = 1, ranks_here: int = 1,
+def check_memory(spec: SceneSpec, ghost: int, ranks: int = 1, ranks_here: int = 1,
                  available: float | None = None) -> dict:
     """Raise a one-line ParmpmError when the ``ranks_here`` ranks of this node need more than
     ``available`` bytes (default: :func:`available_bytes`); returns the estimate."""
-    est = estimate(data, ghost, ranks)
+    est = estimate(spec, ghost, ranks)
     available = available_bytes() if available is None else available
     need = est["bytes_per_rank"] * ranks_here
     if available is not None and need > available:
         raise ParmpmError(
-            f"scene '{data['name']}' needs about {_gb(est['bytes_per_rank'])} per rank "
+            f"scene '{spec.name}' needs about {_gb(est['bytes_per_rank'])} per rank "
             f"({est['particles']:.3g} particles, {est['patches']:.3g} patches of "
             f"{est['nodes_per_patch']:.3g} nodes of {est['dense_patches']:.3g} in the grid, "
             f"ghost {ghost} cells, {ranks} rank(s)), "

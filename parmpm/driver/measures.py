@@ -34,7 +34,7 @@ def components(s) -> int:
     nodes = np.zeros((P.n, K), np.int64)
     count = np.zeros(P.n, np.int64)
     err = np.full(2, -1, np.int64)
-    support_nodes(*s.stepper.records(), nodes, count, err)
+    support_nodes(*s.stepper.transfers.records(), nodes, count, err)
     # A support past the ghost layer (inside the grid) would leave that particle without
     # nodes and fake a separation: stop with the reach error (the next p2g would raise it).
     # A support leaving the grid belongs to material on its way out: it counts as a piece of
@@ -46,8 +46,8 @@ def components(s) -> int:
     problem = None
     if bad:
         st, i, phase = s.stepper, int(err[0]), "the separation check"
-        problem = st.error or (inverted_message(st.disc, st.P.rows, i, phase) if inverted
-                               else reach_message(st.disc, st.P.rows, st.bc, i, phase))
+        problem = st.faults.error or (inverted_message(st.disc, st.P.rows, i, phase) if inverted
+                               else reach_message(st.disc, st.P.rows, st.grid_phase.bc, i, phase))
     agree(s.comm, problem, root=None, error=SimulationError, key=-s.rank)
     compact, n_nodes = compact_nodes(nodes, count)
     k, label = local_components(compact, count, n_nodes)
@@ -100,7 +100,7 @@ def gather(s, fields: dict[str, np.ndarray]) -> dict[str, np.ndarray] | None:
 
 def axial_stretch(s) -> np.ndarray:
     """|F e_a| per particle of this rank: the stretch along the metrics' axis ``a``."""
-    axis = s.data["metrics"]["axis"]
+    axis = s.spec.metrics.axis
     return np.linalg.norm(s.particles.F[:, :, axis], axis=1)
 
 
@@ -142,16 +142,16 @@ def summary(s, out_dir, stopped: str | None, wall: float, loop: float, warm_step
     """The run's record for ``summary.json`` (collective; the same on every rank). ``stopped``:
     why the run stopped early (None: at its end), ``wall``: the run's wall time, ``loop``: the
     time of the ``warm_steps`` steps after the first."""
-    data, lay = s.data, s.disc.layout
+    spec, lay = s.spec, s.disc.layout
     timers = s.stepper.timers
     per_rank = np.array(s.comm.allgather([timers[k] for k in PHASES]))  # (ranks, phases)
     phase = per_rank.max(axis=0)
     # each rank's own work (the phases that wait for no one): how unevenly it is spread
     work = per_rank[:, [PHASES.index(k) for k in WORK_PHASES]].sum(axis=1)
     return {
-        "scene": data["name"], "dim": s.dim, "method": s.interp.name,
-        "lcr": s.lcr, "update": s.update, "flip": data["method"].get("flip"),
-        "transfer": data["method"]["transfer"],
+        "scene": spec.name, "dim": s.dim, "method": s.interp.name,
+        "lcr": s.lcr, "update": s.update, "flip": spec.method.flip,
+        "transfer": spec.method.transfer,
         "ranks": s.size, "particles": s.n_total, "steps": s.clock.nstep, "time": s.clock.t,
         "stopped": stopped or "end",
         "output_dir": str(out_dir),

@@ -103,10 +103,10 @@ def check_restart(path, stored, scene, overrides, step: int, t: float) -> None:
                 + ", ".join(k if "." in k or k in ("name", "description") else f"{k}.*"
                             for k in RESTART_KEYS)
                 + " (run the changed scene from the start instead)")
-    tm = scene.data["time"]
-    if tm["end"] is not None and t >= tm["end"] * (1.0 - REL_TOL):
+    tm = scene.spec.time
+    if tm.end is not None and t >= tm.end * (1.0 - REL_TOL):
         raise SceneError(f"{where}: {_origin('time.end', overrides)}the checkpoint is at "
-                         f"t = {t!r} s (step {step}), so time.end = {tm['end']!r} s leaves "
+                         f"t = {t!r} s (step {step}), so time.end = {tm.end!r} s leaves "
                          "nothing to run: --set time.end to a later time")
     if tm["steps"] is not None and step >= tm["steps"]:
         raise SceneError(f"{where}: {_origin('time.steps', overrides)}the checkpoint is at step "

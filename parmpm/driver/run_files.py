@@ -15,8 +15,8 @@ import numpy as np
 
 from parmpm.core.collective import agree
 from parmpm.core.errors import ParmpmError
+from parmpm.io.checkpoint import ranks_per_file as group_size
 from parmpm.io.checkpoint import remove_stale_tmp
-from parmpm.io.checkpoint_parts import ranks_per_file as group_size
 from parmpm.io.run_folder import claim
 from parmpm.io.summary import write_summary
 from parmpm.io.xdmf import SnapshotWriter
@@ -84,7 +84,7 @@ class RunFiles:
 
     def open_snapshots(self, series: str, dim: int, ranks_per_file="auto") -> None:
         """Open the snapshot series (collective). The ranks form writer groups by the
-        checkpoints' rule (:func:`parmpm.io.checkpoint_parts.ranks_per_file`); with one group
+        checkpoints' rule (:func:`parmpm.io.checkpoint.parts.ranks_per_file`); with one group
         rank 0 writes ``<series>.xdmf`` and ``<series>.h5`` as ever, with several each group's
         lead writes ``<series>.parts/part_<k>.h5`` and rank 0 also the index
         (:mod:`parmpm.io.xdmf`, "Parts")."""

@@ -110,10 +110,10 @@ class AnyOf:
 
 class Clock:
     """Simulated time and step count, the CFL step and the end of the run (the scene's ``time``
-    table, ``tm``; ``h_min``: the smallest cell size). ``vmax`` is the largest wave speed plus
-    particle speed, which sets the next step."""
+    record, ``tm``: :class:`parmpm.scene.records.Time`; ``h_min``: the smallest cell size).
+    ``vmax`` is the largest wave speed plus particle speed, which sets the next step."""
 
-    def __init__(self, tm: dict, h_min: float, vmax: float, t: float = 0.0, nstep: int = 0,
+    def __init__(self, tm, h_min: float, vmax: float, t: float = 0.0, nstep: int = 0,
                  last_dt: float = 0.0):
         self.tm, self.h_min = tm, h_min
         self.t, self.nstep, self.last_dt, self.vmax = t, nstep, last_dt, vmax
@@ -122,12 +122,12 @@ class Clock:
     def next_dt(self) -> float:
         """The CFL step, capped by ``time.dt_max`` and the end time."""
         tm = self.tm
-        dt = tm["cfl"] * self.h_min / self.vmax
+        dt = tm.cfl * self.h_min / self.vmax
         self.dt_limit = "time.cfl"
-        if tm["dt_max"] and tm["dt_max"] < dt:
-            dt, self.dt_limit = tm["dt_max"], "time.dt_max"
-        if tm["end"] is not None:
-            dt = min(dt, tm["end"] - self.t)
+        if tm.dt_max and tm.dt_max < dt:
+            dt, self.dt_limit = tm.dt_max, "time.dt_max"
+        if tm.end is not None:
+            dt = min(dt, tm.end - self.t)
         return dt
 
     def tick(self, dt: float, vmax: float) -> None:
@@ -139,14 +139,14 @@ class Clock:
 
     def done(self) -> bool:
         tm = self.tm
-        if tm["steps"] is not None and self.nstep >= tm["steps"]:
+        if tm.steps is not None and self.nstep >= tm.steps:
             return True
-        return tm["end"] is not None and self.t >= tm["end"] * (1.0 - REL_TOL)
+        return tm.end is not None and self.t >= tm.end * (1.0 - REL_TOL)
 
     def unstable_hint(self) -> str:
         """What to lower when the run blew up: the key that set the step."""
         tm = self.tm
         if self.dt_limit == "time.dt_max":
             return (f"Δt = {self.last_dt:.3g} s was set by time.dt_max, below the CFL step: try a "
-                    f"smaller time.dt_max (now {tm['dt_max']:.3g} s)")
-        return f"try a smaller time.cfl (now {tm['cfl']:g})"
+                    f"smaller time.dt_max (now {tm.dt_max:.3g} s)")
+        return f"try a smaller time.cfl (now {tm.cfl:g})"

@@ -15,7 +15,7 @@ the energy watch and the output schedule, so that it continues bit for bit. The 
 from __future__ import annotations
 
 import uuid
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -32,8 +32,6 @@ from parmpm.driver.footprint import check_memory
 from parmpm.grid.update import BC_CODES
 from parmpm.grid.symmetry import check_blocks
 from parmpm.driver.checkpoint_writer import load_patches, load_rows
-from parmpm.io.checkpoint import attrs_digest
-from parmpm.io.checkpoint_parts import CheckpointReader
 from parmpm.core.log import get_logger
 from parmpm.materials import PARAM, material_table
 from parmpm.output.metrics import make_metrics
@@ -41,9 +39,7 @@ from parmpm.particles.store import Particles, locate_patches
 from parmpm.scene.patch_size import (TARGET_PATCHES, auto_patch_size, covered_patches, floor_size,
                                idle_ranks_warning)
 from parmpm.transfer.reach import fmt_vec
-from parmpm.driver.restart_keys import check_restart
-from parmpm.scene.load import scene_from_toml
-from parmpm.scene.agreement import check_same_scene
+from parmpm.scene.records import Boundary, Grid, Method, SceneSpec, material_tables
 from parmpm.scene.schema import DEFAULT_PATCH_SIZE
 from parmpm.driver.schedule import Clock
 from parmpm.particles.seeding import seed_bodies
@@ -67,6 +63,7 @@ class RankState:
     update: str               # "usl" or "musl"
     disc: Discretisation
     params: np.ndarray        # material table
+    material_rows: dict       # material name -> its row of the table
     patches: PatchSet
     particles: Particles
     stepper: Stepper
@@ -80,12 +77,18 @@ class RankState:
     next_output: float | None  # the output schedule's next time, as checkpointed
 
     @property
+    def spec(self) -> SceneSpec:
+        """The scene's records (what the run reads)."""
+        return self.scene.spec
+
+    @property
     def data(self) -> dict:
+        """The scene's serialised form (:attr:`parmpm.scene.load.Scene.data`)."""
         return self.scene.data
 
     @property
     def dim(self) -> int:
-        return self.scene.data["dim"]
+        return self.scene.spec.dim
 
     @property
     def rank(self) -> int:
@@ -96,203 +99,179 @@ class RankState:
         return self.comm.Get_size()
 
 
-def carried_fields(data: dict) -> tuple[str, ...]:
-    """The optional particle fields (:data:`parmpm.particles.store.OPTIONAL_FIELDS`) a resolved scene
-    needs: ``affine`` under APIC and MLS, ``corners`` under cpdi2."""
-    method = data["method"]
-    return tuple(k for k, used in (("affine", method["transfer"] in AFFINE_TRANSFERS),
-                                   ("corners", INTERPOLATORS[method["interpolator"]].code == CPDI2))
+def carried_fields(method: Method) -> tuple[str, ...]:
+    """The optional particle fields (:data:`parmpm.particles.store.OPTIONAL_FIELDS`) a scene's
+    ``method`` needs: ``affine`` under APIC and MLS, ``corners`` under cpdi2."""
+    return tuple(k for k, used in (("affine", method.transfer in AFFINE_TRANSFERS),
+                                   ("corners", INTERPOLATORS[method.interpolator].code == CPDI2))
                  if used)
 
 
-def sparse_mls_warnings(data: dict) -> list[str]:
+def sparse_mls_warnings(spec: SceneSpec) -> list[str]:
     """One line per body seeded with one particle per cell along some axis under MLS, whose
     force one point per cell integrates poorly (docs/mls.md: diverged on the manufactured
     solution, the static bar separated)."""
-    if data["method"]["transfer"] != "mls":
+    if spec.method.transfer != "mls":
         return []
-    return [f"bodies.{k}.ppc = {b['ppc']} with method.transfer = \"mls\": one particle per cell "
-            "integrates the MLS force poorly (docs/mls.md: the manufactured solution diverged); "
-            "use 2 or more"
-            for k, b in enumerate(data["bodies"]) if min(b["ppc"]) < 2]
+    return [f"bodies.{k}.ppc = {list(b.ppc)} with method.transfer = \"mls\": one particle per "
+            "cell integrates the MLS force poorly (docs/mls.md: the manufactured solution "
+            "diverged); use 2 or more"
+            for k, b in enumerate(spec.bodies) if min(b.ppc) < 2]
 
 
 def set_up(scene, comm, checkpoint=None) -> RankState:
     """This rank's state of ``scene`` (collective); ``checkpoint``: an open
     :class:`parmpm.io.checkpoint_parts.CheckpointReader` to continue from."""
-    data = scene.data
-    d = data["dim"]
-    interp = INTERPOLATORS[data["method"]["interpolator"]]
+    spec = scene.spec
+    interp = INTERPOLATORS[spec.method.interpolator]
     lcr = scene.lcr if interp.code in CAPPED else None
-    ghost = data["grid"]["ghost"]
-    if ghost == "auto":
-        ghost = interp.ghost_width(lcr, scene.min_dx)
-    exterior = exterior_cells(data, int(ghost))
-    grid = _patch_size(comm, data, int(ghost), exterior)
-    # before anything of the scene's size is allocated
-    _check_memory(comm, {**data, "grid": grid}, int(ghost))
-    # the patches cover the grid and its exterior layer (grid.exterior), the face conditions
-    # stay on the user's faces (parmpm.transfer.discretisation.exterior_cells)
-    D = Discretisation.from_grid(d, interp.code, lcr, grid, int(ghost), exterior)
-    bc, region_box, region_normal = _boundary(data, d)
+    D = _discretisation(comm, spec, interp, lcr)
+    bc, region_box, region_normal = _boundary(spec.boundary, spec.dim)
     cut = check_blocks(D.layout, D.face_lo3, D.face_hi3, bc)
     if cut is not None:
         raise SceneError(f"scene '{scene.source}': {cut}")
-    params, names = material_table(data["materials"])
-    P, patches, n_total, metrics = _particles(data, comm, D, params, names, checkpoint)
+    params, names = material_table(material_tables(spec.materials))
+    rows = {n: i for i, n in enumerate(names)}
+    P, patches, n_total, metrics = _particles(spec, comm, D, params, rows, checkpoint)
     had = P.optional
-    P.carry(carried_fields(data))  # a checkpoint of an older format may lack one: zeros
+    P.carry(carried_fields(spec.method))  # a checkpoint of an older format may lack one: zeros
     if "corners" in P.optional and "corners" not in had:  # e.g. a cpdi run continued as cpdi2
         P.corners[:] = affine_corners(P.F, P.r0)
-    m = data["method"]
     if comm.Get_rank() == 0:
-        for line in sparse_mls_warnings(data):
+        for line in sparse_mls_warnings(spec):
             logger.warning(line)
-    update = m["update"] if m["update"] != "auto" else ("usl" if interp.code in CAPPED else "musl")
-    stepper = Stepper(D, P, patches, params, bc, region_box, update, m.get("flip", 1.0),
-                      data["damping"]["coefficient"], n_total, region_normal, m["transfer"])
-    if data.get("manufactured"):
-        _manufactured(stepper, d, params, data["manufactured"]["amplitude"])
-    limit = data["time"]["max_energy_growth"]
-    limit = None if limit == "off" else limit
-    energy = EnergyWatch(None if stepper.forcing is not None else limit)
+    m = spec.method
+    update = m.update if m.update != "auto" else ("usl" if interp.code in CAPPED else "musl")
+    stepper = Stepper(D, P, patches, params, bc, region_box, update,
+                      1.0 if m.flip is None else m.flip, spec.damping.coefficient, n_total,
+                      region_normal, m.transfer)
+    if spec.manufactured:
+        _manufactured(stepper, spec.dim, params, spec.manufactured.amplitude)
+    limit = spec.time.max_energy_growth
+    energy = EnergyWatch(None if stepper.forcing is not None or limit == "off" else limit)
     # the run's identity: its folder's marker and its checkpoints carry it, so that pruning
     # touches only its own checkpoints (parmpm.io.run_folder); a restart is a run of its own
     run_id = comm.bcast(uuid.uuid4().hex if comm.Get_rank() == 0 else None, root=0)
-    h_min = float(D.h.min())
-    continues, next_output = None, None
-    if checkpoint is None:
-        vmax = max_speed(d, P.v, P.F, P.mat, params)
-        clock = Clock(data["time"], h_min, float(allreduce_max(comm, np.array([vmax]))[0]))
-    else:
-        a = checkpoint.attrs
-        clock = Clock(data["time"], h_min, float(a["vmax"]), float(a["time"]), int(a["step"]),
-                      float(a["dt"]))
-        state = checkpoint.state
-        next_output = state.get("next_output")
-        changed = (scene.restart or {}).get("changed", {})
-        if "output.every" in changed or "output.every_steps" in changed:
-            next_output = None  # a new series from here, not the stored schedule's next time
-        if metrics is not None and state.get("metrics"):
-            metrics.restore(state["metrics"])
-        energy.restore(state.get("energy"))
-        continues = {"run_id": (state.get("run") or {}).get("id"),
-                     "checkpoint": str(checkpoint.path), "changed": changed}
-    return RankState(scene, comm, interp, lcr, update, D, params, patches, P, stepper, n_total,
-                     metrics, energy, clock, run_id, checkpoint is not None, continues,
+    clock, continues, next_output = _clock(scene, comm, D, P, params, metrics, energy,
+                                           checkpoint)
+    return RankState(scene, comm, interp, lcr, update, D, params, rows, patches, P, stepper,
+                     n_total, metrics, energy, clock, run_id, checkpoint is not None, continues,
                      next_output)
 
 
-def open_checkpoint(path, overrides, comm):
-    """(scene, reader) of the run saved in ``path``: its stored scene with ``overrides`` applied
-    (e.g. ``time.end=...``; only the keys :mod:`parmpm.driver.restart_keys` allows, recorded in
-    ``scene.restart``); the caller closes the reader. Collective under ``comm``: a rank's problem
-    is raised on every rank, and the ranks must continue the same checkpoint with the same scene
-    (:func:`parmpm.scene.agreement.check_same_scene`)."""
-    reader, scene, problem = None, None, None
-    try:
-        reader = CheckpointReader(path, warn=comm is None or comm.Get_rank() == 0)
-        text = str(reader.attrs["scene"])
-        stored = scene_from_toml(text, f"{path}")
-        scene = scene_from_toml(text, f"{path}", overrides)
-        if scene.data["dim"] != int(reader.attrs["dim"]):
-            raise ParmpmError(f"checkpoint '{path}' holds a {int(reader.attrs['dim'])}D run; "
-                              f"dim cannot change on restart (got dim = {scene.data['dim']})")
-        check_restart(path, stored, scene, overrides, int(reader.attrs["step"]),
-                      float(reader.attrs["time"]))
-    except ParmpmError as exc:
-        if comm is None:
-            if reader is not None:
-                reader.close()
-            raise
-        problem = str(exc)
-    except BaseException:
-        if reader is not None:
-            reader.close()
-        raise
-    try:
-        if comm is not None:
-            agree(comm, problem, root=None)
-            # the same checkpoint (its attributes' digest covers its data's) and the same scene
-            check_same_scene(comm, scene, f"step {int(reader.attrs['step'])}, attributes "
-                             f"{attrs_digest(reader.attrs)[:12]}", what=f"'{path}'")
-    except BaseException:
-        if reader is not None:
-            reader.close()
-        raise
-    return scene, reader
+def _discretisation(comm, spec: SceneSpec, interp, lcr: float | None) -> Discretisation:
+    """The grid, its exterior layer and the patches (the size ``grid.patch_size = "auto"``
+    chooses), after the memory check: before anything of the scene's size is allocated."""
+    ghost = spec.grid.ghost
+    if ghost == "auto":
+        ghost = interp.ghost_width(lcr, spec.min_dx)
+    ghost = int(ghost)
+    exterior = exterior_cells(spec.grid, spec.bodies, ghost)
+    grid = _patch_size(comm, spec, ghost, exterior)
+    _check_memory(comm, replace(spec, grid=grid), ghost)
+    # the patches cover the grid and its exterior layer (grid.exterior), the face conditions
+    # stay on the user's faces (parmpm.transfer.discretisation.exterior_cells)
+    return Discretisation.from_grid(spec.dim, interp.code, lcr, grid, ghost, exterior)
 
 
-def _patch_size(comm, data: dict, ghost: int, exterior) -> dict:
-    """The ``[grid]`` table the run lays out: ``patch_size = "auto"`` replaced by the size
+def _clock(scene, comm, D, P, params, metrics, energy, checkpoint):
+    """(the clock, the run a restart continues, the output schedule's next time): a fresh run's,
+    or a restart's, whose metrics and energy watch are restored too."""
+    time_table = scene.spec.time
+    h_min = float(D.h.min())
+    if checkpoint is None:
+        vmax = max_speed(D.dim, P.v, P.F, P.mat, params)
+        return Clock(time_table, h_min, float(allreduce_max(comm, np.array([vmax]))[0])), None, None
+    a = checkpoint.attrs
+    clock = Clock(time_table, h_min, float(a["vmax"]), float(a["time"]), int(a["step"]),
+                  float(a["dt"]))
+    state = checkpoint.state
+    next_output = state.get("next_output")
+    changed = (scene.restart or {}).get("changed", {})
+    if "output.every" in changed or "output.every_steps" in changed:
+        next_output = None  # a new series from here, not the stored schedule's next time
+    if metrics is not None and state.get("metrics"):
+        metrics.restore(state["metrics"])
+    energy.restore(state.get("energy"))
+    continues = {"run_id": (state.get("run") or {}).get("id"),
+                 "checkpoint": str(checkpoint.path), "changed": changed}
+    return clock, continues, next_output
+
+
+def _patch_size(comm, spec: SceneSpec, ghost: int, exterior) -> Grid:
+    """The grid the run lays out: ``patch_size = "auto"`` replaced by the size
     :func:`parmpm.scene.patch_size.auto_patch_size` chooses from the scene (the resolved scene keeps
     "auto": a restart chooses the same)."""
-    grid = data["grid"]
-    if grid["patch_size"] != "auto":
+    grid = spec.grid
+    if grid.patch_size != "auto":
         return grid
-    size = auto_patch_size(data, ghost, exterior)
+    size = auto_patch_size(spec, ghost, exterior)
     if comm.Get_rank() == 0:
         logger.info("grid.patch_size = %s chosen from the scene (its bodies cover %d such "
                     "patches; the default %d is halved, down to %d, while they cover fewer than "
                     "%d); set grid.patch_size to fix it", "x".join(map(str, size)),
-                    covered_patches(data, max(size), exterior), DEFAULT_PATCH_SIZE[data["dim"]],
-                    floor_size(data["dim"], ghost), TARGET_PATCHES)
-    return {**grid, "patch_size": size}
+                    covered_patches(spec, max(size), exterior), DEFAULT_PATCH_SIZE[spec.dim],
+                    floor_size(spec.dim, ghost), TARGET_PATCHES)
+    return replace(grid, patch_size=tuple(size))
 
 
-def _check_memory(comm, data: dict, ghost: int) -> None:
+def _check_memory(comm, spec: SceneSpec, ghost: int) -> None:
     """Refuse, on every rank, a scene this node's ranks cannot hold (:mod:`parmpm.driver.footprint`)."""
     problem = None
     try:
-        check_memory(data, ghost, comm.Get_size(), ranks_on_this_node(comm))
+        check_memory(spec, ghost, comm.Get_size(), ranks_on_this_node(comm))
     except ParmpmError as exc:
         problem = str(exc)
     agree(comm, problem, root=None)
 
 
-def _particles(data, comm, D, params, names, checkpoint):
+def _particles(spec, comm, D, params, rows, checkpoint):
     """(this rank's particles, the patch set, particles in all, metrics): seeded from the scene
     (:func:`_seeded`) or read back from a checkpoint (:func:`_restored`)."""
     if checkpoint is None:
-        return _seeded(data, comm, D, params, names)
-    return _restored(data, comm, D, params, checkpoint)
+        return _seeded(spec, comm, D, params, rows)
+    return _restored(spec, comm, D, params, checkpoint)
 
 
-def _seeded(data, comm, D, params, names):
+def _patch_set(spec: SceneSpec, comm, layout, counts) -> PatchSet:
+    dec = spec.decomposition
+    return PatchSet(layout, comm, counts, threshold=dec.rebalance_threshold,
+                    cooldown=dec.rebalance_cooldown)
+
+
+def _seeded(spec: SceneSpec, comm, D, params, rows):
     """Seeded: every rank counts the particles per patch block by block (global ids = seeding
     order), deals the patches out, then builds only its own (:mod:`parmpm.particles.seeding`) and the
     metrics from them (collective): a rank holds one block of seeds and its own particles."""
-    layout, d = D.layout, data["dim"]
-    seeds = seed_bodies(data, {n: i for i, n in enumerate(names)})
-    man = data.get("manufactured")
+    layout, d = D.layout, spec.dim
+    seeds = seed_bodies(spec.grid, spec.bodies, rows)
+    man = spec.manufactured
     if man:  # the particles start on the exact field: their patches are where they start
-        amplitude, c = man["amplitude"], manufactured.frequency(params)
+        amplitude, c = man.amplitude, manufactured.frequency(params)
         seeds.motion = lambda X: X + manufactured_motion(X, 0.0, amplitude, c)[0]
     counts = seeds.patch_counts(D)
-    dec = data["decomposition"]
-    patches = PatchSet(layout, comm, counts, threshold=dec["rebalance_threshold"],
-                       cooldown=dec["rebalance_cooldown"])
+    patches = _patch_set(spec, comm, layout, counts)
     _warn_idle_ranks(comm, D, counts, seeds)
     P = seeds.particles(params, seeds.members(D, patches.rank_of == comm.Get_rank()),
-                        carried_fields(data))
-    check_overlaps(comm, data, seeds, P.gid, P.x0)  # bodies seeded twice: one warning each
+                        carried_fields(spec.method))
+    check_overlaps(comm, spec, seeds, P.gid, P.x0)  # bodies seeded twice: one warning each
     if man:
-        manufactured.initialise(P, man["amplitude"], params)
+        manufactured.initialise(P, man.amplitude, params)
         if "corners" in P.optional:  # the domains of the initial F
             P.corners[:] = affine_corners(P.F, P.r0)
     locate_patches(d, P.x, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
                    layout.patches_per_axis, P.patch, P.patch)
-    metrics = make_metrics(data, P.x0, P.mass, comm, P.gid)
+    metrics = make_metrics(spec, P.x0, P.mass, comm, P.gid)
     return P, patches, seeds.n, metrics
 
 
-def _restored(data, comm, D, params, checkpoint):
+def _restored(spec: SceneSpec, comm, D, params, checkpoint):
     """Read back from a checkpoint. Version 4 on the same patch grid (the grid is chosen from
     the scene alone, so a restart has the checkpoint's unless it overrides the grid): the
     index's counts deal the patches out and each rank reads exactly its patches' rows, then
     checks that each particle lies in the patch the index says. Otherwise (versions 1–3, or
     another grid) every rank reads every position to find the patches, then its own rows."""
-    layout, d = D.layout, data["dim"]
+    layout, d = D.layout, spec.dim
     rank, n_materials = comm.Get_rank(), params.shape[0]
     indexed = checkpoint.indexed_for(D)
     if indexed:
@@ -309,9 +288,7 @@ def _restored(data, comm, D, params, checkpoint):
             raise SimulationError(f"particle {bad} at {fmt_vec(x_all[bad])} is outside the grid")
         counts = np.bincount(where, minlength=layout.n_patches)
         del x_all
-    dec = data["decomposition"]
-    patches = PatchSet(layout, comm, counts, threshold=dec["rebalance_threshold"],
-                       cooldown=dec["rebalance_cooldown"])
+    patches = _patch_set(spec, comm, layout, counts)
     _warn_idle_ranks(comm, D, counts, _StoredPositions(checkpoint))
     owned = patches.rank_of == rank
     if indexed:
@@ -320,7 +297,7 @@ def _restored(data, comm, D, params, checkpoint):
     else:
         mine = np.flatnonzero(owned[where])
         P = load_rows(comm, checkpoint, d, n_materials, mine, where[mine])
-    metrics = make_metrics(data, P.x0, P.mass, comm, P.gid)
+    metrics = make_metrics(spec, P.x0, P.mass, comm, P.gid)
     return P, patches, checkpoint.n, metrics
 
 
@@ -379,18 +356,18 @@ def _warn_idle_ranks(comm, D: Discretisation, counts: np.ndarray, where) -> None
         logger.warning(line)
 
 
-def _boundary(data: dict, d: int):
+def _boundary(boundary: Boundary, d: int):
     """(face codes (3, 2), region boxes (R, 2, 3), region normals (R,): -1 fixed, k slip)."""
     bc = np.zeros((3, 2), np.int64)
-    for k, axis in enumerate("xyz"[:d]):
-        bc[k] = [BC_CODES[data["boundary"][f"{axis}_min"]], BC_CODES[data["boundary"][f"{axis}_max"]]]
-    regions = data["boundary"]["fixed_regions"] + data["boundary"]["slip_regions"]
+    for k, (lo, hi) in enumerate(boundary.faces):
+        bc[k] = [BC_CODES[lo], BC_CODES[hi]]
+    regions = boundary.fixed_regions + boundary.slip_regions
     region_box = np.zeros((len(regions), 2, 3))
     region_normal = np.full(len(regions), -1, np.int64)  # -1: fixed, k: slip with normal k
     for r, reg in enumerate(regions):
-        region_box[r, 0, :d], region_box[r, 1, :d] = reg["min"], reg["max"]
-        if "normal" in reg:
-            region_normal[r] = "xyz".index(reg["normal"])
+        region_box[r, 0, :d], region_box[r, 1, :d] = reg.min, reg.max
+    for r, reg in enumerate(boundary.slip_regions, start=len(boundary.fixed_regions)):
+        region_normal[r] = "xyz".index(reg.normal)
     return bc, region_box, region_normal
 
 

@@ -29,7 +29,8 @@ from parmpm.core.errors import RunInterrupted
 from parmpm.io.summary import run_info
 from parmpm.core.log import get_logger
 from parmpm.driver.progress import Progress
-from parmpm.driver.set_up import RankState, open_checkpoint, set_up
+from parmpm.driver.restart import open_checkpoint
+from parmpm.driver.set_up import RankState, set_up
 from parmpm.driver.run_files import RunFiles
 
 log = get_logger(__name__)
@@ -54,7 +55,7 @@ class Simulation:
         self.out_dir = Path(out_dir) if out_dir else Path("parmpm-out") / scene.name
         self.overwrite, self.quiet = overwrite, quiet
         if warm_up is not None and comm is not None:  # e.g. rank 0 compiles, the others load
-            warm_up(scene.data, comm)
+            warm_up(scene.spec, comm)
         self.state: RankState = set_up(scene, comm if comm is not None else SerialComm(),
                                        checkpoint)
         self.observers: list = []
@@ -84,7 +85,8 @@ class Simulation:
     # the rank's state and clock, read as the run's own (sim.particles, sim.t, ...)
     scene = _of("state", "scene")
     comm = _of("state", "comm")
-    data = _of("state", "data")
+    spec = _of("state", "spec", "the scene's records (scene.spec): what the run reads")
+    data = _of("state", "data", "the scene's serialised form (scene.data)")
     dim = _of("state", "dim")
     rank = _of("state", "rank")
     size = _of("state", "size")
@@ -117,10 +119,10 @@ class Simulation:
 
     def gravity(self, t: float) -> np.ndarray:
         """Gravity at time ``t`` (ramped over ``gravity.ramp_time``), padded to 3 components."""
-        g = self.data["gravity"]
-        ramp = g["ramp_time"]
+        g = self.spec.gravity
+        ramp = g.ramp_time
         f = min(1.0, t / ramp) if ramp > 0 else 1.0
-        return np.concatenate([np.asarray(g["g"], float) * f, np.zeros(3 - self.dim)])
+        return np.concatenate([np.asarray(g.g, float) * f, np.zeros(3 - self.dim)])
 
     # --- measurements (parmpm.driver.measures) -------------------------------------------------------
     def gather(self, fields: dict[str, np.ndarray]) -> dict[str, np.ndarray] | None:
@@ -149,7 +151,7 @@ class Simulation:
         shared files (summary.json, snapshots, figure) into the folder the run claims first."""
         with stop_signals(self.stepper):
             s = self.state
-            name = self.data["name"]
+            name = self.spec.name
             series = name if not s.restart else f"{name}_from_{self.nstep:08d}"
             # a restart's checkpoint is its input: --overwrite never deletes it
             self.files = RunFiles(self.comm, self.out_dir, self.out_explicit, self.overwrite,
@@ -161,10 +163,10 @@ class Simulation:
                     "files": ["scene.toml", "summary.json", f"{series}.xdmf", f"{series}.h5",
                               f"{name}.png", "history.csv", "history.h5", "history.png"]})
                 self.files.write_scene(s.scene.to_toml())  # what ran, as a scene file
-                if self.data["output"]["snapshots"]:
+                if self.spec.output.snapshots:
                     # the snapshots' writer groups follow the checkpoints'
                     self.files.open_snapshots(series, self.dim,
-                                              self.data["checkpoint"]["ranks_per_file"])
+                                              self.spec.checkpoint.ranks_per_file)
                 return self._run()
             finally:
                 self.files.release()
@@ -181,8 +183,8 @@ class Simulation:
         self.checkpoints = Checkpoints()
         self.stopped, self.summary = None, None
         self._warm_wall, self._warm_steps, self._loop_wall = None, 0, None
-        tm = self.data["time"]
-        progress = Progress(total_steps=tm["steps"], end_time=tm["end"],
+        tm = self.spec.time
+        progress = Progress(total_steps=tm.steps, end_time=tm.end,
                             enabled=not self.quiet and self.rank == 0)
         self._wall0 = time.perf_counter()
         try:
@@ -271,13 +273,13 @@ class Simulation:
         summary = self._write_summary()
         if stop_agreed(self):  # a signal while the summary was made: no figure
             raise interrupted(self)
-        if self.data["output"]["figure"]:
+        if self.spec.output.figure:
             P = self.particles
             corners = self.domain_corners()
             fields = {"x": P.x, "stretch": self.axial_stretch()}
             if corners is not None:
                 fields["corners"] = corners
-            name = self.data["name"]
+            name = self.spec.name
             self.files.write_figure(name, self.gather(fields), self.dim,
                                     f"{name} · {self.interp.name} · t = {self.t:.3g} s")
         if stop_agreed(self):  # a signal while the figure was drawn

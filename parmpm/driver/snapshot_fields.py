@@ -52,7 +52,7 @@ def snapshot_fields(sim) -> dict:
               "volume": P.vol0 * np.linalg.det(P.F) if P.n else np.zeros(0),
               "mass": P.mass, "stretch": axial_stretch(s), "damage": P.damage,
               "rank": np.full(P.n, s.rank, np.int32), "gid": P.gid.astype(np.int64)}
-    if sim.data["output"]["domains"]:
+    if sim.spec.output.domains:
         fields["domains"] = domains.domain_corners(d, s.disc.method, s.disc.lcr, P.x, P.F,
                                                    P.r0, P.lh0, P.corners)
     fields["step"] = int(sim.nstep)

@@ -117,6 +117,64 @@ def transfers_of(method: str) -> tuple[str, ...]:
     return TRANSFERS if method in APIC_INTERPOLATORS else ("flip",)
 
 
+#: the tiny scene of :func:`tiny_scene_toml`, filled in per case
+_TINY_SCENE = """\
+name = "compile_{dim}d_{method}_{update}_{transfer}"
+dim = {dim}
+[grid]
+origin = {origin}
+cell_size = 0.1
+cells = {cells}
+patch_size = 4
+[materials.solid]
+model = "neo_hookean"
+density = 1000.0
+youngs_modulus = 1.0e6
+poisson_ratio = 0.3
+[materials.solid.damage]
+onset = 5.0
+fracture = 6.0
+[materials.soft]
+model = "linear_elastic"
+density = 1000.0
+youngs_modulus = 1.0e5
+poisson_ratio = 0.2
+[[bodies]]
+min = {lo_a}
+max = {hi_a}
+material = "solid"
+velocity = {velocity}
+[[bodies]]
+min = {lo_b}
+max = {hi_b}
+material = "soft"
+[method]
+interpolator = "{method}"
+update = "{update}"
+{lcr}[gravity]
+g = {g}
+[boundary]
+{faces}fixed_regions = [{{ min = {fixed_lo}, max = {fixed_hi} }}]
+slip_regions = [{{ min = {slip_lo}, max = {slip_hi}, normal = "x" }}]
+[time]
+steps = 2
+[output]
+every_steps = 1
+figure = false
+[[output.history.probes]]
+name = "point"
+point = {probe}
+fields = ["u.x", "stress.xx", "J"]
+[[output.history.probes]]
+name = "body"
+body = 0
+fields = ["v.x", "damage"]
+stats = ["mean", "max"]
+[metrics]
+kind = "hanging_bar"
+"""
+
+
 def tiny_scene_toml(dim: int, method: str, update: str, transfer: str = "flip") -> str:
     """A scene of a few hundred particles that takes every path of a step around the kernels:
     a damageable neo-Hookean block (damage never starts, but the CPDI freeze check runs) and a
@@ -137,61 +195,12 @@ def tiny_scene_toml(dim: int, method: str, update: str, transfer: str = "flip") 
     lcr = "" if method in ("cpdi", "cpdi2") else 'lcr = "none"\n'
     if transfer in AFFINE_TRANSFERS:
         lcr += f'transfer = "{transfer}"\n'
-    return f"""\
-name = "compile_{dim}d_{method}_{update}_{transfer}"
-dim = {dim}
-[grid]
-origin = {_vec(zeros)}
-cell_size = 0.1
-cells = {_vec(cells)}
-patch_size = 4
-[materials.solid]
-model = "neo_hookean"
-density = 1000.0
-youngs_modulus = 1.0e6
-poisson_ratio = 0.3
-[materials.solid.damage]
-onset = 5.0
-fracture = 6.0
-[materials.soft]
-model = "linear_elastic"
-density = 1000.0
-youngs_modulus = 1.0e5
-poisson_ratio = 0.2
-[[bodies]]
-min = {_vec(lo_a)}
-max = {_vec(hi_a)}
-material = "solid"
-velocity = {_vec(velocity)}
-[[bodies]]
-min = {_vec(lo_b)}
-max = {_vec(hi_b)}
-material = "soft"
-[method]
-interpolator = "{method}"
-update = "{update}"
-{lcr}[gravity]
-g = {_vec(g)}
-[boundary]
-{faces}fixed_regions = [{{ min = {_vec([0.0] * dim)}, max = {_vec([0.1] * dim)} }}]
-slip_regions = [{{ min = {_vec([0.85] * dim)}, max = {_vec([0.95] * dim)}, normal = "x" }}]
-[time]
-steps = 2
-[output]
-every_steps = 1
-figure = false
-[[output.history.probes]]
-name = "point"
-point = {_vec([0.3] * dim)}
-fields = ["u.x", "stress.xx", "J"]
-[[output.history.probes]]
-name = "body"
-body = 0
-fields = ["v.x", "damage"]
-stats = ["mean", "max"]
-[metrics]
-kind = "hanging_bar"
-"""
+    return _TINY_SCENE.format(
+        dim=dim, method=method, update=update, transfer=transfer, lcr=lcr, faces=faces,
+        origin=_vec(zeros), cells=_vec(cells), lo_a=_vec(lo_a), hi_a=_vec(hi_a),
+        velocity=_vec(velocity), lo_b=_vec(lo_b), hi_b=_vec(hi_b), g=_vec(g),
+        fixed_lo=_vec([0.0] * dim), fixed_hi=_vec([0.1] * dim), slip_lo=_vec([0.85] * dim),
+        slip_hi=_vec([0.95] * dim), probe=_vec([0.3] * dim))
 
 
 @contextlib.contextmanager
@@ -264,7 +273,7 @@ def _idle_rank_step(sim) -> None:
     st, ps = sim.stepper, sim.patches
     sim.particles.permute(np.zeros(0, np.int64))
     ps.update(np.zeros(sim.disc.layout.n_patches, np.int64))  # nothing occupied: no patch
-    st._patches_changed()
+    st.patches_changed()
     dt = sim.last_dt or 1e-6
     st.step(dt, sim.gravity(sim.t), sim.t)
 
@@ -306,13 +315,13 @@ def wait_for_all(comm, poll: float = 0.01) -> None:
         time.sleep(poll)
 
 
-def compile_first(data: dict, comm) -> None:
+def compile_first(spec, comm) -> None:
     """Collective: rank 0 runs the tiny run of the scene's dimension, interpolator, update and
     transfer (compiling what is not cached) while the other ranks wait; then they all load from the
     cache. Once per process and case; a failed warm-up is only a debug message (the run then
-    compiles as before). ``data``: the resolved scene."""
-    m = data["method"]
-    key = (data["dim"], m["interpolator"], m["update"], m.get("transfer", "flip"))
+    compiles as before). ``spec``: the scene's records (``scene.spec``)."""
+    m = spec.method
+    key = (spec.dim, m.interpolator, m.update, m.transfer)
     if comm is None or comm.Get_size() == 1 or key in _WARMED:
         return
     _WARMED.add(key)

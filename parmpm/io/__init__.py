@@ -6,9 +6,8 @@ the solver runs without them.
 """
 
 from parmpm.io.figures import plot_particles
-from parmpm.io.snapshot_reader import Snapshots, load_snapshots
 from parmpm.io.summary import format_summary, to_jsonable, write_summary
-from parmpm.io.xdmf import SnapshotWriter, pad_point_data
+from parmpm.io.xdmf import SnapshotWriter, Snapshots, load_snapshots, pad_point_data
 
 __all__ = [
     "SnapshotWriter",

@@ -193,21 +193,41 @@ def _take(candidate: Path, marker: dict, explicit: bool, overwrite: bool,
           inputs) -> tuple[str, object]:
     """Try to claim one folder: ("ok", the lock or None), or ("taken", why: the ParmpmError an
     explicit --out is refused with)."""
-    def taken() -> tuple[str, ParmpmError]:
-        return "taken", ParmpmError(
-            f"output folder '{candidate}' holds {_describe(candidate)}; choose another --out, "
-            "or pass --overwrite to delete them and write there")
-
     held = candidate.exists() and holds_run(candidate)
     if held and not explicit:
         return "taken", None
     if held and not overwrite:  # refused either way: say whether that run is still going
-        probe = run_lock.take(candidate, create=False)
-        if isinstance(probe, run_lock.RunLock):
-            probe.release()
-        elif isinstance(probe, run_lock.Busy):
-            return "taken", _live(candidate, probe.record or read_marker(candidate))
-        return taken()
+        return "taken", _refusal(candidate)
+    _make_folder(candidate)
+    lock = run_lock.take(candidate)
+    if isinstance(lock, run_lock.Busy):
+        return "taken", _live(candidate, lock.record or read_marker(candidate))
+    if isinstance(lock, run_lock.NoLocks):
+        lock = None
+        why = _unlocked_run(candidate) if held else None
+        if why is not None:
+            return "taken", why
+    return _mark(candidate, marker, held, lock, inputs)
+
+
+def _holds_runs(candidate: Path) -> ParmpmError:
+    return ParmpmError(
+        f"output folder '{candidate}' holds {_describe(candidate)}; choose another --out, "
+        "or pass --overwrite to delete them and write there")
+
+
+def _refusal(candidate: Path) -> ParmpmError:
+    """Why a folder that holds a run is refused without --overwrite: its run is still going, or
+    the folder holds runs."""
+    probe = run_lock.take(candidate, create=False)
+    if isinstance(probe, run_lock.RunLock):
+        probe.release()
+    elif isinstance(probe, run_lock.Busy):
+        return _live(candidate, probe.record or read_marker(candidate))
+    return _holds_runs(candidate)
+
+
+def _make_folder(candidate: Path) -> None:
     try:
         candidate.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -218,26 +238,31 @@ def _take(candidate: Path, marker: dict, explicit: bool, overwrite: bool,
                                   + problem.replace("output folder ", "", 1)) from None
         raise ParmpmError(f"cannot create output folder '{candidate}': "
                           f"{exc.strerror or exc}") from None
-    lock = run_lock.take(candidate)
-    if isinstance(lock, run_lock.Busy):
-        return "taken", _live(candidate, lock.record or read_marker(candidate))
-    if isinstance(lock, run_lock.NoLocks):
-        lock = None
-        if held:
-            record = read_marker(candidate) or {}
-            alive = run_lock.alive_by_record(record)
-            if alive:
-                return "taken", _live(candidate, record)
-            if alive is None:
-                return "taken", ParmpmError(
-                    f"cannot tell whether the run in output folder '{candidate}' "
-                    f"({run_lock.who(record)}) is still going: its filesystem offers no file "
-                    f"locks; if it has ended, delete '{candidate / MARKER}' and run again")
+
+
+def _unlocked_run(candidate: Path) -> ParmpmError | None:
+    """On a filesystem without locks, whether the run that holds ``candidate`` may still be
+    going, by its marker's record (None: it has ended)."""
+    record = read_marker(candidate) or {}
+    alive = run_lock.alive_by_record(record)
+    if alive:
+        return _live(candidate, record)
+    if alive is None:
+        return ParmpmError(
+            f"cannot tell whether the run in output folder '{candidate}' "
+            f"({run_lock.who(record)}) is still going: its filesystem offers no file "
+            f"locks; if it has ended, delete '{candidate / MARKER}' and run again")
+    return None
+
+
+def _mark(candidate: Path, marker: dict, held: bool, lock, inputs) -> tuple[str, object]:
+    """Clear the run ``candidate`` held (``held``: --overwrite) and write this run's marker;
+    ("taken", why) when another run claimed the folder meanwhile. ``lock`` is released then."""
     try:
         if not held and holds_run(candidate):  # a run that came and went meanwhile
             if lock is not None:
                 lock.release()
-            return taken()
+            return "taken", _holds_runs(candidate)
         if held:
             _remove_run(candidate, inputs)
         _create_marker(candidate, marker, replace=False)

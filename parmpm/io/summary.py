@@ -139,17 +139,20 @@ def format_summary(summary: dict) -> str:
     (the history's last energy balance: the residual, its estimate, the energy given); ``metrics``
     (a dict: its scalar entries are listed).
     """
+    lines = _run_lines(summary)
+    for line in (_patches_line(summary), _energy_line(summary)):
+        if line is not None:
+            lines.append(line)
+    return "\n".join(lines + _metrics_lines(summary.get("metrics")))
+
+
+def _run_lines(summary: dict) -> list[str]:
+    """The four lines every summary has: the scene, the method, the size, the time taken."""
     scene = summary.get("scene")
     name = _get(summary, "scene_name", "scene.name", "name")
     if name is None and isinstance(scene, str):
         name = scene
     dim = _get(summary, "dim", "scene.dim")
-    method = _get(summary, "method", "interpolator", "scene.method.interpolator", "scene.method.name")
-    if isinstance(method, dict):
-        method = method.get("interpolator") or method.get("name")
-    scheme = _get(summary, "update", "scheme", "scene.method.update")
-    lcr = _get(summary, "lcr", "l_cr", "scene.method.lcr", "scene.method.l_cr")
-    ranks = _get(summary, "ranks", "n_ranks", "size")
     particles = _get(summary, "particles", "n_particles")
     steps = _get(summary, "steps", "n_steps", "step")
     t_sim = _get(summary, "time", "t_end", "simulated_time", "t")
@@ -157,8 +160,26 @@ def format_summary(summary: dict) -> str:
     rate = _get(summary, "particle_steps_per_second", "particle_steps_per_s")
     if rate is None and particles and steps and wall:
         rate = float(particles) * float(steps) / float(wall)
+    compiled = summary.get("compile_seconds")
+    return [
+        f"scene       {_fmt(name)}" + (f" ({dim}D)" if dim is not None else ""),
+        _method_line(summary),
+        f"particles   {_fmt(particles)}    steps {_fmt(steps)}    simulated time {_fmt(t_sim)} s",
+        f"wall time   {_fmt(wall)} s"
+        # numba compiling during the run: apart from the steps (cached for the next run)
+        + (f" + {float(compiled):.3g} s compiling kernels" if compiled and compiled >= 0.05 else "")
+        + "    " + (f"{float(rate):,.0f}" if rate is not None else "-")
+        + " particle-steps/s",
+    ]
 
-    head = f"scene       {_fmt(name)}" + (f" ({dim}D)" if dim is not None else "")
+
+def _method_line(summary: dict) -> str:
+    method = _get(summary, "method", "interpolator", "scene.method.interpolator", "scene.method.name")
+    if isinstance(method, dict):
+        method = method.get("interpolator") or method.get("name")
+    scheme = _get(summary, "update", "scheme", "scene.method.update")
+    lcr = _get(summary, "lcr", "l_cr", "scene.method.lcr", "scene.method.l_cr")
+    ranks = _get(summary, "ranks", "n_ranks", "size")
     meth = f"method      {_fmt(method)}"
     if scheme is not None:
         meth += f" / {scheme}"
@@ -168,43 +189,47 @@ def format_summary(summary: dict) -> str:
         meth += f", l_cr = {_fmt(lcr)}"
     if ranks is not None:
         meth += f", {_fmt(ranks)} rank(s)"
-    compiled = summary.get("compile_seconds")
-    lines = [
-        head,
-        meth,
-        f"particles   {_fmt(particles)}    steps {_fmt(steps)}    simulated time {_fmt(t_sim)} s",
-        f"wall time   {_fmt(wall)} s"
-        # numba compiling during the run: apart from the steps (cached for the next run)
-        + (f" + {float(compiled):.3g} s compiling kernels" if compiled and compiled >= 0.05 else "")
-        + "    " + (f"{float(rate):,.0f}" if rate is not None else "-")
-        + " particle-steps/s",
-    ]
+    return meth
+
+
+def _patches_line(summary: dict) -> str | None:
+    """The decomposition: patches allocated, their size; on several ranks the balance."""
     dec = summary.get("decomposition")
-    if isinstance(dec, dict) and dec.get("patches") is not None:
-        line = (f"patches     {_fmt(dec['patches'])} of {_fmt(dec.get('patches_dense'))} allocated"
-                f" ({'x'.join(map(str, dec.get('patch_size', [])))} cells, ghost {_fmt(dec.get('ghost'))})")
-        if (dec.get("ranks") or 1) > 1:
-            line += (f", imbalance {100 * float(dec.get('imbalance', 0.0)):.1f} %,"
-                     f" halo {float(dec.get('halo_bytes_per_step', 0)) / 1024:.1f} KiB/step")
-        lines.append(line)
+    if not (isinstance(dec, dict) and dec.get("patches") is not None):
+        return None
+    line = (f"patches     {_fmt(dec['patches'])} of {_fmt(dec.get('patches_dense'))} allocated"
+            f" ({'x'.join(map(str, dec.get('patch_size', [])))} cells, ghost {_fmt(dec.get('ghost'))})")
+    if (dec.get("ranks") or 1) > 1:
+        line += (f", imbalance {100 * float(dec.get('imbalance', 0.0)):.1f} %,"
+                 f" halo {float(dec.get('halo_bytes_per_step', 0)) / 1024:.1f} KiB/step")
+    return line
+
+
+def _energy_line(summary: dict) -> str | None:
+    """The history's last energy balance: the residual, its estimate, the energy given."""
     balance = (summary.get("energy") or {}).get("balance") if isinstance(summary.get("energy"), dict) else None
-    if isinstance(balance, dict) and balance.get("energy_residual") is not None:
-        scale = float(balance.get("scale") or 0.0)
-        line = (f"energy      balance residual {float(balance['energy_residual']):.4g} J"
-                f" (estimate {float(balance.get('residual_estimate', float('nan'))):.4g} J)")
-        if scale > 0:
-            line += (f", {100 * abs(float(balance['energy_residual'])) / scale:.2g} % of the"
-                     f" {scale:.4g} J given")
-        lines.append(line)
-    metrics = summary.get("metrics")
-    if isinstance(metrics, dict) and metrics:
-        items = [
-            f"{k} = {_fmt(v)}"
-            for k, v in metrics.items()
-            if k not in _DETAIL_METRICS
-            and v is not None
-            and isinstance(v, (bool, int, float, str, np.generic))
-        ]
-        for i in range(0, min(len(items), 6), 3):
-            lines.append(("metrics     " if i == 0 else "            ") + ", ".join(items[i : i + 3]))
-    return "\n".join(lines)
+    if not (isinstance(balance, dict) and balance.get("energy_residual") is not None):
+        return None
+    scale = float(balance.get("scale") or 0.0)
+    line = (f"energy      balance residual {float(balance['energy_residual']):.4g} J"
+            f" (estimate {float(balance.get('residual_estimate', float('nan'))):.4g} J)")
+    if scale > 0:
+        line += (f", {100 * abs(float(balance['energy_residual'])) / scale:.2g} % of the"
+                 f" {scale:.4g} J given")
+    return line
+
+
+def _metrics_lines(metrics) -> list[str]:
+    """The metrics' scalar entries (not the details kept for the file), three a line, six at
+    most."""
+    if not (isinstance(metrics, dict) and metrics):
+        return []
+    items = [
+        f"{k} = {_fmt(v)}"
+        for k, v in metrics.items()
+        if k not in _DETAIL_METRICS
+        and v is not None
+        and isinstance(v, (bool, int, float, str, np.generic))
+    ]
+    return [("metrics     " if i == 0 else "            ") + ", ".join(items[i : i + 3])
+            for i in range(0, min(len(items), 6), 3)]

@@ -29,12 +29,26 @@ import numpy as np
 
 from decomposition import ordered_sum
 from parmpm.grid.update import apply_bc, apply_regions, near_region, beyond_mirror
-from parmpm.core.jit import kernel
+from parmpm.core.jit import helper_kernel, kernel
 from parmpm.materials.laws import stored_energy
 
 #: steps between two samples of the watch: a blow-up grows geometrically, so a sample every few
 #: steps catches it early, at a cost of one particle pass per ENERGY_EVERY steps
 ENERGY_EVERY = 10
+
+
+@helper_kernel
+def particle_energy(d, i, mass, vol0, v, x, x0, F, mat, damage, params, g):
+    """Particle ``i``'s ``(½ m|v|², V₀ ψ(F) (1 − D), m g·(x − X))``: the addends of the watch
+    (:func:`energy_sums`) and of the history's first columns
+    (:func:`parmpm.output.history.history_sums`), one definition for both."""
+    ke = 0.0
+    w = 0.0
+    for a in range(d):
+        ke += v[i, a] * v[i, a]
+        w += g[a] * (x[i, a] - x0[i, a])
+    return (0.5 * mass[i] * ke, vol0[i] * stored_energy(d, params[mat[i]], F[i], damage[i]),
+            mass[i] * w)
 
 
 @kernel
@@ -47,15 +61,11 @@ def energy_sums(d, start, order, mass, vol0, v, x, x0, F, mat, damage, params, g
     for p in range(start.size - 1):
         o = out[p]
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):
-            i = order[kk]
-            ke = 0.0
-            w = 0.0
-            for a in range(d):
-                ke += v[i, a] * v[i, a]
-                w += g[a] * (x[i, a] - x0[i, a])
-            o[0] += 0.5 * mass[i] * ke
-            o[1] += vol0[i] * stored_energy(d, params[mat[i]], F[i], damage[i])
-            o[2] += mass[i] * w
+            kinetic, stored, work = particle_energy(d, order[kk], mass, vol0, v, x, x0, F, mat,
+                                                    damage, params, g)
+            o[0] += kinetic
+            o[1] += stored
+            o[2] += work
     return out
 
 
@@ -153,9 +163,10 @@ class EnergyLedger:
 
     def add(self, stepper, dt: float, gravity: np.ndarray) -> None:
         """Add one grid update's work (collective: every rank calls it in the same step)."""
-        nodes, constraints = stepper.grid_records()
-        per_patch = grid_work(stepper.disc.dim, nodes, constraints, dt, gravity, stepper.damping,
-                              stepper.mass_eps, stepper.gsum_block, stepper.gnew_block,
+        phase, grid = stepper.grid_phase, stepper.grid
+        nodes, constraints = phase.records()
+        per_patch = grid_work(stepper.disc.dim, nodes, constraints, dt, gravity, phase.damping,
+                              phase.mass_eps, grid.gsum_block, grid.gnew_block,
                               stepper.mls)
         step = ordered_sum(stepper.comm, stepper.patches.local_ids, per_patch)
         self.totals += step

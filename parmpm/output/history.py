@@ -38,7 +38,7 @@ from parmpm.core.collective import agree
 from parmpm.core.errors import ParmpmError
 from parmpm.core.jit import kernel
 from parmpm.core.log import get_logger
-from parmpm.materials.laws import stored_energy
+from parmpm.output.energy import particle_energy
 from parmpm.output.metrics.sums import patch_sums
 
 log = get_logger(__name__)
@@ -67,16 +67,17 @@ def field_values(P, name: str) -> np.ndarray:
 
 
 class Probe:
-    """One ``[[output.history.probes]]`` entry: its columns and how to evaluate them."""
+    """One ``[[output.history.probes]]`` entry (its record, ``scene.spec.output.history.probes``):
+    its columns and how to evaluate them."""
 
-    def __init__(self, spec: dict, body_ranges: list[tuple[int, int]], material_rows: dict):
-        self.name = spec["name"]
-        self.fields = list(spec["fields"])
-        self.stats = list(spec["stats"])
-        self.point = spec.get("point")
-        self.region = spec.get("region")
-        self.body = spec.get("body")
-        self.material = spec.get("material")
+    def __init__(self, record, body_ranges: list[tuple[int, int]], material_rows: dict):
+        self.name = record.name
+        self.fields = list(record.fields)
+        self.stats = list(record.stats)
+        self.point = record.point
+        self.region = record.region
+        self.body = record.body
+        self.material = record.material
         self.gid = None  # the point probe's particle, chosen at the first sample
         self.ids = body_ranges[self.body] if self.body is not None else None
         self.mat = material_rows[self.material] if self.material is not None else None
@@ -88,7 +89,7 @@ class Probe:
 
     def _selected(self, P) -> np.ndarray:
         if self.region is not None:
-            lo, hi = np.asarray(self.region["min"]), np.asarray(self.region["max"])
+            lo, hi = np.asarray(self.region.min), np.asarray(self.region.max)
             return np.all((P.x0 >= lo) & (P.x0 <= hi), axis=1)
         if self.ids is not None:
             return (P.gid >= self.ids[0]) & (P.gid < self.ids[1])
@@ -153,7 +154,8 @@ def _vector_columns(dim: int) -> list[str]:
 @kernel
 def history_sums(d, start, order, mass, vol0, v, x, x0, F, mat, damage, rf, params, g, freezing,
                  affine, inertia):
-    """Per patch, in one pass over its particles (in storage order): K, Ψ, Σ m g·(x − X),
+    """Per patch, in one pass over its particles (in storage order): K, Ψ, Σ m g·(x − X)
+    (:func:`parmpm.output.energy.particle_energy`),
     momentum (d), angular momentum (1 in 2D, 3 in 3D; with APIC's affine part
     ``m ε : (C D)ᵀ``, ``inertia = diag D``, zeros under FLIP: :mod:`parmpm.transfer.affine`), mass,
     damaged and frozen particles. Rows ``order[start[p]:start[p + 1]]`` make patch ``p``."""
@@ -166,14 +168,11 @@ def history_sums(d, start, order, mass, vol0, v, x, x0, F, mat, damage, rf, para
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):
             i = order[kk]
             m = mass[i]
-            ke = 0.0
-            w = 0.0
-            for a in range(d):
-                ke += v[i, a] * v[i, a]
-                w += g[a] * (x[i, a] - x0[i, a])
-            o[0] += 0.5 * m * ke
-            o[1] += vol0[i] * stored_energy(d, params[mat[i]], F[i], damage[i])
-            o[2] += m * w
+            kinetic, stored, work = particle_energy(d, i, mass, vol0, v, x, x0, F, mat, damage,
+                                                    params, g)
+            o[0] += kinetic
+            o[1] += stored
+            o[2] += work
             for a in range(d):
                 o[3 + a] += m * v[i, a]
             if d == 2:
@@ -238,12 +237,13 @@ class History:
         return [float(v) for v in row]
 
 
-def body_ranges(data: dict, material_rows: dict) -> list[tuple[int, int]]:
-    """Global-id range ``[first, last)`` of every body: particles are numbered body by body, in
-    the order of ``[[bodies]]`` (:func:`parmpm.particles.seeding.seed_bodies`, one chunk per body)."""
+def body_ranges(grid, bodies, material_rows: dict) -> list[tuple[int, int]]:
+    """Global-id range ``[first, last)`` of every body (``grid``, ``bodies``: the scene's
+    records): particles are numbered body by body, in the order of ``[[bodies]]``
+    (:func:`parmpm.particles.seeding.seed_bodies`, one chunk per body)."""
     from parmpm.particles.seeding import seed_bodies
 
-    ends = np.cumsum([len(chunk[0]) for chunk in seed_bodies(data, material_rows).chunks])
+    ends = np.cumsum([len(chunk[0]) for chunk in seed_bodies(grid, bodies, material_rows).chunks])
     return [(int(e - len_), int(e)) for e, len_ in
             zip(ends, np.diff(np.concatenate([[0], ends])))]
 
@@ -253,13 +253,11 @@ class HistoryOutput:
     the same table in the run's HDF5 and ``history.png``."""
 
     def __init__(self, sim):
-        from parmpm.materials import material_table
-
-        data = sim.data
-        specs = data["output"]["history"]["probes"]
-        rows = {n: i for i, n in enumerate(material_table(data["materials"])[1])}
-        bodies = body_ranges(data, rows) if any(p["body"] is not None for p in specs) else []
-        self.history = History(sim.dim, [Probe(p, bodies, rows) for p in specs])
+        spec, rows = sim.state.spec, sim.state.material_rows
+        probes = spec.output.history.probes
+        bodies = (body_ranges(spec.grid, spec.bodies, rows)
+                  if any(p.body is not None for p in probes) else [])
+        self.history = History(sim.dim, [Probe(p, bodies, rows) for p in probes])
         self.file = None
         self.last_step = -1
         self.last = None
@@ -346,9 +344,9 @@ class HistoryOutput:
                     snapshots.write_table("history", columns, attrs)
                 else:
                     write_table_h5(sim.out_dir / "history.h5", "history", columns, attrs)
-                if sim.data["output"]["figure"] and self.file.count > 1:
+                if sim.spec.output.figure and self.file.count > 1:
                     plot_history(columns, sim.out_dir / "history.png",
-                                 f"{sim.data['name']} · {sim.interp.name} · energy history")
+                                 f"{sim.spec.name} · {sim.interp.name} · energy history")
             except ParmpmError as exc:  # the snapshot writer's one line (a full disk)
                 problem = str(exc)
             except OSError as exc:

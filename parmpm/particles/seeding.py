@@ -162,53 +162,51 @@ def _lattice(lo, hi, spacing):
     return np.stack([m.ravel() for m in mesh[::-1]], axis=1)
 
 
-
-
-def _initial_velocity(d: int, body: dict, pts: np.ndarray) -> np.ndarray:
+def _initial_velocity(d: int, body, pts: np.ndarray) -> np.ndarray:
     """A body's initial velocity at ``pts``: uniform + affine + spin + vibration mode."""
-    vel = np.tile(np.asarray(body["velocity"], float), (len(pts), 1))
-    centre = (np.asarray(body["center"], float) if body["shape"] != "box" else
-              0.5 * (np.asarray(body["min"], float) + np.asarray(body["max"], float)))
-    if body.get("velocity_gradient") is not None:  # affine: v += L·(x − c)
-        L = np.asarray(body["velocity_gradient"], float)
+    vel = np.tile(np.asarray(body.velocity, float), (len(pts), 1))
+    centre = (np.asarray(body.center, float) if body.shape != "box" else
+              0.5 * (np.asarray(body.min, float) + np.asarray(body.max, float)))
+    if body.velocity_gradient is not None:  # affine: v += L·(x − c)
+        L = np.asarray(body.velocity_gradient, float)
         for i in range(d):  # elementwise, not BLAS: the same bits for any subset of the points
             for j in range(d):
                 vel[:, i] += L[i, j] * (pts[:, j] - centre[j])
-    omega = body.get("angular_velocity")
+    omega = body.angular_velocity
     if omega is not None:  # rigid spin about the body's centre: v += ω × (x − c)
         r = pts - centre
         if d == 2:
             vel += float(omega) * np.stack([-r[:, 1], r[:, 0]], axis=1)
         else:
             vel += np.cross(np.asarray(omega, float), r)
-    vib = body.get("vibration")
+    vib = body.vibration
     if vib:
-        ax = vib["axis"]
-        length = body["max"][ax] - body["min"][ax]
-        beta = (2 * vib["mode"] - 1) * math.pi / (2 * length)
-        vel[:, ax] += vib["amplitude"] * np.sin(beta * (pts[:, ax] - body["min"][ax]))
+        ax = vib.axis
+        length = body.max[ax] - body.min[ax]
+        beta = (2 * vib.mode - 1) * math.pi / (2 * length)
+        vel[:, ax] += vib.amplitude * np.sin(beta * (pts[:, ax] - body.min[ax]))
     return vel
 
 
-def _initial_affine(d: int, body: dict, pts: np.ndarray) -> np.ndarray:
+def _initial_affine(d: int, body, pts: np.ndarray) -> np.ndarray:
     """APIC's ``C_p`` at the start: the gradient of :func:`_initial_velocity` at ``pts``, so the
     particles carry the whole initial field (a spinning body its spin: ``C = ω×``)."""
     C = np.zeros((len(pts), d, d))
-    if body.get("velocity_gradient") is not None:
-        C += np.asarray(body["velocity_gradient"], float)
-    omega = body.get("angular_velocity")
+    if body.velocity_gradient is not None:
+        C += np.asarray(body.velocity_gradient, float)
+    omega = body.angular_velocity
     if omega is not None and d == 2:
         C[:, 0, 1] -= float(omega)
         C[:, 1, 0] += float(omega)
     elif omega is not None:
         w = np.asarray(omega, float)
         C += np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    vib = body.get("vibration")
+    vib = body.vibration
     if vib:
-        ax = vib["axis"]
-        length = body["max"][ax] - body["min"][ax]
-        beta = (2 * vib["mode"] - 1) * math.pi / (2 * length)
-        C[:, ax, ax] += vib["amplitude"] * beta * np.cos(beta * (pts[:, ax] - body["min"][ax]))
+        ax = vib.axis
+        length = body.max[ax] - body.min[ax]
+        beta = (2 * vib.mode - 1) * math.pi / (2 * length)
+        C[:, ax, ax] += vib.amplitude * beta * np.cos(beta * (pts[:, ax] - body.min[ax]))
     return C
 
 
@@ -360,26 +358,28 @@ def fmt_spacing(spacing) -> str:
     return ", ".join(f"{float(v):.4g}" for v in np.ravel(spacing))
 
 
-def seed_bodies(scene: dict, material_rows: dict[str, int]) -> Seeds:
+def seed_bodies(grid, bodies, material_rows: dict[str, int]) -> Seeds:
     """Every body's seeds: ``ppc`` per cell per axis, domains tiling the body (descriptions:
-    the points are made block by block when asked for)."""
-    d = scene["dim"]
-    h = np.asarray(scene["grid"]["cell_size"], float)
-    origin = np.asarray(scene["grid"]["origin"], float)
+    the points are made block by block when asked for). ``grid``, ``bodies``: the scene's
+    records (``scene.spec.grid``, ``scene.spec.bodies``); ``material_rows``: material name →
+    its row of the material table."""
+    d = len(grid.cells)
+    h = np.asarray(grid.cell_size, float)
+    origin = np.asarray(grid.origin, float)
     chunks = []
-    for k, body in enumerate(scene["bodies"]):
-        ppc = np.asarray(body["ppc"], float)
+    for k, body in enumerate(bodies):
+        ppc = np.asarray(body.ppc, float)
         turn = None
-        if body["shape"] == "box":
-            lo, hi = np.asarray(body["min"], float), np.asarray(body["max"], float)
+        if body.shape == "box":
+            lo, hi = np.asarray(body.min, float), np.asarray(body.max, float)
             count = np.maximum(1, np.round((hi - lo) / h * ppc)).astype(int)
             spacing = (hi - lo) / count
             pts = _Lattice(lo, spacing, count)
-            if body.get("angle"):  # the lattice turned about the box centre, domains with it
-                turn = rotation(d, body["angle"])
+            if body.angle:  # the lattice turned about the box centre, domains with it
+                turn = rotation(d, body.angle)
                 pts = _Turned(pts, 0.5 * (lo + hi), turn)
         else:  # disk / sphere on a grid-aligned lattice
-            c, r = np.asarray(body["center"], float), float(body["radius"])
+            c, r = np.asarray(body.center, float), float(body.radius)
             spacing = h / ppc
             lo = origin + np.floor((c - r - origin) / spacing) * spacing
             n = np.ceil((c + r - lo) / spacing).astype(int)
@@ -387,13 +387,14 @@ def seed_bodies(scene: dict, material_rows: dict[str, int]) -> Seeds:
             count = np.round((lo + n * spacing - lo) / spacing).astype(int)
             pts = _Ball(_Lattice(lo, spacing, count), c, r)
             if not len(pts):
-                raise SceneError(f"bodies.{k}: a {body['shape']} of radius {r:g} m holds no point "
+                raise SceneError(f"bodies.{k}: a {body.shape} of radius {r:g} m holds no point "
                                  f"of its particle lattice (spacing {fmt_spacing(spacing)} m); "
                                  "enlarge the radius or raise ppc")
-        chunks.append((pts, body, spacing, material_rows[body["material"]], turn))
+        chunks.append((pts, body, spacing, material_rows[body.material], turn))
     return Seeds(d, chunks)
 
 
-def bodies_to_particles(scene: dict, material_rows: dict[str, int], params: np.ndarray) -> Particles:
+def bodies_to_particles(grid, bodies, material_rows: dict[str, int],
+                        params: np.ndarray) -> Particles:
     """Every body's particles (all of them: a one-rank convenience; see :class:`Seeds`)."""
-    return seed_bodies(scene, material_rows).particles(params)
+    return seed_bodies(grid, bodies, material_rows).particles(params)

@@ -206,18 +206,32 @@ class Particles:
         if force or not self._grouped or self.start.size != n_slots + 1:
             if exchanged:
                 raise ValueError("group_by_patch: an exchange needs the rows grouped first")
-            if not (self._grouped and new_patch is a["patch"] and self._reslot(slot_of, n_slots)):
-                self.compact()
-                slot = slot_of[new_patch]
-                key = slot * (int(a["gid"].max(initial=0)) + 1) + a["gid"]
-                a["patch"] = new_patch
-                self.permute(np.argsort(key, kind="stable"))
-                counts = np.bincount(slot, minlength=n_slots)
-                self.start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-            self._grouped = True
+            self._sort_by_patch(new_patch, slot_of, n_slots)
             return True
         if not exchanged and (moved == 0 or (moved < 0 and np.array_equal(new_patch, a["patch"]))):
             return False
+        self._merge_by_patch(new_patch, slot_of, keep, received)
+        return True
+
+    def _sort_by_patch(self, new_patch: np.ndarray, slot_of: np.ndarray, n_slots: int) -> None:
+        """The full regrouping: a new slot map of unchanged rows, or a stable sort by (slot, gid)
+        of the compacted fields."""
+        a = self._a
+        if not (self._grouped and new_patch is a["patch"] and self._reslot(slot_of, n_slots)):
+            self.compact()
+            slot = slot_of[new_patch]
+            key = slot * (int(a["gid"].max(initial=0)) + 1) + a["gid"]
+            a["patch"] = new_patch
+            self.permute(np.argsort(key, kind="stable"))
+            counts = np.bincount(slot, minlength=n_slots)
+            self.start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self._grouped = True
+
+    def _merge_by_patch(self, new_patch: np.ndarray, slot_of: np.ndarray,
+                        keep: np.ndarray | None, received: dict | None) -> None:
+        """The lazy regrouping of :meth:`group_by_patch`: the order merged in O(n), rows that
+        left filled from the tail, received rows appended, compacted past the threshold."""
+        a = self._a
         n = self.n
         empty = np.zeros(0, np.int64)
         keep = np.arange(n) if keep is None else np.asarray(keep, np.int64)
@@ -247,7 +261,6 @@ class Particles:
         self.displaced += changed + r
         if self.displaced > COMPACT_FRACTION * self.n:
             self.compact()
-        return True
 
     def _move_rows(self, new_patch, holes, fillers, received, n_new) -> None:
         """Rows ``fillers`` (kept rows past the new kept count) into the rows that left

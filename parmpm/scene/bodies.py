@@ -40,42 +40,13 @@ def check_bodies(c: Checker, raw: Any, dim: int, grid: dict, materials: dict) ->
 def _body(c: Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: dict,
           materials: dict) -> dict:
     t = c.table(key, raw, BODY_KEYS)
-    shape = c.choice(f"{key}.shape", t.get("shape", "box"), tuple(SHAPE_DIMS))
-    if dim not in SHAPE_DIMS[shape]:
-        allowed = ", ".join(f'"{s}"' for s, dims in SHAPE_DIMS.items() if dim in dims)
-        c.fail(f"{key}.shape", f'expected {allowed} in a {dim}D scene, got "{shape}" '
-                               f"(only for dim {' or '.join(map(str, SHAPE_DIMS[shape]))})")
-    for name in _SHAPE_ONLY_KEYS:
-        if name in t and name not in SHAPE_KEYS[shape]:
-            c.fail(f"{key}.{name}", f'not used by shape "{shape}" (expected '
-                                    f"{' and '.join(SHAPE_KEYS[shape])})")
+    shape = _shape(c, key, t, dim)
     material = c.string(f"{key}.material", c.required(key, t, "material", "a material name"))
     if material not in materials:
         c.fail(f"{key}.material", f"unknown material {show(material)} (defined: "
                                   + ", ".join(show(m) for m in materials) + ")")
     out: dict[str, Any] = {"shape": shape}
-    if shape == "box":
-        pts = f"{dim} numbers"
-        bmin = c.vector(f"{key}.min", c.required(key, t, "min", pts), dim, "float", False)
-        bmax = c.vector(f"{key}.max", c.required(key, t, "max", pts), dim, "float", False)
-        if any(b <= a for a, b in zip(bmin, bmax)):
-            c.expected(f"{key}.max", f"each component > {key}.min {show(bmin)}", bmax)
-        out.update(min=bmin, max=bmax)
-        out["angle"] = _angle(c, f"{key}.angle", t.get("angle"), dim)
-        if out["angle"]:  # the rotated box's bounding box is what must fit in the grid
-            bmin, bmax = rotated_box_bounds(bmin, bmax, out["angle"])
-    else:
-        if t.get("angle") is not None:
-            c.fail(f"{key}.angle", f'expected only on shape "box" (a {shape} looks the same '
-                                   "at every angle), got shape " + show(shape))
-        out["angle"] = None
-        center = c.vector(f"{key}.center", c.required(key, t, "center", f"{dim} numbers"),
-                          dim, "float", False)
-        radius = c.number(f"{key}.radius", c.required(key, t, "radius", "a number > 0"),
-                          "a number > 0", lambda x: x > 0)
-        out.update(center=center, radius=radius)
-        bmin = [x - radius for x in center]
-        bmax = [x + radius for x in center]
+    bmin, bmax = _placement(c, key, t, dim, out)
     for axis in range(dim):
         tol = 1e-9 * grid["cell_size"][axis]
         below, above = bmin[axis] < lo[axis] - tol, bmax[axis] > hi[axis] + tol
@@ -89,6 +60,54 @@ def _body(c: Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: di
     if max(out["ppc"]) > MAX_PPC:
         c.expected(f"{key}.ppc", f"integers from 1 to {MAX_PPC} (particles per cell per axis)",
                    t.get("ppc"))
+    _motion(c, key, t, dim, out)
+    return out
+
+
+def _shape(c: Checker, key: str, t: dict, dim: int) -> str:
+    """The body's shape, allowed in ``dim`` dimensions, with only its own placement keys."""
+    shape = c.choice(f"{key}.shape", t.get("shape", "box"), tuple(SHAPE_DIMS))
+    if dim not in SHAPE_DIMS[shape]:
+        allowed = ", ".join(f'"{s}"' for s, dims in SHAPE_DIMS.items() if dim in dims)
+        c.fail(f"{key}.shape", f'expected {allowed} in a {dim}D scene, got "{shape}" '
+                               f"(only for dim {' or '.join(map(str, SHAPE_DIMS[shape]))})")
+    for name in _SHAPE_ONLY_KEYS:
+        if name in t and name not in SHAPE_KEYS[shape]:
+            c.fail(f"{key}.{name}", f'not used by shape "{shape}" (expected '
+                                    f"{' and '.join(SHAPE_KEYS[shape])})")
+    return shape
+
+
+def _placement(c: Checker, key: str, t: dict, dim: int, out: dict) -> tuple[list, list]:
+    """Into ``out``: a box's ``min``, ``max`` and ``angle``, or a disk's or sphere's ``angle``
+    (None), ``center`` and ``radius``. Returns the bounding box that must fit in the grid."""
+    shape = out["shape"]
+    if shape == "box":
+        pts = f"{dim} numbers"
+        bmin = c.vector(f"{key}.min", c.required(key, t, "min", pts), dim, "float", False)
+        bmax = c.vector(f"{key}.max", c.required(key, t, "max", pts), dim, "float", False)
+        if any(b <= a for a, b in zip(bmin, bmax)):
+            c.expected(f"{key}.max", f"each component > {key}.min {show(bmin)}", bmax)
+        out.update(min=bmin, max=bmax)
+        out["angle"] = _angle(c, f"{key}.angle", t.get("angle"), dim)
+        if out["angle"]:  # the rotated box's bounding box is what must fit in the grid
+            return rotated_box_bounds(bmin, bmax, out["angle"])
+        return bmin, bmax
+    if t.get("angle") is not None:
+        c.fail(f"{key}.angle", f'expected only on shape "box" (a {shape} looks the same '
+                               "at every angle), got shape " + show(shape))
+    out["angle"] = None
+    center = c.vector(f"{key}.center", c.required(key, t, "center", f"{dim} numbers"),
+                      dim, "float", False)
+    radius = c.number(f"{key}.radius", c.required(key, t, "radius", "a number > 0"),
+                      "a number > 0", lambda x: x > 0)
+    out.update(center=center, radius=radius)
+    return [x - radius for x in center], [x + radius for x in center]
+
+
+def _motion(c: Checker, key: str, t: dict, dim: int, out: dict) -> None:
+    """Into ``out``: the initial ``velocity``, ``angular_velocity``, ``velocity_gradient`` and
+    ``vibration`` (a box's mode)."""
     out["velocity"] = c.vector(f"{key}.velocity", t.get("velocity", [0.0] * dim), dim, "float",
                                False)
     out["angular_velocity"] = None
@@ -107,8 +126,8 @@ def _body(c: Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: di
     if t.get("vibration") is not None:
         vkey = f"{key}.vibration"
         v = c.table(vkey, t["vibration"], VIBRATION_KEYS)
-        if shape != "box":
-            c.fail(vkey, f'expected only on shape "box", got shape "{shape}"')
+        if out["shape"] != "box":
+            c.fail(vkey, f'expected only on shape "box", got shape "{out["shape"]}"')
         out["vibration"] = {
             "amplitude": c.number(f"{vkey}.amplitude",
                                   c.required(vkey, v, "amplitude", "a number (velocity)")),
@@ -117,7 +136,6 @@ def _body(c: Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: di
             "axis": c.integer(f"{vkey}.axis", v.get("axis", 0),
                               f"an integer in [0, {dim})", lambda a: 0 <= a < dim),
         }
-    return out
 
 
 def _angle(c: Checker, key: str, raw: Any, dim: int) -> float | None:
@@ -127,10 +145,6 @@ def _angle(c: Checker, key: str, raw: Any, dim: int) -> float | None:
     if dim == 1:
         c.fail(key, "expected no angle in a 1D scene (nothing to rotate)")
     return c.number(key, raw, "a number (degrees, counter-clockwise about the box centre)")
-
-
-
-
 
 
 def _velocity_gradient(c: Checker, key: str, raw: Any, dim: int) -> list | None:

@@ -16,6 +16,8 @@ from parmpm.core.errors import SceneError
 
 AXIS_NAMES = "xyz"  # axis letters, in the order of the coordinates
 
+#: the interpolators that cap their domains at ``method.lcr``
+LCR_INTERPOLATORS = ("cpdi", "cpdi2")
 LCR_EXPECTED = 'a positive length in metres, "<k>dx", "<k>dx/<n>" (k, n > 0) or "none"'
 _LCR_RE = re.compile(r"^\s*(?P<k>[0-9.eE+-]*)\s*dx\s*(?:/\s*(?P<n>[0-9.eE+-]+)\s*)?$",
                      re.IGNORECASE)
@@ -180,6 +182,22 @@ class Checker:
         if not isinstance(value, str) or value not in choices:
             self.expected(key, "one of " + ", ".join(f'"{c}"' for c in choices), value)
         return value
+
+    def schedule(self, key: str, table: dict, time: dict, rows: int) -> tuple:
+        """``(every, every_steps)`` of an output table's ``every`` (simulated s) and
+        ``every_steps``; with neither, about ``rows`` per run of the resolved ``time``."""
+        every, every_steps = table.get("every"), table.get("every_steps")
+        if every is not None:
+            every = self.number(f"{key}.every", every, "a number > 0 (s)", lambda x: x > 0)
+        if every_steps is not None:
+            every_steps = self.integer(f"{key}.every_steps", every_steps, "an integer > 0",
+                                       lambda n: n > 0)
+        if every is None and every_steps is None:
+            if time["steps"] is not None:
+                every_steps = max(1, time["steps"] // rows)
+            else:
+                every = time["end"] / rows
+        return every, every_steps
 
     def vector(self, key: str, value: Any, dim: int, kind: str, broadcast: bool = True) -> list:
         """A per-axis list of length ``dim`` of ``kind`` items (see ``_KINDS``).

@@ -62,17 +62,7 @@ def history(c: Checker, raw: Any, time: dict, dim: int, bodies: list, materials:
         raw = {"enabled": raw}
     t = c.table("output.history", raw, HISTORY_KEYS)
     enabled = c.boolean("output.history.enabled", t.get("enabled", True))
-    every, every_steps = t.get("every"), t.get("every_steps")
-    if every is not None:
-        every = c.number("output.history.every", every, "a number > 0 (s)", lambda x: x > 0)
-    if every_steps is not None:
-        every_steps = c.integer("output.history.every_steps", every_steps, "an integer > 0",
-                                lambda n: n > 0)
-    if every is None and every_steps is None:
-        if time["steps"] is not None:
-            every_steps = max(1, time["steps"] // DEFAULT_ROWS)
-        else:
-            every = time["end"] / DEFAULT_ROWS
+    every, every_steps = c.schedule("output.history", t, time, DEFAULT_ROWS)
     raw_probes = t.get("probes", [])
     if not isinstance(raw_probes, list) or not all(isinstance(p, dict) for p in raw_probes):
         c.expected("output.history.probes", "an array of tables ([[output.history.probes]])",

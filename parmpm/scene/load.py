@@ -5,7 +5,8 @@ the command line (``--set a.b=c``); the result is validated once, at load time, 
 scene (``Scene.to_toml()``) is what checkpoints and summaries store. No MPI, no per-rank arrays.
 
     scene = load_scene("hanging_bar", overrides=["method.interpolator=mpm", "time.end=0.1"])
-    scene.data["grid"]["cells"]     # [20, 30]
+    scene.spec.grid.cells           # (20, 30): the typed, frozen records everything reads
+    scene.data["grid"]["cells"]     # [20, 30]: the same, serialised (scene.toml, checkpoints)
     scene.lcr                       # resolved CPDI l_cr in metres, or None
 
 Scene reference (resolved form; "(default X)" marks optional keys; per-axis quantities take a
@@ -22,7 +23,7 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   ``ghost`` ("auto" or int from 1 to the largest cell count, default "auto"); every node
   coordinate must resolve a cell (``|origin|`` and the extent below 1e12 cells), ``exterior`` ("auto" or int 0..64, default
   "auto": cells kept outside the faces, the face conditions staying on the faces; "auto" gives the
-  ghost width on each face a body starts within one cell of, :func:`parmpm.step.stepper.exterior_cells`).
+  ghost width on each face a body starts within one cell of, :func:`parmpm.transfer.discretisation.exterior_cells`).
 * ``[materials.NAME]`` (at least one): ``model`` ("linear_elastic" | "neo_hookean"),
   ``density`` (> 0), ``youngs_modulus`` (> 0), ``poisson_ratio`` (-1 < nu < 0.5); all required,
   and together they must give a positive, finite wave speed (no subnormal moduli).
@@ -112,6 +113,7 @@ from typing import Any
 
 from parmpm.core.errors import SceneError
 from parmpm.scene.check import lcr_length, one_line, short_text, show, toml_key, toml_value
+from parmpm.scene.records import SceneSpec
 from parmpm.scene.schema import resolve
 
 __all__ = ["Scene", "load_scene", "scene_from_toml", "builtin_scenes", "parse_lcr",
@@ -124,12 +126,15 @@ _SECTION_ORDER = ("grid", "materials", "bodies", "method", "gravity", "damping",
 class Scene:
     """A validated, fully resolved scene.
 
-    ``data`` is a plain nested dict (every default filled in); ``source`` is the path it was read
-    from or ``"builtin:NAME"``.
+    ``spec`` is what a run reads: the scene as typed, frozen records
+    (:class:`parmpm.scene.records.SceneSpec`). ``data`` is its serialised form, a plain nested
+    dict (every default filled in) that :meth:`to_toml` writes, checkpoints store and the ranks
+    compare; ``source`` is the path it was read from or ``"builtin:NAME"``.
     """
 
     def __init__(self, data: dict, source: str):
         self.data = data
+        self.spec = SceneSpec.from_resolved(data)
         self.source = source
         #: a restart's record (:func:`parmpm.driver.restart_keys.check_restart`): the checkpoint, its
         #: step and time, and the keys ``--set`` changed ({key: [stored, new]}); None otherwise
@@ -137,24 +142,21 @@ class Scene:
 
     @property
     def name(self) -> str:
-        return self.data["name"]
+        return self.spec.name
 
     @property
     def dim(self) -> int:
-        return self.data["dim"]
+        return self.spec.dim
 
     @property
     def min_dx(self) -> float:
         """Smallest grid spacing, min_k Δx_k."""
-        return min(self.data["grid"]["cell_size"])
+        return self.spec.min_dx
 
     @property
     def lcr(self) -> float | None:
         """CPDI domain-scaling length l_cr in metres; None unless cpdi or cpdi2 with scaling."""
-        method = self.data["method"]
-        if method["interpolator"] not in ("cpdi", "cpdi2"):
-            return None
-        return lcr_length(method["lcr"], self.min_dx)
+        return self.spec.lcr
 
     def to_toml(self) -> str:
         """The resolved scene as TOML text; ``scene_from_toml`` on it gives back ``data``."""

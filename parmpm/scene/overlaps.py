@@ -23,7 +23,6 @@ import numpy as np
 
 from decomposition import is_parallel
 from parmpm.core.log import get_logger
-from parmpm.geometry.primitives import body_bounds, inside
 
 log = get_logger(__name__)
 
@@ -33,9 +32,10 @@ UNITS = {1: "m", 2: "m²", 3: "m³"}
 
 
 
-def candidate_pairs(bodies: list[dict], dim: int) -> list[tuple[int, int]]:
-    """Pairs ``(i, j)``, ``i < j``, whose bounds overlap with positive volume."""
-    bounds = [tuple(np.asarray(v, float) for v in body_bounds(b)) for b in bodies]
+def candidate_pairs(bodies, dim: int) -> list[tuple[int, int]]:
+    """Pairs ``(i, j)``, ``i < j``, whose bounds overlap with positive volume (``bodies``:
+    their records, :class:`parmpm.scene.records.Body`)."""
+    bounds = [tuple(np.asarray(v, float) for v in b.bounds()) for b in bodies]
     pairs = []
     for j in range(len(bodies)):
         for i in range(j):
@@ -46,7 +46,7 @@ def candidate_pairs(bodies: list[dict], dim: int) -> list[tuple[int, int]]:
     return pairs
 
 
-def local_counts(bodies: list[dict], dim: int, pairs, first: np.ndarray, gid: np.ndarray,
+def local_counts(bodies, dim: int, pairs, first: np.ndarray, gid: np.ndarray,
                  x0: np.ndarray) -> np.ndarray:
     """Per pair ``(i, j)``: how many of these particles (global ids ``gid``, increasing, at
     reference positions ``x0``) are body ``j``'s (ids ``first[j] ≤ gid < first[j + 1]``) and
@@ -56,17 +56,17 @@ def local_counts(bodies: list[dict], dim: int, pairs, first: np.ndarray, gid: np
     for k, (i, j) in enumerate(pairs):
         a, b = np.searchsorted(gid, [first[j], first[j + 1]])
         if b > a:
-            out[k] = int(np.count_nonzero(inside(bodies[i], dim, x0[a:b])))
+            out[k] = int(np.count_nonzero(bodies[i].inside(dim, x0[a:b])))
     return out
 
 
-def seeded_twice(comm, data: dict, seeds, gid: np.ndarray, x0: np.ndarray) -> list[dict]:
+def seeded_twice(comm, spec, seeds, gid: np.ndarray, x0: np.ndarray) -> list[dict]:
     """The pairs of bodies with particles seeded twice, summed over every rank (collective:
     every rank calls it with its own particles, global ids ``gid`` at reference positions
     ``x0``; ``seeds``: the :class:`parmpm.particles.seeding.Seeds` they came from): for each, ``bodies``
     ``(i, j)``, ``particles`` (body ``j``'s inside body ``i``), their ``volume`` and ``mass``.
-    The same on every rank."""
-    dim, bodies = int(data["dim"]), data["bodies"]
+    The same on every rank. ``spec``: the scene (:class:`parmpm.scene.records.SceneSpec`)."""
+    dim, bodies = spec.dim, spec.bodies
     pairs = candidate_pairs(bodies, dim)
     if not pairs:
         return []
@@ -82,7 +82,7 @@ def seeded_twice(comm, data: dict, seeds, gid: np.ndarray, x0: np.ndarray) -> li
     for (i, j), n in zip(pairs, counts):
         if n > 0:
             volume = float(n) * float(np.prod(seeds.chunks[j][2]))
-            density = float(data["materials"][bodies[j]["material"]]["density"])
+            density = float(spec.materials[bodies[j].material].density)
             out.append({"bodies": (i, j), "particles": int(n), "volume": volume,
                         "mass": density * volume})
     return out
@@ -97,10 +97,10 @@ def message(overlap: dict, dim: int) -> str:
             "overlap)")
 
 
-def check_overlaps(comm, data: dict, seeds, gid: np.ndarray, x0: np.ndarray) -> list[str]:
+def check_overlaps(comm, spec, seeds, gid: np.ndarray, x0: np.ndarray) -> list[str]:
     """:func:`seeded_twice`, as warnings logged once, by rank 0 (collective). Returns the lines
     (the same on every rank)."""
-    lines = [message(o, int(data["dim"])) for o in seeded_twice(comm, data, seeds, gid, x0)]
+    lines = [message(o, spec.dim) for o in seeded_twice(comm, spec, seeds, gid, x0)]
     if comm is None or comm.Get_rank() == 0:
         for line in lines:
             log.warning("%s", line)

@@ -44,7 +44,7 @@ import numpy as np
 from decomposition.boxes import patch_of_coordinate
 from decomposition.layout import PatchLayout
 from decomposition.partition import active_patches, assign, rank_loads
-from parmpm.geometry.primitives import rotated_box_bounds
+from parmpm.scene.records import SceneSpec
 from parmpm.scene.schema import DEFAULT_PATCH_SIZE
 
 #: occupied patches the automatic size aims for (halving stops once the bodies cover this many)
@@ -66,49 +66,46 @@ def _clip(size: int, cells) -> list[int]:
     return [min(int(size), int(n)) for n in cells]
 
 
-def _grid_frame(data: dict, exterior):
+def _grid_frame(spec: SceneSpec, exterior):
     """(cells, origin, 1/h) of the computational grid: the user's widened by the exterior layer
     (as :meth:`parmpm.transfer.discretisation.Discretisation.from_grid` lays it out)."""
-    grid, d = data["grid"], data["dim"]
-    lo, hi = (np.zeros(d, np.int64),) * 2 if exterior is None else exterior
-    h = np.asarray(grid["cell_size"], float)
-    cells = np.asarray(grid["cells"], np.int64) + lo + hi
-    origin = np.asarray(grid["origin"], float) - lo * h
+    grid = spec.grid
+    lo, hi = (np.zeros(spec.dim, np.int64),) * 2 if exterior is None else exterior
+    h = np.asarray(grid.cell_size, float)
+    cells = np.asarray(grid.cells, np.int64) + lo + hi
+    origin = np.asarray(grid.origin, float) - lo * h
     return cells, origin, 1.0 / h
 
 
-def _body_extents(data: dict) -> list[tuple[np.ndarray, np.ndarray]]:
+def _body_extents(spec: SceneSpec) -> list[tuple[np.ndarray, np.ndarray]]:
     """Per body, the lowest and highest coordinate its particles can have per axis: the first and
     last lattice point of an unturned box (seeding's formula, so the same floats), else the
     bounding box."""
-    d = data["dim"]
-    h = np.asarray(data["grid"]["cell_size"], float)
+    h = np.asarray(spec.grid.cell_size, float)
     out = []
-    for body in data["bodies"]:
-        if body["shape"] == "box" and not body.get("angle"):
-            lo, hi = np.asarray(body["min"], float), np.asarray(body["max"], float)
-            count = np.maximum(1, np.round((hi - lo) / h * np.asarray(body["ppc"], float))).astype(int)
+    for body in spec.bodies:
+        if body.shape == "box" and not body.angle:
+            lo, hi = np.asarray(body.min, float), np.asarray(body.max, float)
+            count = np.maximum(1, np.round((hi - lo) / h * np.asarray(body.ppc, float))).astype(int)
             spacing = (hi - lo) / count
-            ends = [lo[k] + (np.array([0, count[k] - 1]) + 0.5) * spacing[k] for k in range(d)]
+            ends = [lo[k] + (np.array([0, count[k] - 1]) + 0.5) * spacing[k]
+                    for k in range(spec.dim)]
             out.append((np.array([e[0] for e in ends]), np.array([e[1] for e in ends])))
-        elif body["shape"] == "box":
-            bmin, bmax = rotated_box_bounds(body["min"], body["max"], body["angle"])
-            out.append((np.asarray(bmin, float), np.asarray(bmax, float)))
         else:
-            c, r = np.asarray(body["center"], float), float(body["radius"])
-            out.append((c - r, c + r))
+            bmin, bmax = body.bounds()
+            out.append((np.asarray(bmin, float), np.asarray(bmax, float)))
     return out
 
 
-def covered_patches(data: dict, size: int, exterior=None, stop: int | None = None) -> int:
+def covered_patches(spec: SceneSpec, size: int, exterior=None, stop: int | None = None) -> int:
     """Patches of ``size`` cells (clipped to the grid per axis) that the bodies' particles can lie
     in (:func:`_body_extents`); counting ends at ``stop`` when given."""
-    cells, origin, inv_h = _grid_frame(data, exterior)
-    psize = _clip(size, data["grid"]["cells"])
+    cells, origin, inv_h = _grid_frame(spec, exterior)
+    psize = _clip(size, spec.grid.cells)
     seen: set = set()
-    for bmin, bmax in _body_extents(data):
+    for bmin, bmax in _body_extents(spec):
         ranges = []
-        for k in range(data["dim"]):
+        for k in range(spec.dim):
             ends = []
             for x in (bmin[k], bmax[k]):
                 u = min(max((float(x) - origin[k]) * inv_h[k], 0.0), float(cells[k] - 1))
@@ -121,26 +118,25 @@ def covered_patches(data: dict, size: int, exterior=None, stop: int | None = Non
     return len(seen)
 
 
-def dense_patches(data: dict, size: int, exterior=None) -> int:
+def dense_patches(spec: SceneSpec, size: int, exterior=None) -> int:
     """Patches of ``size`` cells in the whole computational grid."""
-    cells, _, _ = _grid_frame(data, exterior)
-    return math.prod(-(-int(n) // p) for n, p in zip(cells, _clip(size, data["grid"]["cells"])))
+    cells, _, _ = _grid_frame(spec, exterior)
+    return math.prod(-(-int(n) // p) for n, p in zip(cells, _clip(size, spec.grid.cells)))
 
 
-def auto_patch_size(data: dict, ghost: int, exterior=None) -> list[int]:
+def auto_patch_size(spec: SceneSpec, ghost: int, exterior=None) -> list[int]:
     """The patch size of a resolved scene whose ``grid.patch_size`` is ``"auto"``, per axis: the
     default, halved while the bodies cover fewer than :data:`TARGET_PATCHES` patches and the
     half stays at or above :func:`floor_size` and indexes at most :data:`MAX_DENSE_PATCHES`;
     clipped to the cell count as an explicit size is. ``exterior``: the exterior layer's cells
     ``(lo, hi)`` (:func:`parmpm.transfer.discretisation.exterior_cells`). Depends on the scene only, never
     on the number of ranks."""
-    d = data["dim"]
-    size, floor = DEFAULT_PATCH_SIZE[d], floor_size(d, ghost)
+    size, floor = DEFAULT_PATCH_SIZE[spec.dim], floor_size(spec.dim, ghost)
     while (size // 2 >= floor
-           and covered_patches(data, size, exterior, stop=TARGET_PATCHES) < TARGET_PATCHES
-           and dense_patches(data, size // 2, exterior) <= MAX_DENSE_PATCHES):
+           and covered_patches(spec, size, exterior, stop=TARGET_PATCHES) < TARGET_PATCHES
+           and dense_patches(spec, size // 2, exterior) <= MAX_DENSE_PATCHES):
         size //= 2
-    return _clip(size, data["grid"]["cells"])
+    return _clip(size, spec.grid.cells)
 
 
 # ---------------------------------------------------------------- ranks without work

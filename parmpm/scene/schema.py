@@ -20,8 +20,6 @@ import math
 import re
 from typing import Any
 
-from parmpm.transfer.affine import AFFINE_TRANSFERS, APIC_INTERPOLATORS, TRANSFERS
-from parmpm.materials import MODELS, SOFTENING, lame
 from parmpm.output.metrics import metric_names, separation_kinds
 from parmpm.scene.bodies import (  # noqa: F401
     BODY_KEYS,
@@ -30,10 +28,13 @@ from parmpm.scene.bodies import (  # noqa: F401
     VIBRATION_KEYS,
     check_bodies,
 )
-from parmpm.scene.check import AXIS_NAMES, Checker, lcr_length, show
+from parmpm.scene.check import AXIS_NAMES, LCR_INTERPOLATORS, Checker, lcr_length, show
 from parmpm.scene.history import history
+from parmpm.scene.materials import DAMAGE_KEYS, MATERIAL_KEYS, check_materials  # noqa: F401
+from parmpm.scene.records import Body, Material, build
 from parmpm.scene.speed import check_speeds
 from parmpm.shapes import INTERPOLATORS
+from parmpm.transfer.affine import AFFINE_TRANSFERS, APIC_INTERPOLATORS, TRANSFERS
 from parmpm.transfer.update_order import UPDATES as _UPDATE_ORDERS
 
 DIMS = (1, 2, 3)
@@ -46,22 +47,20 @@ TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method
 GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost", "exterior")
 #: the widest grid.exterior layer: a support reaches at most the ghost width past a face
 MAX_EXTERIOR = 64
-MATERIAL_KEYS = ("model", "density", "youngs_modulus", "poisson_ratio", "damage")
-DAMAGE_KEYS = ("criterion", "onset", "fracture", "softening", "freeze")
 METHOD_KEYS = ("interpolator", "lcr", "update", "flip", "transfer")
 GRAVITY_KEYS = ("g", "ramp_time")
 DAMPING_KEYS = ("coefficient",)
 MANUFACTURED_KEYS = ("amplitude",)
 TIME_KEYS = ("end", "steps", "cfl", "dt_max", "max_energy_growth")
 OUTPUT_KEYS = ("every", "every_steps", "snapshots", "figure", "domains", "history")
+#: snapshots per run when the scene gives no schedule
+OUTPUT_ROWS = 20
 METRICS_KEYS = ("kind", "every_steps", "axis", "stop_on_separation", "grip")
 DECOMPOSITION_KEYS = ("rebalance_threshold", "rebalance_cooldown")
 CHECKPOINT_KEYS = ("every_steps", "every", "wall_minutes", "keep", "at_end", "ranks_per_file")
 
 DEFAULT_PATCH_SIZE = {1: 64, 2: 64, 3: 16}  # measured: see README "Throughput"
-DEFAULT_LCR = "2dx"
-#: the interpolators that cap their domains at ``method.lcr`` (default :data:`DEFAULT_LCR`)
-LCR_INTERPOLATORS = ("cpdi", "cpdi2")
+DEFAULT_LCR = "2dx"  # for the interpolators that cap their domains (LCR_INTERPOLATORS)
 
 # ---------------------------------------------------------------- sections
 
@@ -90,9 +89,10 @@ def resolve(raw: dict, where: str, default_name: str,
         "dim": dim,
     }
     out["grid"] = _grid(c, raw.get("grid", {}), dim)
-    out["materials"] = _materials(c, raw.get("materials", {}))
+    out["materials"] = check_materials(c, raw.get("materials", {}))
     out["bodies"] = check_bodies(c, raw.get("bodies", []), dim, out["grid"], out["materials"])
-    check_speeds(c, out["bodies"], out["materials"])  # a speed whose energy overflows
+    check_speeds(c, [build(Body, b) for b in out["bodies"]],  # an energy that overflows
+                 {n: build(Material, m) for n, m in out["materials"].items()})
     min_dx = min(out["grid"]["cell_size"])
     # an l_cr past the grid caps nothing, and its ghost width must still be allocated
     max_cells = max(max(out["grid"]["cells"]), MAX_EXTERIOR)
@@ -107,8 +107,14 @@ def resolve(raw: dict, where: str, default_name: str,
     out["time"] = _time(c, raw.get("time", {}))
     out["output"] = _output(c, raw.get("output", {}), out)
     out["metrics"] = _metrics(c, raw.get("metrics", {}), dim, out["bodies"])
-    dec = c.table("decomposition", raw.get("decomposition", {}), DECOMPOSITION_KEYS)
-    out["decomposition"] = {
+    out["decomposition"] = _decomposition(c, raw.get("decomposition", {}))
+    out["checkpoint"] = _checkpoint(c, raw.get("checkpoint", {}))
+    return out
+
+
+def _decomposition(c: Checker, raw: Any) -> dict:
+    dec = c.table("decomposition", raw, DECOMPOSITION_KEYS)
+    return {
         "rebalance_threshold": c.number("decomposition.rebalance_threshold",
                                         dec.get("rebalance_threshold", 0.1),
                                         "a number >= 0 (max/mean - 1 of particles per rank)",
@@ -117,8 +123,11 @@ def resolve(raw: dict, where: str, default_name: str,
                                         dec.get("rebalance_cooldown", 50), "an integer >= 1",
                                         lambda n: n >= 1),
     }
-    ck = c.table("checkpoint", raw.get("checkpoint", {}), CHECKPOINT_KEYS)
-    out["checkpoint"] = {
+
+
+def _checkpoint(c: Checker, raw: Any) -> dict:
+    ck = c.table("checkpoint", raw, CHECKPOINT_KEYS)
+    return {
         "every_steps": None if ck.get("every_steps") is None else c.integer(
             "checkpoint.every_steps", ck["every_steps"], "an integer >= 1", lambda n: n >= 1),
         "every": None if ck.get("every") is None else c.number(
@@ -132,7 +141,6 @@ def resolve(raw: dict, where: str, default_name: str,
         == "auto" else c.integer("checkpoint.ranks_per_file", ck["ranks_per_file"],
                                  '"auto" or an integer >= 1', lambda n: n >= 1),
     }
-    return out
 
 
 def _grid(c: Checker, raw: Any, dim: int) -> dict:
@@ -170,65 +178,6 @@ def _grid(c: Checker, raw: Any, dim: int) -> dict:
     return {"origin": origin, "cell_size": cell_size, "cells": cells,
             "patch_size": patch, "ghost": ghost,
             "exterior": exterior}
-
-
-def _materials(c: Checker, raw: Any) -> dict:
-    if not isinstance(raw, dict) or not raw:
-        c.expected("materials", "at least one [materials.NAME] table", raw)
-    out = {}
-    for name, spec in raw.items():
-        key = f"materials.{name}"
-        t = c.table(key, spec, MATERIAL_KEYS)
-        model = c.choice(f"{key}.model", c.required(key, t, "model", " or ".join(f'"{m}"' for m in MODELS)),
-                         tuple(MODELS))
-        out[name] = {
-            "model": model,
-            "density": c.number(f"{key}.density", c.required(key, t, "density", "a number > 0"),
-                                "a number > 0 (kg/m^dim)", lambda x: x > 0),
-            "youngs_modulus": c.number(
-                f"{key}.youngs_modulus", c.required(key, t, "youngs_modulus", "a number > 0"),
-                "a number > 0 (Pa)", lambda x: x > 0),
-            "poisson_ratio": c.number(
-                f"{key}.poisson_ratio", c.required(key, t, "poisson_ratio", "-1 < nu < 0.5"),
-                "a number with -1 < nu < 0.5", lambda x: -1 < x < 0.5),
-        }
-        m = out[name]
-        lam, mu = lame(m["youngs_modulus"], m["poisson_ratio"])
-        c2 = (lam + 2 * mu) / m["density"]
-        if not (math.isfinite(c2) and c2 > 0 and math.isfinite(1 / m["density"])
-                and mu > 0 and math.isfinite(lam)):
-            c.fail(key, f"youngs_modulus {m['youngs_modulus']:g} Pa, poisson_ratio "
-                        f"{m['poisson_ratio']:g} and density {m['density']:g} give a wave speed "
-                        f"squared of {c2:g} m^2/s^2 (Lame constants {lam:g}, {mu:g}); expected a "
-                        "positive, finite wave speed (moduli and density of normal magnitude)")
-        if t.get("damage") is not None:
-            out[name]["damage"] = _damage(c, f"{key}.damage", t["damage"])
-    return out
-
-
-def _freeze(c: Checker, key: str, value: Any) -> float | str:
-    """The damage at which a CPDI domain freezes: 0 < D <= 1, or "never" (kept as the word, so
-    the resolved scene reads back; the material table stores it as 2, a damage never reached)."""
-    if value == "never":
-        return "never"
-    return c.number(key, value, 'a damage 0 < D <= 1 or "never"', lambda x: 0.0 < x <= 1.0)
-
-
-def _damage(c: Checker, key: str, raw: Any) -> dict:
-    """``[materials.NAME.damage]``: the stretch-driven damage of :mod:`parmpm.materials.damage`."""
-    t = c.table(key, raw, DAMAGE_KEYS)
-    onset = c.number(f"{key}.onset", c.required(key, t, "onset", "a stretch >= 1"),
-                     "a stretch >= 1 (largest principal stretch where damage starts)",
-                     lambda x: x >= 1.0)
-    return {
-        "criterion": c.choice(f"{key}.criterion", t.get("criterion", "max_principal_stretch"),
-                              ("max_principal_stretch",)),
-        "onset": onset,
-        "fracture": c.number(f"{key}.fracture", c.required(key, t, "fracture", f"a stretch > {onset}"),
-                             f"a stretch > onset ({onset:g})", lambda x: x > onset),
-        "softening": c.choice(f"{key}.softening", t.get("softening", "linear"), tuple(SOFTENING)),
-        "freeze": _freeze(c, f"{key}.freeze", t.get("freeze", 1.0)),
-    }
 
 
 def _method(c: Checker, raw: Any, min_dx: float, max_cells: float = math.inf) -> dict:
@@ -361,17 +310,7 @@ def _energy_limit(c: Checker, value: Any) -> float | str:
 def _output(c: Checker, raw: Any, scene: dict) -> dict:
     t = c.table("output", raw, OUTPUT_KEYS)
     time = scene["time"]
-    every, every_steps = t.get("every"), t.get("every_steps")
-    if every is not None:
-        every = c.number("output.every", every, "a number > 0 (s)", lambda x: x > 0)
-    if every_steps is not None:
-        every_steps = c.integer("output.every_steps", every_steps, "an integer > 0",
-                                lambda n: n > 0)
-    if every is None and every_steps is None:
-        if time["steps"] is not None:
-            every_steps = max(1, time["steps"] // 20)
-        else:
-            every = time["end"] / 20
+    every, every_steps = c.schedule("output", t, time, OUTPUT_ROWS)
     return {
         "every": every,
         "every_steps": every_steps,

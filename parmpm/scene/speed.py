@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 
-from parmpm.geometry.primitives import body_bounds
 from parmpm.scene.check import Checker, show
 
 #: the largest kinetic energy a body may start with (J, or J per m^(3 - dim)): far below the
@@ -22,8 +21,8 @@ MAX_KINETIC_ENERGY = 1e300
 
 def _norm(values) -> float:
     """Euclidean norm that overflows to inf, never raises."""
-    values = values if isinstance(values, list) else [values]
-    flat = [abs(v) for row in values for v in (row if isinstance(row, list) else [row])]
+    values = values if isinstance(values, tuple) else (values,)
+    flat = [abs(v) for row in values for v in (row if isinstance(row, tuple) else (row,))]
     top = max(flat, default=0.0)
     if top == 0.0 or not math.isfinite(top):
         return top
@@ -32,26 +31,27 @@ def _norm(values) -> float:
 
 def check_speeds(c: Checker, bodies: list, materials: dict) -> None:
     """Refuse a body whose initial speed gives a kinetic energy past :data:`MAX_KINETIC_ENERGY`
-    (or one that overflows), naming the key that contributes most to the speed."""
+    (or one that overflows), naming the key that contributes most to the speed. ``bodies``,
+    ``materials``: their records (:mod:`parmpm.scene.records`)."""
     for k, body in enumerate(bodies):
-        lo, hi = body_bounds(body)
-        reach = 0.5 * _norm([b - a for a, b in zip(lo, hi)])  # centre to a corner
+        lo, hi = body.bounds()
+        reach = 0.5 * _norm(tuple(b - a for a, b in zip(lo, hi)))  # centre to a corner
         volume = math.prod(b - a for a, b in zip(lo, hi))
-        terms = {"velocity": _norm(body["velocity"])}
-        if body.get("angular_velocity") is not None:
-            terms["angular_velocity"] = _norm(body["angular_velocity"]) * reach
-        if body.get("velocity_gradient") is not None:
-            terms["velocity_gradient"] = _norm(body["velocity_gradient"]) * reach
-        if body.get("vibration") is not None:
-            terms["vibration.amplitude"] = abs(body["vibration"]["amplitude"])
+        terms = {"velocity": _norm(body.velocity)}
+        if body.angular_velocity is not None:
+            terms["angular_velocity"] = _norm(body.angular_velocity) * reach
+        if body.velocity_gradient is not None:
+            terms["velocity_gradient"] = _norm(body.velocity_gradient) * reach
+        if body.vibration is not None:
+            terms["vibration.amplitude"] = abs(body.vibration.amplitude)
         speed = sum(terms.values())
-        rho = materials[body["material"]]["density"]
+        rho = materials[body.material].density
         energy = 0.5 * rho * speed * speed * volume if math.isfinite(speed) else math.inf
         if math.isfinite(energy) and energy <= MAX_KINETIC_ENERGY:
             continue
         name = max(terms, key=lambda t: terms[t])
         key = f"bodies.{k}.{name}"
-        value = body[name] if name in body else body["vibration"]["amplitude"]
+        value = body.vibration.amplitude if name == "vibration.amplitude" else getattr(body, name)
         c.fail(key, f"{show(value)} gives body {k} (density {rho:g}) a speed of up to "
                     f"{speed:g} m/s and a kinetic energy of {energy:g} J, more than double "
                     f"precision can sum over a run (at most {MAX_KINETIC_ENERGY:g} J); expected "

@@ -9,7 +9,6 @@ import numpy as np
 from decomposition import PatchLayout
 from parmpm.core.records import kernel_lcr
 from parmpm.transfer.kernels2d.cells import usable_cells
-from parmpm.geometry.primitives import rotated_box_bounds
 
 
 @dataclass
@@ -48,16 +47,17 @@ class Discretisation:
         self.set_patches(np.arange(self.layout.n_patches))
 
     @classmethod
-    def from_grid(cls, dim: int, method: int, lcr: float | None, grid: dict, ghost: int,
+    def from_grid(cls, dim: int, method: int, lcr: float | None, grid, ghost: int,
                   exterior: tuple[np.ndarray, np.ndarray] | None = None) -> Discretisation:
-        """The discretisation of a resolved ``[grid]`` table with ``ghost`` ghost cells and an
-        exterior layer of ``exterior = (lo, hi)`` cells per axis (None: none): the patch layout
-        covers ``cells + lo + hi`` cells from ``origin − lo·Δx``."""
-        h = np.asarray(grid["cell_size"], float)
+        """The discretisation of a scene's grid (its record, ``scene.spec.grid``, with an
+        explicit ``patch_size``) with ``ghost`` ghost cells and an exterior layer of
+        ``exterior = (lo, hi)`` cells per axis (None: none): the patch layout covers
+        ``cells + lo + hi`` cells from ``origin − lo·Δx``."""
+        h = np.asarray(grid.cell_size, float)
         lo, hi = (np.zeros(dim, np.int64),) * 2 if exterior is None else exterior
-        cells = np.asarray(grid["cells"], np.int64) + lo + hi
-        layout = PatchLayout(tuple(int(c) for c in cells), tuple(grid["patch_size"]), int(ghost))
-        return cls(dim, method, lcr, np.asarray(grid["origin"], float) - lo * h, h, layout, lo, hi)
+        cells = np.asarray(grid.cells, np.int64) + lo + hi
+        layout = PatchLayout(tuple(int(c) for c in cells), tuple(grid.patch_size), int(ghost))
+        return cls(dim, method, lcr, np.asarray(grid.origin, float) - lo * h, h, layout, lo, hi)
 
     def with_patch_size(self, size: int) -> Discretisation:
         """The same grid cut into patches of ``size`` cells per axis, clipped to the user's cell
@@ -85,29 +85,23 @@ class Discretisation:
         self.jlo, self.jhi = usable_cells(self.base, self.nloc, self.nglob)
 
 
-def exterior_cells(data: dict, ghost: int) -> tuple[np.ndarray, np.ndarray]:
-    """Cells of the exterior layer below and above each axis of a resolved scene: ``grid.exterior``
+def exterior_cells(grid, bodies, ghost: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cells of the exterior layer below and above each axis of a scene's ``grid`` and
+    ``bodies`` (their records, ``scene.spec.grid`` and ``scene.spec.bodies``): ``grid.exterior``
     cells on every face when it is an integer; with ``"auto"``, ``ghost`` cells (the width of the
     ghost layer, i.e. the interpolator's reach: 0 for mpm, whose support never leaves the grid)
     on each face that a body's bounding box comes within one cell of, and none elsewhere, so a
     scene whose bodies start away from the faces runs bit for bit as without a layer."""
-    grid, d = data["grid"], data["dim"]
-    ext = grid.get("exterior", "auto")
-    if ext != "auto":
-        n = np.full(d, int(ext), np.int64)
+    d = len(grid.cells)
+    if grid.exterior != "auto":
+        n = np.full(d, int(grid.exterior), np.int64)
         return n, n.copy()
-    h = np.asarray(grid["cell_size"], float)
-    glo = np.asarray(grid["origin"], float)
-    ghi = glo + h * np.asarray(grid["cells"])
+    h = np.asarray(grid.cell_size, float)
+    glo = np.asarray(grid.origin, float)
+    ghi = glo + h * np.asarray(grid.cells)
     lo, hi = np.zeros(d, np.int64), np.zeros(d, np.int64)
-    for body in data["bodies"]:
-        if body["shape"] == "box":
-            bmin, bmax = body["min"], body["max"]
-            if body.get("angle"):
-                bmin, bmax = rotated_box_bounds(bmin, bmax, body["angle"])
-        else:
-            bmin = [c - body["radius"] for c in body["center"]]
-            bmax = [c + body["radius"] for c in body["center"]]
+    for body in bodies:
+        bmin, bmax = body.bounds()
         near = 1.0 - 1e-9  # within one cell: a support at the body's edge can reach the face
         lo[(np.asarray(bmin) - glo) / h < near] = ghost
         hi[(ghi - np.asarray(bmax)) / h < near] = ghost

@@ -12,20 +12,20 @@ kind's module when a run builds its metrics. The kinds, one module each:
 * :mod:`.rotation`: a spinning body (domain size, stress, energy).
 
 Beside them: :mod:`.separation` (numerical fracture: connected pieces of material),
-:mod:`.sums` (ordered per-patch sums), :mod:`.common` (reading the bar from the resolved scene,
+:mod:`.sums` (ordered per-patch sums), :mod:`.common` (reading the bar from the scene's records,
 the history base class).
 
-A metrics object is built once, from the resolved scene and, collectively, each rank's own
-particles (reference positions ``x0``, masses, global ids): what it needs of the whole body (a
-bar's extent, its tip particles, its mass) comes from reductions over the ranks, so no rank holds
-another's particles. The run loop samples it every ``metrics.every_steps`` steps: each rank
-computes ``terms(gid, x, v, F, t=, particles=, method=, lcr=)`` for its own particles
-(per-particle addends and local maxima, from the particle store's reference fields; the keyword
-context serves metrics that need time or particle domains); the run driver sums the addends patch
-by patch and the patches in id order (the same rounding on any number of ranks), takes the maxima
-over ranks, and passes the totals to ``record``. Built without a communicator from arrays of all
-particles (one process), ``sample`` does both for arrays in global-id order (the same order as
-``x0``).
+A metrics object is built once, from the scene's records (``scene.spec``) and, collectively,
+each rank's own particles (reference positions ``x0``, masses, global ids): what it needs of the
+whole body (a bar's extent, its tip particles, its mass) comes from reductions over the ranks, so
+no rank holds another's particles. The run loop samples it every ``metrics.every_steps``
+steps: each rank computes ``terms(gid, x, v, F, t=, particles=, method=, lcr=)`` for its own
+particles (per-particle addends and local maxima, from the particle store's reference fields;
+the keyword context serves metrics that need time or particle domains); the run driver sums the
+addends patch by patch and the patches in id order (the same rounding on any number of ranks),
+takes the maxima over ranks, and passes the totals to ``record``. Built without a communicator
+from arrays of all particles (one process), ``sample`` does both for arrays in global-id order
+(the same order as ``x0``).
 
 To add a kind: a module beside :mod:`.rotation` with a class decorated
 ``@register_metrics("kind")``, and a :class:`MetricKind` entry below.
@@ -100,17 +100,18 @@ def register_metrics(kind: str):
     return deco
 
 
-def make_metrics(scene_data: dict, x0, mass, comm=None, gid=None):
-    """The metrics object of the resolved scene's ``metrics.kind``, or None for ``"none"``.
+def make_metrics(spec, x0, mass, comm=None, gid=None):
+    """The metrics object of the scene's ``metrics.kind`` (``spec``: the scene's records,
+    ``scene.spec``), or None for ``"none"``.
     ``x0``, ``mass``: reference positions and masses of this rank's particles (global ids
     ``gid``) under ``comm`` (collective), or of every particle without it (one process)."""
-    kind = scene_data["metrics"]["kind"]
+    kind = spec.metrics.kind
     if kind == NO_METRICS:
         return None
     if kind not in METRIC_KINDS:
         raise SceneError(f"unknown metrics kind {kind!r} "
                          f"(known: none, {', '.join(sorted(METRIC_KINDS))})")
-    return METRIC_KINDS[kind].load()(scene_data, x0, mass, comm, gid)
+    return METRIC_KINDS[kind].load()(spec, x0, mass, comm, gid)
 
 
 _LAZY = {"patch_sums": "sums", "count_components": "separation",

@@ -52,17 +52,17 @@ class HangingBarMetrics(History):
     _STATE = ("separation_time", "stretch_at_separation", "max_stretch", "max_tip",
               "max_components", "turns")
 
-    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
-        self.dim = int(scene_data["dim"])
+    def __init__(self, spec, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
+        self.dim = int(spec.dim)
         x0, mass, gid = self._own(x0, mass, comm, gid)
-        g = gravity(scene_data)
-        self.axis = int(scene_data["metrics"]["axis"])
+        g = gravity(spec)
+        self.axis = int(spec.metrics.axis)
         self.g = math.hypot(*g)  # no overflow warning for an absurd g
         down = g[self.axis]
         self.up_sign = -1.0 if down > 0 else 1.0  # displacement · up_sign < 0 means downward
 
-        body = scene_data["bodies"][0]
-        self.bar_box = bar_box(scene_data, body)
+        body = spec.bodies[0]
+        self.bar_box = bar_box(spec, body)
         bar = in_bar(self.bar_box, x0)
         xa = x0[:, self.axis]
         lo3, hi3 = glb_bounds(comm, x0[bar])  # the bar's extent per axis, over every rank
@@ -89,7 +89,7 @@ class HangingBarMetrics(History):
         self.exact_static_elongation = None
         self.exact_static_tip_displacement = None
         if self.dim == 1:
-            model, E, nu, rho = material_constants(bar_material(scene_data, body))
+            model, E, nu, rho = material_constants(bar_material(spec, body))
             try:
                 law = nominal_stress_1d(model, E, nu)
                 exact = hanging_bar_static(self.L, rho, self.g, law)
@@ -261,24 +261,24 @@ class VibratingBarMetrics(History):
     _TRACE = ("times", "com_velocity", "com_velocity_exact")
     _STATE = ("sq_error", "sq_exact", "max_abs_error")
 
-    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
-        self.dim = int(scene_data["dim"])
+    def __init__(self, spec, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
+        self.dim = int(spec.dim)
         x0, mass, gid = self._own(x0, mass, comm, gid)
-        body = scene_data["bodies"][0]
-        vib = body["vibration"]
+        body = spec.bodies[0]
+        vib = body.vibration
         if not vib:
             raise SceneError("vibrating_bar metrics need body 0's 'vibration' table")
-        self.v0 = float(vib["amplitude"])
-        self.mode = int(vib["mode"])
-        self.axis = int(vib["axis"])
+        self.v0 = float(vib.amplitude)
+        self.mode = int(vib.mode)
+        self.axis = int(vib.axis)
         lo, hi = bar_span(body, x0, self.axis, comm)
         self.L = hi - lo
-        _, E, nu, self.rho = material_constants(bar_material(scene_data, body))
+        _, E, nu, self.rho = material_constants(bar_material(spec, body))
         lam, mu = lame_parameters(E, nu)
         self.modulus = {1: lam + 2.0 * mu, 2: E / (1.0 - nu * nu)}.get(self.dim, E)
         _, omega, _ = mode_constants(self.L, self.modulus, self.rho, self.mode)
         self.period = 2.0 * math.pi / omega
-        self.bar_box = bar_box(scene_data, body)
+        self.bar_box = bar_box(spec, body)
         bar = in_bar(self.bar_box, x0)
         # Σ m over the bar in global-id order, as one process holding every particle sums it
         self.bar_mass = gid_order_sum(comm, gid[bar], mass[bar])

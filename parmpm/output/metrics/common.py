@@ -1,6 +1,6 @@
-"""What the metrics classes share: reading the bar (body 0) from the *resolved* scene
-(:func:`parmpm.scene.schema.resolve`: every key present, materials keyed by name, per-axis
-values as lists of ``dim`` numbers), the collective reductions a metric is built with (what one
+"""What the metrics classes share: reading the bar (body 0) from the scene's records
+(``scene.spec``, :mod:`parmpm.scene.records`: every field present, materials keyed by name,
+per-axis values as tuples of ``dim`` numbers), the collective reductions a metric is built with (what one
 rank holds reduced over all: bounds, distinct values, a few rows gathered) and the history base
 class :class:`History`.
 """
@@ -18,23 +18,22 @@ from parmpm.output.metrics.trace import Trace
 logger = logging.getLogger(__name__)
 
 
-def bar_material(scene_data: dict, body: dict) -> dict:
-    """The material table of ``body`` (bodies name their material)."""
-    return scene_data["materials"][body["material"]]
+def bar_material(spec, body):
+    """The material record of ``body`` (bodies name their material)."""
+    return spec.materials[body.material]
 
 
-def material_constants(mat: dict) -> tuple[str, float, float, float]:
-    """``(model, E, nu, density)`` of a material table."""
-    return (mat["model"], float(mat["youngs_modulus"]), float(mat["poisson_ratio"]),
-            float(mat["density"]))
+def material_constants(mat) -> tuple[str, float, float, float]:
+    """``(model, E, nu, density)`` of a material record."""
+    return (mat.model, float(mat.youngs_modulus), float(mat.poisson_ratio), float(mat.density))
 
 
-def body_box(body: dict):
+def body_box(body):
     """``(min, max)`` arrays of a box body, or None for a disk or sphere (a turned box gives its
     unturned bounds)."""
-    if body["shape"] != "box":
+    if body.shape != "box":
         return None
-    return np.asarray(body["min"], dtype=float), np.asarray(body["max"], dtype=float)
+    return np.asarray(body.min, dtype=float), np.asarray(body.max, dtype=float)
 
 
 def lattice_span(coord: np.ndarray, comm=None) -> tuple[float, float]:
@@ -50,7 +49,7 @@ def lattice_span(coord: np.ndarray, comm=None) -> tuple[float, float]:
     return float(u[0] - 0.5 * spacing), float(u[-1] + 0.5 * spacing)
 
 
-def bar_span(body: dict, x0: np.ndarray, axis: int, comm=None) -> tuple[float, float]:
+def bar_span(body, x0: np.ndarray, axis: int, comm=None) -> tuple[float, float]:
     """``(lo, hi)`` of body 0 along ``axis``: its box, else the particle lattice (``x0``: this
     rank's particles; collective when ``comm`` is)."""
     box = body_box(body)
@@ -61,10 +60,10 @@ def bar_span(body: dict, x0: np.ndarray, axis: int, comm=None) -> tuple[float, f
     return span
 
 
-def bar_box(scene_data: dict, body: dict):
+def bar_box(spec, body):
     """What :func:`in_bar` tests: None (every particle is the bar's: a one-body scene, or
     body 0 is not a box) or ``(min, max, tol)`` of body 0's box."""
-    if len(scene_data["bodies"]) <= 1:
+    if len(spec.bodies) <= 1:
         return None
     box = body_box(body)
     if box is None:
@@ -83,9 +82,9 @@ def in_bar(box, x0: np.ndarray) -> np.ndarray:
     return np.all((x0 >= lo - tol) & (x0 <= hi + tol), axis=1)
 
 
-def bar_mask(scene_data: dict, body: dict, x0: np.ndarray) -> np.ndarray:
+def bar_mask(spec, body, x0: np.ndarray) -> np.ndarray:
     """Particles of body 0: all of them in a one-body scene, else those inside body 0's box."""
-    return in_bar(bar_box(scene_data, body), x0)
+    return in_bar(bar_box(spec, body), x0)
 
 
 # --- collective reductions of what one rank holds (comm None or one rank: local) -------------
@@ -122,9 +121,9 @@ def gather_rows(comm, gid: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np
     return gid[order], rows[order]
 
 
-def gravity(scene_data: dict) -> np.ndarray:
+def gravity(spec) -> np.ndarray:
     """The gravity vector ``gravity.g``."""
-    return np.asarray(scene_data["gravity"]["g"], dtype=float)
+    return np.asarray(spec.gravity.g, dtype=float)
 
 
 def as_points(a, n: int, dim: int) -> np.ndarray:

@@ -25,15 +25,15 @@ class ManufacturedMetrics(History):
     _TRACE = ("times", "rms", "linf")
     _STATE = ("rms_max", "linf_max")
 
-    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
-        self.dim = int(scene_data["dim"])
+    def __init__(self, spec, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
+        self.dim = int(spec.dim)
         self._own(x0, mass, comm, gid)  # nothing of the particles is needed beyond sampling
-        man = scene_data.get("manufactured")
+        man = spec.manufactured
         if not man:
             raise SceneError('metrics.kind = "manufactured" needs a [manufactured] table')
-        mat = next(iter(scene_data["materials"].values()))
-        self.A = float(man["amplitude"])
-        self.c = math.sqrt(mat["youngs_modulus"] / mat["density"])
+        mat = next(iter(spec.materials.values()))
+        self.A = float(man.amplitude)
+        self.c = math.sqrt(mat.youngs_modulus / mat.density)
         self.period = 2.0 / self.c
         self._begin()
         self.rms_max = self.linf_max = math.nan  # nanmax over the samples

@@ -35,19 +35,19 @@ class RotationMetrics(History):
     _TRACE = ("times", "area_ratio", "min_area_ratio", "stress_ratio", "energy", "momentum")
     _STATE = ("area_ratio_min", "min_area_ratio_min", "stress_ratio_max", "first", "last")
 
-    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
-        self.dim = int(scene_data["dim"])
+    def __init__(self, spec, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
+        self.dim = int(spec.dim)
         if self.dim != 2:
             raise SceneError('metrics.kind = "rotation" is for 2D scenes')
-        body = scene_data["bodies"][0]
-        if not body.get("angular_velocity"):  # none, or 0: nothing spins to measure against
+        body = spec.bodies[0]
+        if not body.angular_velocity:  # none, or 0: nothing spins to measure against
             raise SceneError('metrics.kind = "rotation" needs a nonzero bodies.0.angular_velocity'
-                             f' (got {body.get("angular_velocity")!r}; or set metrics.kind = "none")')
-        self.omega = float(body["angular_velocity"])
-        self.centre = (np.asarray(body["center"], float) if body["shape"] != "box" else
-                       0.5 * (np.asarray(body["min"], float) + np.asarray(body["max"], float)))
+                             f' (got {body.angular_velocity!r}; or set metrics.kind = "none")')
+        self.omega = float(body.angular_velocity)
+        self.centre = (np.asarray(body.center, float) if body.shape != "box" else
+                       0.5 * (np.asarray(body.min, float) + np.asarray(body.max, float)))
         x0, _, _ = self._own(x0, mass, comm, gid)
-        rho = scene_data["materials"][body["material"]]["density"]
+        rho = spec.materials[body.material].density
         # the largest distance of a particle from the centre, over every rank (exact)
         radius = float(np.sqrt(glb_max(comm, np.max(np.sum((x0 - self.centre) ** 2, axis=1),
                                                      initial=-np.inf))))

@@ -17,6 +17,7 @@ other's). Grip particles are those whose reference position lies in a grip's (tu
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 
 import numpy as np
@@ -33,10 +34,10 @@ logger = logging.getLogger(__name__)
 FULL = 1.0 - 1e-9  # damage counted as complete failure
 
 
-def _box_frame(body: dict, dim: int):
-    """(centre, axes as rows, half-lengths) of a (possibly turned) box body."""
-    lo, hi = np.asarray(body["min"], float), np.asarray(body["max"], float)
-    axes = turn(dim, body["angle"]).T if body.get("angle") else np.eye(dim)  # rows: its edges
+def _box_frame(body, dim: int):
+    """(centre, axes as rows, half-lengths) of a (possibly turned) box body (its record)."""
+    lo, hi = np.asarray(body.min, float), np.asarray(body.max, float)
+    axes = turn(dim, body.angle).T if body.angle else np.eye(dim)  # rows: its edges
     return 0.5 * (lo + hi), axes, 0.5 * (hi - lo)
 
 
@@ -51,24 +52,33 @@ def _project(x0: np.ndarray, origin: np.ndarray, axes: np.ndarray) -> np.ndarray
     return out
 
 
-def _inside(body: dict, dim: int, x0: np.ndarray) -> np.ndarray:
+def _inside(body, dim: int, x0: np.ndarray) -> np.ndarray:
     centre, axes, half = _box_frame(body, dim)
     local = _project(x0, centre, axes)
     return np.all(np.abs(local) <= half * (1 + 1e-9) + 1e-12, axis=1)
 
 
-def _extent(body: dict, dim: int, e: np.ndarray) -> float:
+def _extent(body, dim: int, e: np.ndarray) -> float:
     """Half-length of a box body along the unit vector ``e``."""
     _, axes, half = _box_frame(body, dim)
     return float(np.sum(np.abs(axes @ e) * half))
 
 
-def _section(body: dict, dim: int, e: np.ndarray) -> float:
+def _section(body, dim: int, e: np.ndarray) -> float:
     """Reference cross-section of a box body across ``e``: the product of its other edges
     (per unit thickness in 2D, 1 in 1D)."""
     _, axes, half = _box_frame(body, dim)
     along = int(np.argmax(np.abs(axes @ e)))
     return float(np.prod([2.0 * half[k] for k in range(dim) if k != along]))
+
+
+def _segment(body, material, dim: int, e: np.ndarray) -> dict:
+    """A bar segment as :func:`parmpm.exact.tension.tension_failure` reads it: its length along
+    ``e`` and its material's law and damage table."""
+    damage = material.damage
+    return {"length": 2.0 * _extent(body, dim, e), "model": material.model,
+            "E": material.youngs_modulus, "nu": material.poisson_ratio,
+            "damage": None if damage is None else dataclasses.asdict(damage)}
 
 
 @register_metrics("tension_bar")
@@ -81,12 +91,12 @@ class TensionBarMetrics(History):
               "separation_time", "stretch_at_separation", "crack_position", "crack_range",
               "max_stretch", "max_damage", "max_components")
 
-    def __init__(self, scene_data: dict, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
-        self.dim = d = int(scene_data["dim"])
+    def __init__(self, spec, x0: np.ndarray, mass: np.ndarray, comm=None, gid=None):
+        self.dim = d = int(spec.dim)
         self._own(x0, mass, comm, gid)  # the grips and the bar are told from x0 when sampling
-        grip = scene_data["metrics"]["grip"]
-        bodies = scene_data["bodies"]
-        grips = [b for b in bodies if b["material"] == grip]
+        grip = spec.metrics.grip
+        bodies = spec.bodies
+        grips = [b for b in bodies if b.material == grip]
         if len(grips) != 2:
             raise SceneError(f"tension_bar metrics need two bodies of material {grip!r}")
         self.grips = grips  # their boxes tell a particle's part from its x0 (_parts)
@@ -94,17 +104,13 @@ class TensionBarMetrics(History):
         axis = cB - cA
         self.e = axis / np.linalg.norm(axis)
         # the bar's reference cross-section (plane strain: per unit thickness; 1D: 1)
-        self.area0 = _section(next(b for b in bodies if b["material"] != grip), d, self.e)
+        self.area0 = _section(next(b for b in bodies if b.material != grip), d, self.e)
         self.mid = 0.5 * (cA + cB)
         self.h = _extent(grips[0], d, self.e) + _extent(grips[1], d, self.e)
         self.L0 = float(np.linalg.norm(axis)) - self.h
 
-        materials = scene_data["materials"]
-        bar_bodies = [b for b in bodies if b["material"] != grip]
-        segments = [{"length": 2.0 * _extent(b, d, self.e), "model": materials[b["material"]]["model"],
-                     "E": materials[b["material"]]["youngs_modulus"],
-                     "nu": materials[b["material"]]["poisson_ratio"],
-                     "damage": materials[b["material"]].get("damage")} for b in bar_bodies]
+        bar_bodies = [b for b in bodies if b.material != grip]
+        segments = [_segment(b, spec.materials[b.material], d, self.e) for b in bar_bodies]
         self.predicted = self.allowance = self.weak_position = self.weak_halfwidth = None
         try:
             pred = tension_failure(segments, d)
@@ -116,7 +122,7 @@ class TensionBarMetrics(History):
             weak = bar_bodies[pred["weakest"]]
             self.weak_position = float((_box_frame(weak, d)[0] - self.mid) @ self.e)
             self.weak_halfwidth = _extent(weak, d, self.e)
-            cell = float(min(scene_data["grid"]["cell_size"]))
+            cell = float(min(spec.grid.cell_size))
             self.allowance = opening_allowance(segments, pred["weakest"], cell)
 
         self._begin()

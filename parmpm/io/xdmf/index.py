@@ -21,7 +21,7 @@ import tempfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
-from parmpm.io.xdmf_layout import uniform_grid
+from parmpm.io.xdmf.layout import uniform_grid
 
 #: the collections in file order (meshio's ``TimeSeriesReader`` reads the last one)
 COLLECTIONS = ("domains", "particles")

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from parmpm.core.errors import ParmpmError
-from parmpm.io.xdmf_layout import CELL_TYPES, FORMAT
+from parmpm.io.xdmf.layout import CELL_TYPES, FORMAT
 
 __all__ = ["load_snapshots", "Snapshots", "FieldSeries"]
 
@@ -36,7 +36,7 @@ _MESHIO_CELLS = {1: "line", 2: "quad", 3: "hexahedron"}
 
 
 def natural_shape(a: np.ndarray, shape) -> np.ndarray:
-    """Undo the writer's padding (:func:`parmpm.io.xdmf.pad_point_data`): ``a`` as stored,
+    """Undo the writer's padding (:func:`parmpm.io.xdmf.layout.pad_point_data`): ``a`` as stored,
     ``shape`` the per-particle shape it was given (the dataset's ``shape`` attribute)."""
     shape = tuple(int(s) for s in shape)
     if a.shape[1:] == shape:

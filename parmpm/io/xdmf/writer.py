@@ -1,74 +1,16 @@
-"""Particle snapshots: XDMF 3 XML + HDF5 (h5py), for ParaView, VTK, meshio and plain numpy.
-
-``<name>.h5`` (next to ``<name>.xdmf``) holds one group per snapshot, named by the run's step::
-
-    /                           attrs: format, format_version, dim, fields (JSON: units, description)
-    /step_00000120/             attrs: time, step, index (0, 1, ... in the order written)
-        x             (N, 3)    positions, zero-padded to 3 columns (the XDMF geometry)
-        velocity      (N, 3)    per-axis vectors padded to 3 columns (a scalar in 1D)
-        stress, F     (N, 9)    tensors, row-major 3×3, zero-padded (a scalar in 1D)
-        volume, ...   (N,)      scalars; integer ids stay integers (gid int64, rank int32)
-        domains       (N·c, 3)  the c corners of every particle's domain, in VTK/XDMF node order
-    /connectivity/<cell>_<N>    (N, c) int64: node numbers of the cells (shared by every step)
-    /history/<column>           the run's history table (:meth:`SnapshotWriter.write_table`)
-
-Every dataset carries ``units``, ``description`` and ``shape`` (the per-particle shape before
-padding, which :func:`parmpm.io.snapshot_reader.load_snapshots` restores). Fields are whatever
-the caller hands :meth:`SnapshotWriter.write`; a run's are :mod:`parmpm.driver.snapshot_fields`.
-
-The XML index (``<name>.xdmf``) holds two temporal collections under one ``Domain``, so ParaView
-shows two blocks: ``domains`` (one uniform grid per snapshot: the domains as cells — ``Polyline``
-of 2 nodes in 1D, ``Quadrilateral`` in 2D, ``Hexahedron`` in 3D — carrying every particle field
-as cell data, by reference to the same datasets) and ``particles`` (one uniform grid per
-snapshot: a ``Polyvertex`` cell per particle, its own geometry, the fields as point data).
-Every grid has its own geometry, so readers that follow XDMF (ParaView, VTK's
-``vtkXdmfReader``/``vtkXdmf3Reader``) see the points move. The particle collection is the last
-grid of the domain, which is what meshio's ``TimeSeriesReader`` reads: ``read_data(k)`` gives
-snapshot ``k``'s time and point data (positions included, as the point field ``x``); its
-``read_points_cells()`` reads one geometry (the first snapshot's) for all steps — meshio's time
-series are fixed meshes, so take positions from ``x``. ``meshio.read`` reads only files of one
-grid: on any time series (this one included) it prints meshio's ``ReadError`` ("Only supports
-one grid") and exits the interpreter; :meth:`parmpm.io.Snapshots.to_meshio` gives one snapshot
-as a ``meshio.Mesh`` instead.
+"""Writing a snapshot series (:class:`SnapshotWriter`; the files' layout is
+:mod:`parmpm.io.xdmf`'s docstring).
 
 The XML index is rewritten atomically at most every ``flush_seconds`` and on
 :meth:`SnapshotWriter.close`, so a crashed run still leaves a readable series of what was
-flushed; between rewrites its text waits on disk, not in memory (:mod:`parmpm.io.xdmf_index`:
-a run's memory does not grow with its snapshots). Every failure to write (a full disk, a read-only folder, an I/O error) is one
-``ParmpmError`` line, without a chained traceback: ``disk full writing '<name>.h5': N MB
-needed, M MB free`` when the free space (checked before each snapshot against its size) is
-short, or the system's reason otherwise. The writer then closes: the index keeps the snapshots
+flushed; between rewrites its text waits on disk, not in memory (:mod:`parmpm.io.xdmf.index`:
+a run's memory does not grow with its snapshots). Every failure to write (a full disk, a
+read-only folder, an I/O error) is one ``ParmpmError`` line, without a chained traceback:
+``disk full writing '<name>.h5': N MB needed, M MB free`` when the free space (checked before
+each snapshot against its size) is short, or the system's reason otherwise. The writer then closes: the index keeps the snapshots
 written before, and :meth:`SnapshotWriter.close` does nothing more. HDF5 writes through
 :class:`parmpm.io.guarded_file.GuardedFile`, so it never sees a failed write (HDF5 crashes the
 process when it closes a file whose writes failed); a write error is found after each snapshot.
-
-Parts
------
-Under MPI with several writer groups (the checkpoints' rule,
-:func:`parmpm.io.checkpoint_parts.ranks_per_file`: one group per rank up to 256 ranks), each
-group's lead writes its members' particles, in gid order, into its own part
-(``SnapshotWriter(..., part=k)``)::
-
-    <name>.xdmf                 the index (rank 0)
-    <name>.h5                   attrs as above, format_version 2, parts (JSON: the part files);
-                                /step_<step>/ (attrs time, step, index, rows: each part's rows),
-                                /history/<column>; no particles
-    <name>.parts/part_<k>.h5    the single-file layout above for part k's particles (attr part)
-
-Each step of each temporal collection is then a *spatial* collection (``GridType="Collection"
-CollectionType="Spatial"``) of one uniform grid per part that holds particles, pointing at that
-part's datasets by relative name (``<name>.parts/part_00003.h5:/step_00000120/x``). A part
-flushes its snapshot before it reports; rank 0 indexes a step (:meth:`SnapshotWriter.add`) only
-when every lead reported it written, so the index lists no step with a missing part. VTK's XDMF
-reader (ParaView) reads the series as one: each time step a multiblock of the parts, N points
-in all. meshio's ``TimeSeriesReader`` wants a uniform grid per step: on a series in parts it
-raises ``meshio.ReadError("Couldn't find the mesh grid")`` when opened; read such a series with
-:func:`parmpm.io.load_snapshots` (which merges the parts by gid) and ``to_meshio``. One writer
-(one rank, or every rank in one group) writes the single-file layout, format_version 1.
-
-Without parts, call from one rank with the particle state of all ranks in gid order; the run's
-collective side is :class:`parmpm.driver.run_files.RunFiles`. How fields are shaped for XDMF and the XML
-elements that point at the datasets are :mod:`parmpm.io.xdmf_layout`'s.
 """
 
 from __future__ import annotations
@@ -85,14 +27,13 @@ import numpy as np
 
 from parmpm.core.errors import ParmpmError
 from parmpm.io.guarded_file import GuardedFile, space_message
-from parmpm.io.xdmf_index import XdmfIndex, snapshot_grids
-from parmpm.io.xdmf_layout import (CELL_TYPES, FORMAT, FORMAT_VERSION, PARTS_VERSION, array_spec,
+from parmpm.io.xdmf.index import XdmfIndex, snapshot_grids
+from parmpm.io.xdmf.layout import (CELL_TYPES, FORMAT, FORMAT_VERSION, PARTS_VERSION, array_spec,
                                    as_rows, pad_columns, pad_point_data, part_file, xdmf_cells)
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["SnapshotWriter", "bound_metadata_cache", "METADATA_CACHE", "pad_point_data", "part_file", "xdmf_cells", "FORMAT",
-           "FORMAT_VERSION", "PARTS_VERSION"]
+__all__ = ["SnapshotWriter", "bound_metadata_cache", "METADATA_CACHE"]
 
 #: bytes of HDF5 metadata (object headers, group indices) a series keeps cached while open
 METADATA_CACHE = 64 * 1024
@@ -149,7 +90,7 @@ class SnapshotWriter:
         self._closed = True  # until the files exist
         self._h5 = None
         self._file = None
-        # the XML index, kept on disk as it grows (memory stays flat: parmpm.io.xdmf_index)
+        # the XML index, kept on disk as it grows (memory stays flat: parmpm.io.xdmf.index)
         self._xml = XdmfIndex(self.out_dir) if part is None else None
         try:
             self.h5_path.parent.mkdir(parents=True, exist_ok=True)
@@ -263,52 +204,22 @@ class SnapshotWriter:
             raise ValueError(f"{self.path} is closed")
         if self.parts is not None:
             raise ValueError(f"{self.path} indexes parts: add their records")
-        x = np.asarray(x, dtype=np.float64)
-        n = x.shape[0]
-        points = pad_columns(as_rows(x), 3)
-        fields, shapes = {}, {}
-        for key, value in (point_data or {}).items():
-            padded = pad_point_data(key, value, n, self.dim)
-            fields.update(padded)
-            for name in padded:
-                shapes[name] = (np.shape(value)[1:] if name == key else (), key)
+        rows = as_rows(np.asarray(x, dtype=np.float64))
+        n = rows.shape[0]
+        points = pad_columns(rows, 3)
+        fields, shapes = self._shape_fields(point_data, n)
         cell, nodes = CELL_TYPES[self.dim]
-        corners = None
-        if domains is not None:
-            c = xdmf_cells(domains)
-            if c.shape != (n, nodes, self.dim):
-                raise ValueError(f"domains have shape {c.shape}, expected {(n, nodes, self.dim)}")
-            corners = pad_columns(c.reshape(n * nodes, self.dim), 3)
+        corners = self._corners(domains, n, nodes)
         need = (points.nbytes + sum(a.nbytes for a in fields.values()) + self.OVERHEAD
                 + self._connectivity_bytes("Polyvertex", n, 1))
         if corners is not None:
             need += corners.nbytes + self._connectivity_bytes(cell, n, nodes)
         self._ensure_space(need)
 
-        index = self.steps
-        name = f"step_{index if step is None else int(step):08d}"
-        if name in self._h5:  # the same step twice (never in a run): keep both
-            name = f"{name}_{index}"
-        rel = self.h5_path.relative_to(self.out_dir).as_posix()
-        record = {"file": rel, "part": self.part or 0, "group": name, "n": n, "index": index,
-                  "step": index if step is None else int(step), "time": float(t),
-                  "arrays": {"x": array_spec(points), **{k: array_spec(a) for k, a in fields.items()}},
-                  "topology": {}}
+        record = self._record(t, n, step, points, fields)
         grids = None
         try:
-            g = self._h5.create_group(name)
-            g.attrs["time"] = float(t)
-            g.attrs["step"] = record["step"]
-            g.attrs["index"] = index
-            self._dataset(g, "x", points, (as_rows(x).shape[1],))
-            for key, a in fields.items():
-                shape, base = shapes[key]
-                self._dataset(g, key, a, shape, base)
-            record["topology"]["points"] = self._connectivity("Polyvertex", n, 1)
-            if corners is not None:
-                self._dataset(g, "domains", corners, (nodes, self.dim))
-                record["arrays"]["domains"] = array_spec(corners)
-                record["topology"]["domains"] = self._connectivity(cell, n, nodes)
+            self._store(record, rows.shape[1], points, fields, shapes, corners)
             if self._xml is not None:
                 grids = snapshot_grids(t, [record], parts=False)
             else:
@@ -325,9 +236,61 @@ class SnapshotWriter:
                 self._fail(exc)
         return record
 
+    def _shape_fields(self, point_data: dict | None, n: int) -> tuple[dict, dict]:
+        """Every field shaped for XDMF (:func:`pad_point_data`), and of each array stored, the
+        per-particle shape it was given and the field it came from."""
+        fields, shapes = {}, {}
+        for key, value in (point_data or {}).items():
+            padded = pad_point_data(key, value, n, self.dim)
+            fields.update(padded)
+            for name in padded:
+                shapes[name] = (np.shape(value)[1:] if name == key else (), key)
+        return fields, shapes
+
+    def _corners(self, domains, n: int, nodes: int) -> np.ndarray | None:
+        """The domain corners as XDMF points, ``(N·nodes, 3)`` (None without domains)."""
+        if domains is None:
+            return None
+        c = xdmf_cells(domains)
+        if c.shape != (n, nodes, self.dim):
+            raise ValueError(f"domains have shape {c.shape}, expected {(n, nodes, self.dim)}")
+        return pad_columns(c.reshape(n * nodes, self.dim), 3)
+
+    def _record(self, t: float, n: int, step: int | None, points, fields: dict) -> dict:
+        """The snapshot's record (what the index needs): its file, group (named by the step),
+        size, clock and arrays; the topology follows when stored."""
+        index = self.steps
+        name = f"step_{index if step is None else int(step):08d}"
+        if name in self._h5:  # the same step twice (never in a run): keep both
+            name = f"{name}_{index}"
+        rel = self.h5_path.relative_to(self.out_dir).as_posix()
+        return {"file": rel, "part": self.part or 0, "group": name, "n": n, "index": index,
+                "step": index if step is None else int(step), "time": float(t),
+                "arrays": {"x": array_spec(points), **{k: array_spec(a) for k, a in fields.items()}},
+                "topology": {}}
+
+    def _store(self, record: dict, width: int, points, fields: dict, shapes: dict,
+               corners) -> None:
+        """The snapshot's group: its clock, the positions (``width`` columns given), the fields,
+        the domains, and the connectivity they share (recorded in ``record``)."""
+        n, (cell, nodes) = record["n"], CELL_TYPES[self.dim]
+        g = self._h5.create_group(record["group"])
+        g.attrs["time"] = record["time"]
+        g.attrs["step"] = record["step"]
+        g.attrs["index"] = record["index"]
+        self._dataset(g, "x", points, (width,))
+        for key, a in fields.items():
+            shape, base = shapes[key]
+            self._dataset(g, key, a, shape, base)
+        record["topology"]["points"] = self._connectivity("Polyvertex", n, 1)
+        if corners is not None:
+            self._dataset(g, "domains", corners, (nodes, self.dim))
+            record["arrays"]["domains"] = array_spec(corners)
+            record["topology"]["domains"] = self._connectivity(cell, n, nodes)
+
     def _commit(self, grids: dict | None) -> None:
         """Count a snapshot written (its data in the HDF5 file) and add its ``grids``
-        (:func:`parmpm.io.xdmf_index.snapshot_grids`) to the index."""
+        (:func:`parmpm.io.xdmf.index.snapshot_grids`) to the index."""
         if grids is not None:
             try:
                 self._xml.add(grids)

@@ -1,4 +1,5 @@
-"""Where a checkpoint's part files may be: in its own ``<checkpoint>.parts/`` folder, nowhere else.
+"""A checkpoint's file names, and where its part files may be: in its own ``<checkpoint>.parts/``
+folder, nowhere else.
 
 A top-level checkpoint names its parts (``/parts/file``) relative to its folder. Its digests are
 keyless (they catch damage, not intent), so a crafted file can carry any names with valid
@@ -15,7 +16,21 @@ import os
 from pathlib import Path
 
 from parmpm.core.errors import ParmpmError
-from parmpm.io.checkpoint import parts_folder
+
+
+def checkpoint_name(step: int) -> str:
+    return f"checkpoint_{step:08d}.h5"
+
+
+def parts_folder(path: Path) -> Path:
+    """The folder of the part files of checkpoint ``path``: ``checkpoint_<step>.parts``."""
+    path = Path(path)
+    return path.with_name(path.name[:-3] + ".parts" if path.name.endswith(".h5") else
+                          path.name + ".parts")
+
+
+def part_name(k: int) -> str:
+    return f"part_{k:05d}.h5"
 
 
 def part_paths(path: Path, names: list[str], where: str) -> list[Path]:

@@ -1,7 +1,8 @@
 """What the snapshot files hold, in XDMF's terms: the format's names, each particle field shaped
 for XDMF (vectors padded to 3 columns, tensors to 9, domains in VTK node order) and the XML
-elements that point at the datasets. The writer that uses them is :mod:`parmpm.io.xdmf` (whose
-docstring gives the layout); the reader :mod:`parmpm.io.snapshot_reader`.
+elements that point at the datasets. The writer that uses them is
+:mod:`parmpm.io.xdmf.writer`, the reader :mod:`parmpm.io.xdmf.reader`; the layout itself is
+:mod:`parmpm.io.xdmf`'s docstring.
 """
 
 from __future__ import annotations

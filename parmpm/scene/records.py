@@ -1,0 +1,376 @@
+"""The resolved scene as typed, frozen records: what every layer below the schema reads.
+
+:func:`parmpm.scene.schema.resolve` checks a scene and returns it as a nested dict, the
+*serialised form* (``Scene.data``: written as ``scene.toml``, hashed across ranks, stored in
+checkpoints, changed by restart keys). :meth:`SceneSpec.from_resolved` turns that dict into
+these records, in one place and by one rule, so that a misspelt name is an ``AttributeError``
+(a lint in ``tests/test_scene_records.py``), not a ``KeyError`` deep in a run:
+
+* every table becomes the record its field is annotated with; an array of tables a tuple of
+  records; ``materials`` a read-only mapping (:class:`FrozenMap`) of name → :class:`Material`;
+* every list becomes a tuple (``grid.cells``, ``bodies.0.velocity_gradient``): nothing in a
+  record can change after it is made;
+* a key the dict holds and no field names is a ``TypeError`` (a schema key without a record
+  field), a field the dict lacks takes its default (``None``: a disk has no ``min``, a scene
+  without APIC's transfer has ``method.flip``, without damage ``damage``).
+
+The modules below :mod:`parmpm.scene` (output, particles, transfer, ...) may not import this one
+(the layers, :data:`parmpm.LAYERS`): they take these records as arguments and read their fields.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+import types
+import typing
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from parmpm.geometry.primitives import body_bounds, inside
+from parmpm.scene.check import lcr_length
+
+#: the interpolators that cap their domains at ``method.lcr`` (:mod:`parmpm.scene.schema`)
+LCR_INTERPOLATORS = ("cpdi", "cpdi2")
+
+Floats = tuple[float, ...]
+Ints = tuple[int, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Grid:
+    """``[grid]``: per-axis tuples of length ``dim``; ``"auto"`` where set-up chooses."""
+
+    origin: Floats
+    cell_size: Floats
+    cells: Ints
+    patch_size: Ints | str       # "auto": chosen from the scene (parmpm.scene.patch_size)
+    ghost: int | str             # "auto": the interpolator's reach
+    exterior: int | str          # "auto": the ghost width on faces a body starts near
+
+    @property
+    def dim(self) -> int:
+        return len(self.cells)
+
+    @property
+    def min_dx(self) -> float:
+        """Smallest grid spacing, min_k Δx_k."""
+        return min(self.cell_size)
+
+
+@dataclass(frozen=True, slots=True)
+class Damage:
+    """``[materials.NAME.damage]`` (:mod:`parmpm.materials.damage`)."""
+
+    criterion: str
+    onset: float
+    fracture: float
+    softening: str
+    freeze: float | str          # "never": a CPDI domain never freezes
+
+
+@dataclass(frozen=True, slots=True)
+class Material:
+    """``[materials.NAME]``."""
+
+    model: str
+    density: float
+    youngs_modulus: float
+    poisson_ratio: float
+    damage: Damage | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Vibration:
+    """``[bodies.vibration]``: a box's initial vibration mode along ``axis``."""
+
+    amplitude: float
+    mode: int
+    axis: int
+
+
+@dataclass(frozen=True, slots=True)
+class Body:
+    """One ``[[bodies]]`` table: a box (``min``, ``max``, ``angle``) or a disk / sphere
+    (``center``, ``radius``); the fields of the other shapes are None."""
+
+    shape: str
+    material: str
+    ppc: Ints
+    velocity: Floats
+    angle: float | None
+    angular_velocity: float | Floats | None    # 2D: a number, 3D: a vector
+    velocity_gradient: tuple[Floats, ...] | None
+    vibration: Vibration | None
+    min: Floats | None = None
+    max: Floats | None = None
+    center: Floats | None = None
+    radius: float | None = None
+
+    def bounds(self) -> tuple[list, list]:
+        """Axis-aligned bounds: a box's corners (a turned box's bounding box), a disk's or
+        sphere's centre ± radius (:func:`parmpm.geometry.primitives.body_bounds`)."""
+        return body_bounds(as_table(self))
+
+    def inside(self, dim: int, x):
+        """Which points ``x`` (n, dim) lie strictly inside (:func:`parmpm.geometry.primitives.inside`)."""
+        return inside(as_table(self), dim, x)
+
+
+@dataclass(frozen=True, slots=True)
+class Method:
+    """``[method]``; ``flip`` is None under APIC and MLS (no blend)."""
+
+    interpolator: str
+    lcr: float | str             # metres, "<k>dx", "<k>dx/<n>" or "none"
+    update: str                  # "auto", "usl" or "musl"
+    transfer: str
+    flip: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Gravity:
+    g: Floats
+    ramp_time: float
+
+
+@dataclass(frozen=True, slots=True)
+class Damping:
+    coefficient: float
+
+
+@dataclass(frozen=True, slots=True)
+class Manufactured:
+    """``[manufactured]``: the manufactured solution's amplitude (:mod:`parmpm.loads.manufactured`)."""
+
+    amplitude: float
+
+
+@dataclass(frozen=True, slots=True)
+class Box:
+    """An axis-aligned box ``{min, max}``: a fixed region, a probe's region."""
+
+    min: Floats
+    max: Floats
+
+
+@dataclass(frozen=True, slots=True)
+class SlipRegion:
+    """A box whose nodes have zero velocity along ``normal`` ("x", "y" or "z")."""
+
+    min: Floats
+    max: Floats
+    normal: str
+
+
+@dataclass(frozen=True, slots=True)
+class Boundary:
+    """``[boundary]``: the face conditions of the scene's axes (None beyond ``dim``) and the
+    regions inside the grid."""
+
+    fixed_regions: tuple[Box, ...]
+    slip_regions: tuple[SlipRegion, ...]
+    x_min: str | None = None
+    x_max: str | None = None
+    y_min: str | None = None
+    y_max: str | None = None
+    z_min: str | None = None
+    z_max: str | None = None
+
+    @property
+    def faces(self) -> tuple[tuple[str, str], ...]:
+        """``(min, max)`` condition per axis of the scene."""
+        pairs = ((self.x_min, self.x_max), (self.y_min, self.y_max), (self.z_min, self.z_max))
+        return tuple(p for p in pairs if p[0] is not None)
+
+
+@dataclass(frozen=True, slots=True)
+class Time:
+    end: float | None
+    steps: int | None
+    cfl: float
+    dt_max: float | None
+    max_energy_growth: float | str   # "off": no blow-up watch
+
+
+@dataclass(frozen=True, slots=True)
+class Probe:
+    """One ``[[output.history.probes]]``: exactly one of ``point``, ``region``, ``body``,
+    ``material`` is set."""
+
+    name: str
+    point: Floats | None
+    region: Box | None
+    body: int | None
+    material: str | None
+    fields: tuple[str, ...]
+    stats: tuple[str, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class History:
+    """``[output.history]`` (:mod:`parmpm.scene.history`)."""
+
+    enabled: bool
+    every: float | None
+    every_steps: int | None
+    probes: tuple[Probe, ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Output:
+    every: float | None
+    every_steps: int | None
+    snapshots: bool
+    figure: bool
+    domains: bool
+    history: History
+
+
+@dataclass(frozen=True, slots=True)
+class Metrics:
+    kind: str
+    every_steps: int
+    axis: int
+    stop_on_separation: bool
+    grip: str | None
+
+
+@dataclass(frozen=True, slots=True)
+class Decomposition:
+    rebalance_threshold: float
+    rebalance_cooldown: int
+
+
+@dataclass(frozen=True, slots=True)
+class Checkpoint:
+    every_steps: int | None
+    every: float | None
+    wall_minutes: float | None
+    keep: int
+    at_end: bool
+    ranks_per_file: int | str      # "auto": one part file per rank up to 256 ranks
+
+
+@dataclass(frozen=True, slots=True)
+class SceneSpec:
+    """The whole resolved scene (``scene.spec``); build it with :meth:`from_resolved`."""
+
+    name: str
+    description: str
+    dim: int
+    grid: Grid
+    materials: Mapping[str, Material]
+    bodies: tuple[Body, ...]
+    method: Method
+    gravity: Gravity
+    damping: Damping
+    boundary: Boundary
+    manufactured: Manufactured | None
+    time: Time
+    output: Output
+    metrics: Metrics
+    decomposition: Decomposition
+    checkpoint: Checkpoint
+
+    @classmethod
+    def from_resolved(cls, data: dict) -> SceneSpec:
+        """The records of a resolved scene (:func:`parmpm.scene.schema.resolve`'s dict)."""
+        return build(cls, data)
+
+    @property
+    def min_dx(self) -> float:
+        return self.grid.min_dx
+
+    @property
+    def lcr(self) -> float | None:
+        """CPDI domain-scaling length l_cr in metres; None unless cpdi or cpdi2 with scaling."""
+        if self.method.interpolator not in LCR_INTERPOLATORS:
+            return None
+        return lcr_length(self.method.lcr, self.min_dx)
+
+
+# ---------------------------------------------------------------- building
+
+
+class FrozenMap(Mapping):
+    """A read-only mapping (``materials``): unlike ``types.MappingProxyType`` it pickles and
+    copies, as the records do."""
+
+    __slots__ = ("_items",)
+
+    def __init__(self, items: dict):
+        self._items = dict(items)
+
+    def __getitem__(self, key):
+        return self._items[key]
+
+    def __iter__(self):
+        return iter(self._items)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __repr__(self) -> str:
+        return repr(self._items)
+
+
+
+@functools.cache
+def _field_types(cls) -> dict[str, Any]:
+    hints = typing.get_type_hints(cls)
+    return {f.name: hints[f.name] for f in dataclasses.fields(cls)}
+
+
+def build(cls, table: dict):
+    """The record ``cls`` of a resolved table (module doc: the rule)."""
+    types_ = _field_types(cls)
+    extra = [k for k in table if k not in types_]
+    if extra:
+        raise TypeError(f"{cls.__name__} has no field for key(s) {', '.join(map(str, extra))} "
+                        "of the resolved scene (parmpm.scene.records)")
+    return cls(**{k: _convert(types_[k], v) for k, v in table.items()})
+
+
+def _convert(hint, value):
+    """``value`` as the field annotated ``hint`` holds it."""
+    if value is None:
+        return None
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        record = next((a for a in args if dataclasses.is_dataclass(a)), None)
+        return build(record, value) if record and isinstance(value, dict) else _frozen(value)
+    if dataclasses.is_dataclass(hint):
+        return build(hint, value)
+    if origin is tuple and args and dataclasses.is_dataclass(args[0]):
+        return tuple(build(args[0], v) for v in value)
+    if origin is Mapping:
+        return FrozenMap({k: build(args[1], v) for k, v in value.items()})
+    return _frozen(value)
+
+
+def _frozen(value):
+    """Lists as tuples, all the way down."""
+    if isinstance(value, list):
+        return tuple(_frozen(v) for v in value)
+    if isinstance(value, dict):
+        raise TypeError(f"a table where the records expect a value: {value!r}")
+    return value
+
+
+def as_table(record) -> dict:
+    """A record as a table of the serialised form, for the lower layers that still read keys
+    (:func:`parmpm.geometry.primitives.body_bounds`, :func:`parmpm.materials.material_table`,
+    :class:`parmpm.driver.schedule.Clock`)."""
+    return dataclasses.asdict(record)
+
+
+def material_tables(materials: Mapping[str, Material]) -> dict[str, dict]:
+    """``materials`` as :func:`parmpm.materials.material_table` reads them."""
+    return {name: as_table(m) for name, m in materials.items()}
+
+
+__all__ = ["SceneSpec", "Grid", "Material", "Damage", "Body", "Vibration", "Method", "Gravity",
+           "Damping", "Manufactured", "Box", "SlipRegion", "Boundary", "Time", "Probe", "History",
+           "Output", "Metrics", "Decomposition", "Checkpoint", "build", "as_table",
+           "material_tables"]

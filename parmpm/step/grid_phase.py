@@ -1,0 +1,61 @@
+"""The step's grid phase on this rank: the constraints it applies, the mirror-face fold before the
+ghost accumulation, and the nodal update from the summed mass, momentum and force.
+
+Set up once from the scene's boundary (faces, node regions) and the smallest particle mass; the
+grid fields it reads and writes are the stepper's :class:`~parmpm.step.grid_buffers.GridBuffers`.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from decomposition import allreduce_max
+from parmpm.core.records import Constraints, OwnedNodes
+from parmpm.grid.symmetry import fold_sums, mirror_faces, row_signs
+from parmpm.grid.update import grid_update, region_node_ranges
+
+
+class GridPhase:
+    """``bc`` (3, 2) face conditions, ``regions``/``region_normal`` the held node regions,
+    ``damping``, ``mass_eps`` (nodes lighter than it are void), ``mls`` (momentum rows that
+    already hold ``Δt f``)."""
+
+    def __init__(self, disc, bc: np.ndarray, regions: np.ndarray, region_normal, damping: float,
+                 mls: bool, comm, particle_mass: np.ndarray):
+        self.disc, self.bc, self.regions, self.damping, self.mls = disc, bc, regions, damping, mls
+        self.region_normal = (np.full(regions.shape[0], -1, np.int64) if region_normal is None
+                              else np.asarray(region_normal, np.int64))
+        self.region_ranges = region_node_ranges(regions, disc.origin3, disc.h3, disc.dim)
+        #: mirror (symmetry or clamped) faces (3, 2) when there are any (:mod:`parmpm.grid.symmetry`),
+        #: else None
+        sym = mirror_faces(bc)
+        self.symmetry = sym if sym.any() else None
+        self._signs = row_signs(disc.dim, bc)
+        mmin = float(particle_mass.min(initial=np.inf))
+        mmin = float(allreduce_max(comm, np.array([-mmin]))[0])
+        self.mass_eps = 1e-12 * (-mmin if math.isfinite(mmin) else 1.0)
+
+    def records(self) -> tuple[OwnedNodes, Constraints]:
+        """The grid update's records: the owned nodes of every patch slot, the constraints."""
+        D = self.disc
+        nodes = OwnedNodes(D.own_lo, D.own_hi, D.base, D.nloc, D.face_lo3, D.face_hi3)
+        constraints = Constraints(self.bc, self.regions, self.region_normal, self.region_ranges,
+                                  D.origin3, D.h3)
+        return nodes, constraints
+
+    def update(self, grid, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
+        """Nodal velocities (and increments) from the summed blocks of ``grid``."""
+        nodes, constraints = self.records()
+        grid_update(self.disc.dim, nodes, constraints, dt, gravity, self.damping, self.mass_eps,
+                    grid.gsum_block, grid.gnew_block, momentum_only, self.mls)
+
+    def fold(self, grid, rows: int, momentum_only: bool) -> None:
+        """Mirror faces: fold the mirror images into this rank's partial sums (the ``rows`` P2G
+        filled, or the momentum alone in a MUSL re-map) before the ghost accumulation."""
+        if self.symmetry is None:
+            return
+        D = self.disc
+        d = D.dim
+        fold_sums(d, D.nloc, D.base, D.face_lo3, D.face_hi3, self.symmetry, self._signs,
+                  1 if momentum_only else 0, 1 + d if momentum_only else rows, grid.gsum_block)
