@@ -7,7 +7,7 @@ compares two such saves byte for byte. The cases are the rank-independence test'
 (``tests/test_mpi_ranks.py``: 1D/2D/3D, every interpolator, USL and MUSL, unscaled CPDI,
 crossing and re-balancing, the manufactured solution, a spinning disk, damage and freezing, the
 tension bar) plus linear elasticity and MUSL for every interpolator in 2D and 3D, 3D damage with
-freezing, 3D unscaled CPDI and the vibrating bar (43 cases).
+freezing, 3D unscaled CPDI and the vibrating bar (48 cases).
 
     python run_scripts/bit_identical.py save BEFORE_DIR      # on the old code (a git worktree)
     python run_scripts/bit_identical.py save AFTER_DIR       # on the new code

@@ -108,9 +108,9 @@ def check_restart(path, stored, scene, overrides, step: int, t: float) -> None:
         raise SceneError(f"{where}: {_origin('time.end', overrides)}the checkpoint is at "
                          f"t = {t!r} s (step {step}), so time.end = {tm.end!r} s leaves "
                          "nothing to run: --set time.end to a later time")
-    if tm["steps"] is not None and step >= tm["steps"]:
+    if tm.steps is not None and step >= tm.steps:
         raise SceneError(f"{where}: {_origin('time.steps', overrides)}the checkpoint is at step "
-                         f"{step}, so time.steps = {tm['steps']} (counted from the run's start) "
+                         f"{step}, so time.steps = {tm.steps} (counted from the run's start) "
                          f"leaves nothing to run: --set time.steps to more than {step}")
     scene.restart = {"checkpoint": str(path), "step": int(step), "time": float(t),
                      "changed": changed}
