@@ -25,7 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 
-import parmpm.driver.set_up as rank_state
+import parmpm.driver.restart as rank_state  # where a restart opens its checkpoint
 from decomposition import world
 from parmpm.cli.bench import build_bench_scene
 from parmpm.io.checkpoint import DTYPES, parts_folder, remove_checkpoint

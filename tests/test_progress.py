@@ -154,7 +154,7 @@ def test_cli_log_file(tmp_path):
 
     def run(*args):
         return subprocess.run([sys.executable, "-m", "parmpm", "run", "hanging_bar_1d", *args],
-                              cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+                              cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
 
     proc = run("--set", "time.steps=3", "--set", "output.figure=false", "-o", "a", "--quiet",
                "--log-file", "run.log", "-v")
