@@ -48,6 +48,20 @@ def cofactor_3d(R00, R01, R02, R10, R11, R12, R20, R21, R22):
 
 
 @helper_kernel
+def cell_node(d, jk, wk, L0, L1, e):
+    """Node ``e`` (``0 … 2^d − 1``, x fastest) of the cell a point lies in, from the per-axis rows
+    :func:`parmpm.shapes.hat.hat_axis` filled: its flat index in the box (rows ``L0``, layers
+    ``L0·L1`` nodes) and its weight ``S = S_x S_y S_z``. The one walk over a corner's cell
+    (CPDI's and cpdi2's entries, cpdi2's corner velocities)."""
+    i0 = e & 1
+    w1 = wk[1, (e >> 1) & 1] if d > 1 else 1.0
+    o1 = jk[1, (e >> 1) & 1] if d > 1 else 0
+    w2 = wk[2, e >> 2] if d > 2 else 1.0
+    o2 = jk[2, e >> 2] if d > 2 else 0
+    return jk[0, i0] + L0 * (o1 + L1 * o2), wk[0, i0] * w1 * w2
+
+
+@helper_kernel
 def cpdi_support(d, xi, R, C, base, nloc, nglob, inv_h, L0, L1, jk, wk, dwk, idx, w, g):
     """(node, weight, gradient) entries of a CPDI particle at grid coordinates ``xi`` with domain
     ``R`` (physical units) and scratch ``C`` for its cofactor. Returns the entry count, or -1 if a
@@ -71,20 +85,11 @@ def cpdi_support(d, xi, R, C, base, nloc, nglob, inv_h, L0, L1, jk, wk, dwk, idx
             gc0 += C[0, m] * sm
             gc1 += C[1, m] * sm
             gc2 += C[2, m] * sm
-        n1 = 2 if d > 1 else 1
-        n2 = 2 if d > 2 else 1
-        for i2 in range(n2):
-            w2 = wk[2, i2] if d > 2 else 1.0
-            o2 = jk[2, i2] if d > 2 else 0
-            for i1 in range(n1):
-                w1 = wk[1, i1] if d > 1 else 1.0
-                o1 = jk[1, i1] if d > 1 else 0
-                for i0 in range(2):
-                    S = wk[0, i0] * w1 * w2
-                    idx[n] = jk[0, i0] + L0 * (o1 + L1 * o2)
-                    w[n] = S * wc
-                    g[n, 0] = S * gc0 * inv_v
-                    g[n, 1] = S * gc1 * inv_v
-                    g[n, 2] = S * gc2 * inv_v
-                    n += 1
+        for e in range(1 << d):
+            idx[n], S = cell_node(d, jk, wk, L0, L1, e)
+            w[n] = S * wc
+            g[n, 0] = S * gc0 * inv_v
+            g[n, 1] = S * gc1 * inv_v
+            g[n, 2] = S * gc2 * inv_v
+            n += 1
     return n

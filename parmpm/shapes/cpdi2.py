@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from parmpm.core.jit import helper_kernel
-from parmpm.shapes.cpdi import cofactor_3d
+from parmpm.shapes.cpdi import cell_node, cofactor_3d
 from parmpm.shapes.hat import hat_axis
 
 #: the 2-point Gauss abscissa on [−1, 1] (weight 1)
@@ -178,20 +178,11 @@ def cpdi2_support(d, xi, corners, lcr, base, nloc, nglob, inv_h, L0, L1, jk, wk,
         gc0 = scratch[alpha, WG]
         gc1 = scratch[alpha, WG + 1]
         gc2 = scratch[alpha, WG + 2]
-        n1 = 2 if d > 1 else 1
-        n2 = 2 if d > 2 else 1
-        for i2 in range(n2):
-            w2 = wk[2, i2] if d > 2 else 1.0
-            o2 = jk[2, i2] if d > 2 else 0
-            for i1 in range(n1):
-                w1 = wk[1, i1] if d > 1 else 1.0
-                o1 = jk[1, i1] if d > 1 else 0
-                for i0 in range(2):
-                    S = wk[0, i0] * w1 * w2
-                    idx[n] = jk[0, i0] + L0 * (o1 + L1 * o2)
-                    w[n] = S * wf
-                    g[n, 0] = S * gc0
-                    g[n, 1] = S * gc1
-                    g[n, 2] = S * gc2
-                    n += 1
+        for e in range(1 << d):
+            idx[n], S = cell_node(d, jk, wk, L0, L1, e)
+            w[n] = S * wf
+            g[n, 0] = S * gc0
+            g[n, 1] = S * gc1
+            g[n, 2] = S * gc2
+            n += 1
     return n

@@ -36,25 +36,29 @@ A support that leaves the grid or the ghost layer sets ``err[0]`` (the first suc
 the step still ends on every rank, and the caller stops the run.
 
 Each public kernel allocates its scratch and hands it to a ``@loop_kernel`` body (``_*_loop``)
-that runs the particle loop without reference counting (see :mod:`parmpm.core.jit`). The hot bodies
-(P2G, the momentum re-map, G2P) are compiled once per dimension — ``literal_unroll(DIMS)`` passes
-``d`` as a compile-time constant — so LLVM fully unrolls every ``range(d)`` loop, the helpers'
-included (1.2–1.4× over a runtime ``d``; three compilations instead of one).
+that runs the particle loop without reference counting (see :mod:`parmpm.core.jit`): one walk,
+:func:`_each_particle`, with each kernel's work per particle (``_*_one``) inlined into it. The
+hot bodies (P2G, the momentum re-map, G2P) are compiled once per dimension —
+``literal_unroll(DIMS)`` passes ``d`` as a compile-time constant — so LLVM fully unrolls every
+``range(d)`` loop, the helpers' included (1.2–1.4× over a runtime ``d``; three compilations
+instead of one).
 """
 import math
 
 import numpy as np
 from numba import literal_unroll, literally
 
-from parmpm.transfer.affine_kernels import affine_gather, affine_scatter, mls_gradients, offsets
-from parmpm.core.jit import DIMS, helper_kernel, kernel, loop_kernel
-from parmpm.materials.kinematics import det_d, flip_pic, update_F
+from parmpm.core.jit import DIMS, helper_kernel, inline_kernel, kernel, loop_kernel
 from parmpm.materials.damage import damage_update
+from parmpm.materials.kinematics import det_d, flip_pic, update_F
 from parmpm.materials.laws import cauchy_stress, wave_speed
 from parmpm.shapes import CPDI2
+from parmpm.shapes.cpdi import cell_node
 from parmpm.shapes.cpdi2 import SCRATCH_SHAPE
 from parmpm.shapes.hat import hat_axis
 from parmpm.shapes.support import domain_matrix, particle_support
+from parmpm.transfer.affine_kernels import affine_gather, affine_scatter, mls_gradients, offsets
+from parmpm.transfer.rows import row
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 
 
@@ -108,22 +112,15 @@ def _move_corners(d, dt, gvel, p, base, nloc, nglob, inv_h, c, scratch):
     support held them."""
     xi, jk, wk, dwk, sc, vm = scratch[2], scratch[4], scratch[5], scratch[6], scratch[13], scratch[14]
     L0, L1 = nloc[0], nloc[1]
-    n1 = 2 if d > 1 else 1
-    n2 = 2 if d > 2 else 1
     for alpha in range(1 << d):
         for k in range(d):
             hat_axis(xi[k] + sc[alpha, k] * inv_h[k], base[k], nloc[k], nglob[k], inv_h[k],
                      jk, wk, dwk, k)
         for a in range(d):
             s = 0.0
-            for i2 in range(n2):
-                w2 = wk[2, i2] if d > 2 else 1.0
-                o2 = jk[2, i2] if d > 2 else 0
-                for i1 in range(n1):
-                    w1 = wk[1, i1] if d > 1 else 1.0
-                    o1 = jk[1, i1] if d > 1 else 0
-                    for i0 in range(2):
-                        s += wk[0, i0] * w1 * w2 * gvel[p, jk[0, i0] + L0 * (o1 + L1 * o2), a]
+            for e in range(1 << d):
+                node, S = cell_node(d, jk, wk, L0, L1, e)
+                s += S * gvel[p, node, a]
             c[alpha, a] += dt * (s - vm[a])
 
 
@@ -134,6 +131,24 @@ def _frozen(d, rf):
         if rf[a, 0] != 0.0:
             return True
     return False
+
+
+@inline_kernel
+def _each_particle(body, d, how, boxes, order, fields, err, scratch, out, args, acc):
+    """``acc = body(i, p, n, d, how, boxes, fields, scratch, out, args, acc)`` for every particle
+    ``i`` of every patch slot ``p``, in canonical order, whose ``n`` support entries
+    :func:`_entries` left in the scratch; one whose support fails is skipped (and noted in
+    ``err``). Returns ``acc``. What a body writes comes as a kernel argument (``fields``,
+    ``scratch``, ``out``), never in ``args``, a tuple built in the kernel
+    (:mod:`parmpm.transfer.kernels2d.loops` says why)."""
+    method, lcr, start = how.code, how.lcr, boxes.start
+    for p in range(start.size - 1):
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
+            i = row(order, kk)
+            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
+            if n >= 0:
+                acc = body(i, p, n, d, how, boxes, fields, scratch, out, args, acc)
+    return acc
 
 
 @kernel
@@ -152,48 +167,46 @@ def p2g(how, boxes, fields, bforce, dt, out, err):
 def _p2g_loop(how, dim, boxes, order, fields, bforce, dt, out, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
-    method, lcr, apic, mls = how.code, how.lcr, how.apic, how.mls
-    start = boxes.start
-    v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
-    affine = fields.affine
     gm, gmv, gf = out
-    idx, w, g = scratch[7], scratch[8], scratch[9]
-    forced = bforce.shape[0] > 0
     gm[:] = 0.0
     gmv[:] = 0.0
     gf[:] = 0.0
-    for p in range(start.size - 1):
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
-            if n < 0:
-                continue
-            m = mass[i]
-            V = det_d(d, F[i]) * vol0[i]
-            if apic:
-                offsets(d, boxes, p, n, scratch)
-                affine_scatter(d, n, m, v[i], affine[i], gmv, p, scratch)
-                if mls:
-                    mls_gradients(d, n, boxes.inv_h, scratch)
-            for e in range(n):
-                node = idx[e]
-                mw = m * w[e]
-                gm[p, node, 0] += mw
-                for a in range(d):
-                    if not apic:
-                        gmv[p, node, a] += mw * v[i, a]
-                    s = 0.0
-                    for b in range(d):
-                        s += stress[i, a, b] * g[e, b]
-                    gf[p, node, a] -= V * s
-                    if forced:
-                        gf[p, node, a] += mw * bforce[i, a]
-                    if mls:  # the grid update's Δt f, folded in (module doc)
-                        fa = mw * bforce[i, a] - V * s if forced else -V * s
-                        gmv[p, node, a] += dt * fa
+    _each_particle(_p2g_one, d, how, boxes, order, fields, err, scratch, out, (bforce, dt), 0)
+
+
+@inline_kernel
+def _p2g_one(i, p, n, d, how, boxes, fields, scratch, out, args, acc):
+    """P2G of particle ``i``'s entries into ``out = (gm, gmv, gf)`` (module doc)."""
+    bforce, dt = args
+    apic, mls = how.apic, how.mls
+    v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
+    gm, gmv, gf = out
+    idx, w, g = scratch[7], scratch[8], scratch[9]
+    forced = bforce.shape[0] > 0
+    m = mass[i]
+    V = det_d(d, F[i]) * vol0[i]
+    if apic:
+        offsets(d, boxes, p, n, scratch)
+        affine_scatter(d, n, m, v[i], fields.affine[i], gmv, p, scratch)
+        if mls:
+            mls_gradients(d, n, boxes.inv_h, scratch)
+    for e in range(n):
+        node = idx[e]
+        mw = m * w[e]
+        gm[p, node, 0] += mw
+        for a in range(d):
+            if not apic:
+                gmv[p, node, a] += mw * v[i, a]
+            s = 0.0
+            for b in range(d):
+                s += stress[i, a, b] * g[e, b]
+            gf[p, node, a] -= V * s
+            if forced:
+                gf[p, node, a] += mw * bforce[i, a]
+            if mls:  # the grid update's Δt f, folded in (module doc)
+                fa = mw * bforce[i, a] - V * s if forced else -V * s
+                gmv[p, node, a] += dt * fa
+    return acc
 
 
 @kernel
@@ -210,27 +223,25 @@ def p2g_momentum(how, boxes, fields, gmv, err):
 def _p2g_momentum_loop(how, dim, boxes, order, fields, gmv, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
-    method, lcr, apic = how.code, how.lcr, how.apic
-    start, v, mass = boxes.start, fields.v, fields.mass
-    idx, w = scratch[7], scratch[8]
     gmv[:] = 0.0
-    for p in range(start.size - 1):
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
-            if n < 0:
-                continue
-            if apic:
-                offsets(d, boxes, p, n, scratch)
-                affine_scatter(d, n, mass[i], v[i], fields.affine[i], gmv, p, scratch)
-                continue
-            for e in range(n):
-                mw = mass[i] * w[e]
-                for a in range(d):
-                    gmv[p, idx[e], a] += mw * v[i, a]
+    _each_particle(_p2g_momentum_one, d, how, boxes, order, fields, err, scratch, gmv, None, 0)
+
+
+@inline_kernel
+def _p2g_momentum_one(i, p, n, d, how, boxes, fields, scratch, gmv, args, acc):
+    """The momentum of particle ``i``'s entries into ``gmv`` (APIC's affine field under APIC and
+    MLS)."""
+    v, mass = fields.v, fields.mass
+    idx, w = scratch[7], scratch[8]
+    if how.apic:
+        offsets(d, boxes, p, n, scratch)
+        affine_scatter(d, n, mass[i], v[i], fields.affine[i], gmv, p, scratch)
+        return acc
+    for e in range(n):
+        mw = mass[i] * w[e]
+        for a in range(d):
+            gmv[p, idx[e], a] += mw * v[i, a]
+    return acc
 
 
 @kernel
@@ -252,85 +263,83 @@ def g2p(mode, how, boxes, dt, flip, fields, material, grid, err):
 def _g2p_loop(mode, how, dim, boxes, order, dt, flip, fields, material, grid, err, scratch):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
-    method, lcr, apic, mls = how.code, how.lcr, how.apic, how.mls
-    start = boxes.start
+    return _each_particle(_g2p_one, d, how, boxes, order, fields, err, scratch, material,
+                          (mode, dt, flip, grid), 0.0)
+
+
+@inline_kernel
+def _g2p_one(i, p, n, d, how, boxes, fields, scratch, material, args, vmax):
+    """G2P of particle ``i`` from its entries and ``args = (mode, Δt, flip, (v, Δv))`` (module
+    doc), updating ``fields`` and ``material``; returns the running largest ``c_p + |v_p|``."""
+    mode, dt, flip, grid = args
+    apic, mls = how.apic, how.mls
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     affine = fields.affine
     mat, params, damage = material
     gvel, gdv = grid
     idx, w, g, Lg, Fn, vm = scratch[7], scratch[8], scratch[9], scratch[10], scratch[11], scratch[14]
     corners, rf = fields.corners, fields.rf
-    tracked = method == CPDI2
-    vmax = 0.0
-    for p in range(start.size - 1):
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
+    tracked = how.code == CPDI2
+    Fi = F[i]
+    if apic and mode != G2P_MUSL_DEFORM:
+        offsets(d, boxes, p, n, scratch)
+        affine_gather(d, n, gvel, p, boxes.inv_h, v[i], affine[i], scratch)
+        for a in range(d):
+            if mode == G2P_USL:
+                x[i, a] += dt * v[i, a]
             else:
-                i = order[kk]  # the physical row (Particles.order)
-            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
-            if n < 0:
-                continue
-            Fi = F[i]
-            if apic and mode != G2P_MUSL_DEFORM:
-                offsets(d, boxes, p, n, scratch)
-                affine_gather(d, n, gvel, p, boxes.inv_h, v[i], affine[i], scratch)
-                for a in range(d):
-                    if mode == G2P_USL:
-                        x[i, a] += dt * v[i, a]
-                    else:
-                        dx[i, a] = dt * v[i, a]
-            elif mode != G2P_MUSL_DEFORM:
-                for a in range(d):
-                    vi = 0.0
-                    dvi = 0.0
-                    for e in range(n):
-                        vi += w[e] * gvel[p, idx[e], a]
-                        dvi += w[e] * gdv[p, idx[e], a]
-                    if mode == G2P_USL:
-                        x[i, a] += dt * vi
-                    else:
-                        dx[i, a] = dt * vi
-                    v[i, a] = flip_pic(flip, v[i, a], dvi, vi)
-                    vm[a] = vi
-            if tracked and mode != G2P_MUSL_MOTION and not _frozen(d, rf[i]):
-                if mode == G2P_MUSL_DEFORM:  # the re-mapped field moves the corners (see above)
-                    for a in range(d):
-                        vi = 0.0
-                        for e in range(n):
-                            vi += w[e] * gvel[p, idx[e], a]
-                        vm[a] = vi
-                _move_corners(d, dt, gvel, p, boxes.base[p], boxes.nloc, boxes.nglob,
-                              boxes.inv_h, corners[i], scratch)
-            if mode == G2P_MUSL_MOTION:
-                continue
-            if mls and mode == G2P_USL:  # L = C, gathered above
-                for a in range(d):
-                    for b in range(d):
-                        Lg[a, b] = affine[i, a, b]
-            elif mls:  # the re-mapped field's C, not stored: the particle keeps the motion's
-                offsets(d, boxes, p, n, scratch)
-                affine_gather(d, n, gvel, p, boxes.inv_h, vm, Lg, scratch)
+                dx[i, a] = dt * v[i, a]
+    elif mode != G2P_MUSL_DEFORM:
+        for a in range(d):
+            vi = 0.0
+            dvi = 0.0
+            for e in range(n):
+                vi += w[e] * gvel[p, idx[e], a]
+                dvi += w[e] * gdv[p, idx[e], a]
+            if mode == G2P_USL:
+                x[i, a] += dt * vi
             else:
-                for a in range(d):
-                    for b in range(d):
-                        s = 0.0
-                        for e in range(n):
-                            s += gvel[p, idx[e], a] * g[e, b]
-                        Lg[a, b] = s
-            update_F(d, dt, Lg, Fi, Fn)
-            if mode == G2P_MUSL_DEFORM:
-                for a in range(d):
-                    x[i, a] += dx[i, a]
-            prm = params[mat[i]]
-            damage[i] = damage_update(d, prm, Fi, damage[i])
-            cauchy_stress(d, prm, Fi, damage[i], stress[i])
-            speed2 = 0.0
+                dx[i, a] = dt * vi
+            v[i, a] = flip_pic(flip, v[i, a], dvi, vi)
+            vm[a] = vi
+    if tracked and mode != G2P_MUSL_MOTION and not _frozen(d, rf[i]):
+        if mode == G2P_MUSL_DEFORM:  # the re-mapped field moves the corners (see above)
             for a in range(d):
-                speed2 += v[i, a] * v[i, a]
-            s = wave_speed(d, prm, Fi) + math.sqrt(speed2)
-            if not (s <= vmax):
-                vmax = s if s == s else math.inf  # a NaN stays visible as inf
+                vi = 0.0
+                for e in range(n):
+                    vi += w[e] * gvel[p, idx[e], a]
+                vm[a] = vi
+        _move_corners(d, dt, gvel, p, boxes.base[p], boxes.nloc, boxes.nglob,
+                      boxes.inv_h, corners[i], scratch)
+    if mode == G2P_MUSL_MOTION:
+        return vmax
+    if mls and mode == G2P_USL:  # L = C, gathered above
+        for a in range(d):
+            for b in range(d):
+                Lg[a, b] = affine[i, a, b]
+    elif mls:  # the re-mapped field's C, not stored: the particle keeps the motion's
+        offsets(d, boxes, p, n, scratch)
+        affine_gather(d, n, gvel, p, boxes.inv_h, vm, Lg, scratch)
+    else:
+        for a in range(d):
+            for b in range(d):
+                s = 0.0
+                for e in range(n):
+                    s += gvel[p, idx[e], a] * g[e, b]
+                Lg[a, b] = s
+    update_F(d, dt, Lg, Fi, Fn)
+    if mode == G2P_MUSL_DEFORM:
+        for a in range(d):
+            x[i, a] += dx[i, a]
+    prm = params[mat[i]]
+    damage[i] = damage_update(d, prm, Fi, damage[i])
+    cauchy_stress(d, prm, Fi, damage[i], stress[i])
+    speed2 = 0.0
+    for a in range(d):
+        speed2 += v[i, a] * v[i, a]
+    s = wave_speed(d, prm, Fi) + math.sqrt(speed2)
+    if not (s <= vmax):
+        return s if s == s else math.inf  # a NaN stays visible as inf
     return vmax
 
 
@@ -350,40 +359,40 @@ def max_speed(d, v, F, mat, params):
 def support_nodes(how, boxes, fields, nodes, count, err):
     """Global flat ids of the nodes each particle touches with nonzero weight (for separation
     detection: particles sharing no node exchange no momentum). ``nodes`` is (N, K)."""
-    _support_nodes_loop(how, boxes, boxes.order, fields, nodes, count, err,
+    _support_nodes_loop(how, boxes, boxes.order, fields, (nodes, count, err),
                         _scratch(boxes.nloc, how.dim))
 
 
 @loop_kernel
-def _support_nodes_loop(how, boxes, order, fields, nodes, count, err, scratch):
-    method, d, lcr = how.code, how.dim, how.lcr
-    start, base, nloc, nglob = boxes.start, boxes.base, boxes.nloc, boxes.nglob
+def _support_nodes_loop(how, boxes, order, fields, out, scratch):
+    _each_particle(_support_nodes_one, how.dim, how, boxes, order, fields, out[2], scratch, out,
+                   None, 0)
+
+
+@inline_kernel
+def _support_nodes_one(i, p, n, d, how, boxes, fields, scratch, out, args, acc):
+    """The global ids of particle ``i``'s nodes of nonzero weight into ``nodes[i]``, their count
+    into ``count[i]`` (``out = (nodes, count, err)``)."""
+    nodes, count, err = out
+    base, nloc, nglob = boxes.base, boxes.nloc, boxes.nglob
     idx, w = scratch[7], scratch[8]
-    for p in range(start.size - 1):
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
-            if n < 0:
-                continue
-            c = 0
-            for e in range(n):
-                if w[e] <= 0.0:
-                    continue
-                if c >= nodes.shape[1]:  # more than the ghost layer allows: the reach error
-                    if err[0] < 0:
-                        err[0] = i
-                        err[1] = -1
-                    break
-                loc = idx[e]
-                i0 = loc % nloc[0]
-                i1 = (loc // nloc[0]) % nloc[1]
-                i2 = loc // (nloc[0] * nloc[1])
-                nodes[i, c] = (base[p, 0] + i0) + nglob[0] * ((base[p, 1] + i1) + nglob[1] * (base[p, 2] + i2))
-                c += 1
-            count[i] = c
+    c = 0
+    for e in range(n):
+        if w[e] <= 0.0:
+            continue
+        if c >= nodes.shape[1]:  # more than the ghost layer allows: the reach error
+            if err[0] < 0:
+                err[0] = i
+                err[1] = -1
+            break
+        loc = idx[e]
+        i0 = loc % nloc[0]
+        i1 = (loc // nloc[0]) % nloc[1]
+        i2 = loc // (nloc[0] * nloc[1])
+        nodes[i, c] = (base[p, 0] + i0) + nglob[0] * ((base[p, 1] + i1) + nglob[1] * (base[p, 2] + i2))
+        c += 1
+    count[i] = c
+    return acc
 
 
 @loop_kernel

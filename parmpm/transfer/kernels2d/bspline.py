@@ -11,18 +11,13 @@ P2G scatters ``φ m_p``, the momentum ``φ m_p v_p`` (APIC: ``φ m_p (v_p + C_p 
 
 APIC is on when the particles carry the affine field (``fields.affine`` has rows): the kernels
 need no extra argument and FLIP runs pay one branch per particle. MLS (:mod:`parmpm.transfer.kernels2d.mls`)
-shares this G2P with ``L_p = C_p`` in place of the gradient sums.
+shares this G2P with ``L_p = C_p`` in place of the gradient sums. The loops are
+:mod:`parmpm.transfer.kernels2d.loops`'.
 """
-import numpy as np
-
 from parmpm.core.jit import inline_kernel, loop_kernel
-from parmpm.transfer.kernels2d.cells import frame_2d, note_patch, slot_2d
-from parmpm.transfer.kernels2d.hat import add_force
-from parmpm.transfer.kernels2d.material import update_F_stress
-from parmpm.materials.kinematics import det_2d, flip_pic
-from parmpm.grid.patch_index import next_patch_2d
 from parmpm.shapes.bspline import nearest_node, spline_weights
-from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_USL
+from parmpm.transfer.kernels2d.hat import add_force, body_force, volume_stress
+from parmpm.transfer.kernels2d.loops import centre_support, each_particle, each_particle_g2p, stays
 
 
 @inline_kernel
@@ -37,113 +32,151 @@ def spline_of(xi, base, jlo, jhi):
     return lo - base, t
 
 
+@inline_kernel
+def support(i, frame, slot, lcr, fields):
+    """Particle ``i``'s first node and offset per axis, ``(kx, ky, tx, ty)`` (``lcr`` unused)."""
+    return centre_support(spline_of, i, frame, slot, fields)
+
+
+@inline_kernel
+def scatter(i, g, frame, st, fields, args):
+    """Mass, momentum (FLIP or APIC) and force of particle ``i`` into its 3×3 nodes."""
+    v, mass, C = fields.v, fields.mass, fields.affine
+    bforce, forced, apic, hx, hy = args
+    _, _, ihx, ihy, L0 = frame
+    kx, ky, tx, ty = st
+    wx0, wx1, wx2, dx0, dx1, dx2 = spline_weights(tx, ihx)
+    wy0, wy1, wy2, dy0, dy1, dy2 = spline_weights(ty, ihy)
+    t = volume_stress(i, fields)
+    m = mass[i]
+    vx, vy = v[i, 0], v[i, 1]
+    c00 = c01 = c10 = c11 = 0.0
+    if apic:
+        c00, c01, c10, c11 = C[i, 0, 0], C[i, 0, 1], C[i, 1, 0], C[i, 1, 1]
+    bfx, bfy = body_force(bforce, forced, i, m)
+    for b in range(3):
+        wy = wy0 if b == 0 else (wy1 if b == 1 else wy2)
+        dy = dy0 if b == 0 else (dy1 if b == 1 else dy2)
+        ry = (b - 1 - ty) * hy
+        row = kx + L0 * (ky + b)
+        for a in range(3):
+            wx = wx0 if a == 0 else (wx1 if a == 1 else wx2)
+            dx = dx0 if a == 0 else (dx1 if a == 1 else dx2)
+            S = wx * wy
+            gx, gy = dx * wy, wx * dy
+            mS = m * S
+            ux, uy = vx, vy
+            if apic:
+                rx = (a - 1 - tx) * hx
+                ux = vx + c00 * rx + c01 * ry
+                uy = vy + c10 * rx + c11 * ry
+            node = row + a
+            g[0, node] += mS
+            g[1, node] += mS * ux
+            g[2, node] += mS * uy
+            add_force(g, node, S, gx, gy, bfx, bfy, t, forced)
+
+
+@inline_kernel
+def scatter_momentum(i, g, frame, st, fields, args):
+    """Momentum (FLIP or APIC) of particle ``i`` into its 3×3 nodes."""
+    v, mass, C = fields.v, fields.mass, fields.affine
+    apic, hx, hy = args
+    _, _, ihx, ihy, L0 = frame
+    kx, ky, tx, ty = st
+    wx0, wx1, wx2, _, _, _ = spline_weights(tx, ihx)
+    wy0, wy1, wy2, _, _, _ = spline_weights(ty, ihy)
+    m = mass[i]
+    vx, vy = v[i, 0], v[i, 1]
+    c00 = c01 = c10 = c11 = 0.0
+    if apic:
+        c00, c01, c10, c11 = C[i, 0, 0], C[i, 0, 1], C[i, 1, 0], C[i, 1, 1]
+    for b in range(3):
+        wy = wy0 if b == 0 else (wy1 if b == 1 else wy2)
+        ry = (b - 1 - ty) * hy
+        row = kx + L0 * (ky + b)
+        for a in range(3):
+            wx = wx0 if a == 0 else (wx1 if a == 1 else wx2)
+            mS = m * (wx * wy)
+            ux, uy = vx, vy
+            if apic:
+                rx = (a - 1 - tx) * hx
+                ux = vx + c00 * rx + c01 * ry
+                uy = vy + c10 * rx + c11 * ry
+            g[1, row + a] += mS * ux
+            g[2, row + a] += mS * uy
+
+
+@inline_kernel
+def spline_gather(step, i, g, frame, st, mls):
+    """``v``, ``Δv`` (FLIP) or ``C`` (APIC) and ``Δt L`` at particle ``i`` from its 3×3 nodes;
+    ``mls``: ``L_p = C_p`` (the affine matrix of the field G2P reads, ``Σ φ v_i ⊗ r D⁻¹``,
+    :mod:`parmpm.transfer.affine`), not ``Σ v_i ⊗ ∇φ``."""
+    dt, apic = step[1], step[3]
+    _, _, ihx, ihy, L0 = frame
+    kx, ky, tx, ty = st
+    wx0, wx1, wx2, dx0, dx1, dx2 = spline_weights(tx, ihx)
+    wy0, wy1, wy2, dy0, dy1, dy2 = spline_weights(ty, ihy)
+    # the 3×3 sums factor by rows: Σ_ab wy_b wx_a u = Σ_b wy_b (Σ_a wx_a u_ab)
+    wr0, wr1, wr2 = wx0 * (-1.0 - tx), wx1 * (-tx), wx2 * (1.0 - tx)
+    vx = vy = dvx = dvy = 0.0
+    l00 = l01 = l10 = l11 = 0.0
+    bx0 = bx1 = by0 = by1 = 0.0
+    for b in range(3):
+        wy = wy0 if b == 0 else (wy1 if b == 1 else wy2)
+        dy = dy0 if b == 0 else (dy1 if b == 1 else dy2)
+        n = kx + L0 * (ky + b)
+        u0, u1, u2 = g[0, n], g[0, n + 1], g[0, n + 2]
+        w0, w1, w2 = g[1, n], g[1, n + 1], g[1, n + 2]
+        sx = wx0 * u0 + wx1 * u1 + wx2 * u2
+        sy = wx0 * w0 + wx1 * w1 + wx2 * w2
+        vx += wy * sx
+        vy += wy * sy
+        if not mls:
+            l00 += wy * (dx0 * u0 + dx1 * u1 + dx2 * u2)
+            l10 += wy * (dx0 * w0 + dx1 * w1 + dx2 * w2)
+            l01 += dy * sx
+            l11 += dy * sy
+        if apic:
+            ry = wy * (b - 1 - ty)
+            bx0 += wy * (wr0 * u0 + wr1 * u1 + wr2 * u2)
+            by0 += wy * (wr0 * w0 + wr1 * w1 + wr2 * w2)
+            bx1 += ry * sx
+            by1 += ry * sy
+        else:
+            dvx += wy * (wx0 * g[2, n] + wx1 * g[2, n + 1] + wx2 * g[2, n + 2])
+            dvy += wy * (wx0 * g[3, n] + wx1 * g[3, n + 1] + wx2 * g[3, n + 2])
+    c00, c01 = 4.0 * ihx * bx0, 4.0 * ihy * bx1
+    c10, c11 = 4.0 * ihx * by0, 4.0 * ihy * by1
+    if mls:
+        l00, l01, l10, l11 = c00, c01, c10, c11
+    return ((vx, vy), (dvx, dvy), (c00, c01, c10, c11),
+            (dt * l00, dt * l01, dt * l10, dt * l11), ())
+
+
+@inline_kernel
+def gather(step, i, g, frame, st, shape, fields):
+    """:func:`spline_gather` with ``L_p = Σ v_i ⊗ ∇φ``."""
+    return spline_gather(step, i, g, frame, st, False)
+
+
 @loop_kernel
 def p2g_bspline(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum (FLIP or APIC) and force of every patch slot from its particles (``lcr``
     unused: the signature is the CPDI kernel's)."""
-    start = boxes.start
-    x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
-                                   fields.stress)
-    C = fields.affine
-    apic = C.shape[0] > 0
-    forced = bforce.shape[0] > 0
     gsum[:] = 0.0
-    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
-    hx, hy = 1.0 / ihx, 1.0 / ihy
-    for p in range(start.size - 1):
-        g = gsum[p]
-        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            kx, tx = spline_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
-            ky, ty = spline_of((x[i, 1] - oy) * ihy, by, jly, jhy)
-            if kx < 0 or ky < 0:
-                if err[0] < 0:
-                    err[0] = i
-                continue
-            wx0, wx1, wx2, dx0, dx1, dx2 = spline_weights(tx, ihx)
-            wy0, wy1, wy2, dy0, dy1, dy2 = spline_weights(ty, ihy)
-            V = det_2d(F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]) * vol0[i]
-            t00, t01 = V * stress[i, 0, 0], V * stress[i, 0, 1]
-            t10, t11 = V * stress[i, 1, 0], V * stress[i, 1, 1]
-            m = mass[i]
-            vx, vy = v[i, 0], v[i, 1]
-            c00 = c01 = c10 = c11 = 0.0
-            if apic:
-                c00, c01, c10, c11 = C[i, 0, 0], C[i, 0, 1], C[i, 1, 0], C[i, 1, 1]
-            bfx = m * bforce[i, 0] if forced else 0.0
-            bfy = m * bforce[i, 1] if forced else 0.0
-            for b in range(3):
-                wy = wy0 if b == 0 else (wy1 if b == 1 else wy2)
-                dy = dy0 if b == 0 else (dy1 if b == 1 else dy2)
-                ry = (b - 1 - ty) * hy
-                row = kx + L0 * (ky + b)
-                for a in range(3):
-                    wx = wx0 if a == 0 else (wx1 if a == 1 else wx2)
-                    dx = dx0 if a == 0 else (dx1 if a == 1 else dx2)
-                    S = wx * wy
-                    gx, gy = dx * wy, wx * dy
-                    mS = m * S
-                    ux, uy = vx, vy
-                    if apic:
-                        rx = (a - 1 - tx) * hx
-                        ux = vx + c00 * rx + c01 * ry
-                        uy = vy + c10 * rx + c11 * ry
-                    node = row + a
-                    g[0, node] += mS
-                    g[1, node] += mS * ux
-                    g[2, node] += mS * uy
-                    add_force(g, node, S, gx, gy, bfx, bfy, (t00, t01, t10, t11), forced)
+    ihx, ihy = boxes.inv_h[0], boxes.inv_h[1]
+    each_particle(support, scatter, boxes, order, gsum, err, lcr, fields,
+                  (bforce, bforce.shape[0] > 0, fields.affine.shape[0] > 0, 1.0 / ihx, 1.0 / ihy))
 
 
 @loop_kernel
 def p2g_momentum_bspline(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum only (FLIP or APIC), into ``gsum[..., 1:3]``."""
-    start = boxes.start
-    x, v, mass = fields.x, fields.v, fields.mass
-    C = fields.affine
-    apic = C.shape[0] > 0
     gsum[:, 1:3, :] = 0.0
-    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
-    hx, hy = 1.0 / ihx, 1.0 / ihy
-    for p in range(start.size - 1):
-        g = gsum[p]
-        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            kx, tx = spline_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
-            ky, ty = spline_of((x[i, 1] - oy) * ihy, by, jly, jhy)
-            if kx < 0 or ky < 0:
-                if err[0] < 0:
-                    err[0] = i
-                continue
-            wx0, wx1, wx2, _, _, _ = spline_weights(tx, ihx)
-            wy0, wy1, wy2, _, _, _ = spline_weights(ty, ihy)
-            m = mass[i]
-            vx, vy = v[i, 0], v[i, 1]
-            c00 = c01 = c10 = c11 = 0.0
-            if apic:
-                c00, c01, c10, c11 = C[i, 0, 0], C[i, 0, 1], C[i, 1, 0], C[i, 1, 1]
-            for b in range(3):
-                wy = wy0 if b == 0 else (wy1 if b == 1 else wy2)
-                ry = (b - 1 - ty) * hy
-                row = kx + L0 * (ky + b)
-                for a in range(3):
-                    wx = wx0 if a == 0 else (wx1 if a == 1 else wx2)
-                    mS = m * (wx * wy)
-                    ux, uy = vx, vy
-                    if apic:
-                        rx = (a - 1 - tx) * hx
-                        ux = vx + c00 * rx + c01 * ry
-                        uy = vy + c10 * rx + c11 * ry
-                    g[1, row + a] += mS * ux
-                    g[2, row + a] += mS * uy
+    ihx, ihy = boxes.inv_h[0], boxes.inv_h[1]
+    each_particle(support, scatter_momentum, boxes, order, gsum, err, lcr, fields,
+                  (fields.affine.shape[0] > 0, 1.0 / ihx, 1.0 / ihy))
 
 
 @loop_kernel
@@ -151,96 +184,6 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
     """G2P in one of the three modes (FLIP/PIC blend or APIC); returns the largest
     ``c_p + |v_p|`` when the stress is updated, the particles that changed patch and the first
     that left the grid."""
-    return g2p_spline(mode, boxes, order, dt, flip, fields, material, gnew, err, locate, False)
-
-
-@loop_kernel
-def g2p_spline(mode, boxes, order, dt, flip, fields, material, gnew, err, locate, mls):
-    """:func:`g2p_bspline`'s loop; ``mls``: the velocity gradient is the affine matrix of the
-    field G2P reads, ``L_p = Σ φ v_i ⊗ r D⁻¹`` (:mod:`parmpm.transfer.affine`), not ``Σ v_i ⊗ ∇φ``."""
-    start = boxes.start
-    x, v, F, stress, dxs = fields.x, fields.v, fields.F, fields.stress, fields.dx
-    C = fields.affine
-    apic = C.shape[0] > 0
-    mat, params, damage = material
-    slot_patch, new_patch = locate.slot_patch, locate.new_patch
-    vmax = 0.0
-    moved = 0
-    first_out = -1
-    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
-    for p in range(start.size - 1):
-        g = gnew[p]
-        sp = slot_patch[p]
-        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            xx, xy = x[i, 0], x[i, 1]
-            kx, tx = spline_of((xx - ox) * ihx, bx, jlx, jhx)
-            ky, ty = spline_of((xy - oy) * ihy, by, jly, jhy)
-            if kx < 0 or ky < 0:
-                if err[0] < 0:
-                    err[0] = i
-                new_patch[i] = sp
-                continue
-            wx0, wx1, wx2, dx0, dx1, dx2 = spline_weights(tx, ihx)
-            wy0, wy1, wy2, dy0, dy1, dy2 = spline_weights(ty, ihy)
-            # the 3×3 sums factor by rows: Σ_ab wy_b wx_a u = Σ_b wy_b (Σ_a wx_a u_ab)
-            wr0, wr1, wr2 = wx0 * (-1.0 - tx), wx1 * (-tx), wx2 * (1.0 - tx)
-            vx = vy = dvx = dvy = 0.0
-            l00 = l01 = l10 = l11 = 0.0
-            bx0 = bx1 = by0 = by1 = 0.0
-            for b in range(3):
-                wy = wy0 if b == 0 else (wy1 if b == 1 else wy2)
-                dy = dy0 if b == 0 else (dy1 if b == 1 else dy2)
-                n = kx + L0 * (ky + b)
-                u0, u1, u2 = g[0, n], g[0, n + 1], g[0, n + 2]
-                w0, w1, w2 = g[1, n], g[1, n + 1], g[1, n + 2]
-                sx = wx0 * u0 + wx1 * u1 + wx2 * u2
-                sy = wx0 * w0 + wx1 * w1 + wx2 * w2
-                vx += wy * sx
-                vy += wy * sy
-                if not mls:
-                    l00 += wy * (dx0 * u0 + dx1 * u1 + dx2 * u2)
-                    l10 += wy * (dx0 * w0 + dx1 * w1 + dx2 * w2)
-                    l01 += dy * sx
-                    l11 += dy * sy
-                if apic:
-                    ry = wy * (b - 1 - ty)
-                    bx0 += wy * (wr0 * u0 + wr1 * u1 + wr2 * u2)
-                    by0 += wy * (wr0 * w0 + wr1 * w1 + wr2 * w2)
-                    bx1 += ry * sx
-                    by1 += ry * sy
-                else:
-                    dvx += wy * (wx0 * g[2, n] + wx1 * g[2, n + 1] + wx2 * g[2, n + 2])
-                    dvy += wy * (wx0 * g[3, n] + wx1 * g[3, n + 1] + wx2 * g[3, n + 2])
-            c00, c01 = 4.0 * ihx * bx0, 4.0 * ihy * bx1
-            c10, c11 = 4.0 * ihx * by0, 4.0 * ihy * by1
-            if mls:
-                l00, l01, l10, l11 = c00, c01, c10, c11
-            if mode != G2P_MUSL_DEFORM:
-                if apic:
-                    v[i, 0], v[i, 1] = vx, vy
-                    C[i, 0, 0], C[i, 0, 1] = c00, c01
-                    C[i, 1, 0], C[i, 1, 1] = c10, c11
-                else:
-                    v[i, 0] = flip_pic(flip, v[i, 0], dvx, vx)
-                    v[i, 1] = flip_pic(flip, v[i, 1], dvy, vy)
-                if mode == G2P_USL:
-                    x[i, 0] = xx + dt * vx
-                    x[i, 1] = xy + dt * vy
-                else:
-                    dxs[i, 0] = dt * vx
-                    dxs[i, 1] = dt * vy
-                    continue
-            else:
-                x[i, 0] = xx + dxs[i, 0]
-                x[i, 1] = xy + dxs[i, 1]
-            pid = next_patch_2d(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, locate, p, sp)
-            moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
-            f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
-            vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l10, dt * l11),
-                                   (f00, f01, f10, f11), v, F, stress, mat, params, damage)
-    return vmax, moved, first_out
+    return each_particle_g2p(support, gather, stays,
+                             (mode, dt, flip, fields.affine.shape[0] > 0), boxes, order, gnew,
+                             err, locate, lcr, fields, material)

@@ -13,18 +13,17 @@ corners are opposite, two stress products serve all four.
 
 Every corner's cell is located (and checked against the patch's box) before anything is
 scattered, so a particle that reaches past the ghost layer contributes nothing and sets ``err``.
+The loops are :mod:`parmpm.transfer.kernels2d.loops`'.
 """
-import numpy as np
-
 from parmpm.core.jit import inline_kernel, loop_kernel
 from parmpm.core.records import NO_SCALING
-from parmpm.transfer.kernels2d.cells import cells_of4, frame_2d, note_patch, slot_2d
-from parmpm.transfer.kernels2d.material import update_F_stress
-from parmpm.materials.kinematics import det_2d, flip_pic
-from parmpm.grid.patch_index import next_patch_2d
+from parmpm.materials.kinematics import det_2d
 from parmpm.shapes.cpdi import cofactor_2d
 from parmpm.shapes.scaling import cap_2d
-from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
+from parmpm.transfer.kernels2d.cells import cells_of4
+from parmpm.transfer.kernels2d.hat import body_force
+from parmpm.transfer.kernels2d.loops import NO_AFFINE, each_particle, each_particle_g2p, stays
+from parmpm.transfer.update_order import G2P_MUSL_MOTION
 
 
 @inline_kernel
@@ -93,7 +92,7 @@ def scatter5(g, L0, jx, jy, fx, fy, a0, a1, a2, a3, a4):
 
 
 @inline_kernel
-def scatter_momentum(g, L0, jx, jy, fx, fy, a1, a2):
+def scatter_mv(g, L0, jx, jy, fx, fy, a1, a2):
     """Rows 1 and 2 (momentum) of :func:`scatter5`."""
     n0 = jx + L0 * jy
     n2 = n0 + L0
@@ -126,145 +125,104 @@ def gather4(g, L0, jx, jy, fx, fy):
             s0 * g[3, n0] + s1 * g[3, n0 + 1] + s2 * g[3, n2] + s3 * g[3, n2 + 1])
 
 
+@inline_kernel
+def support(i, frame, slot, lcr, fields):
+    """Particle ``i``'s domain ``(r1x, r1y, r2x, r2y)`` and its corners' local cells and fractions
+    ``(jx0..3, jy0..3, fx0..3, fy0..3)``."""
+    x, F, r0 = fields.x, fields.F, fields.r0
+    ox, oy, ihx, ihy, _ = frame
+    bx, by, jlx, jly, jhx, jhy = slot
+    r1x, r1y, r2x, r2y = domain(lcr, F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1],
+                                r0[i, 0, 0], r0[i, 0, 1], r0[i, 1, 0], r0[i, 1, 1])
+    (jx0, jx1, jx2, jx3, jy0, jy1, jy2, jy3, fx0, fx1, fx2, fx3, fy0, fy1, fy2, fy3,
+     ok) = corners((x[i, 0] - ox) * ihx, (x[i, 1] - oy) * ihy, r1x, r1y, r2x, r2y,
+                   ihx, ihy, bx, by, jlx, jly, jhx, jhy)
+    return (0 if ok else -1), ((r1x, r1y, r2x, r2y), (jx0, jx1, jx2, jx3), (jy0, jy1, jy2, jy3),
+                               (fx0, fx1, fx2, fx3), (fy0, fy1, fy2, fy3))
+
+
+@inline_kernel
+def scatter(i, g, frame, st, fields, args):
+    """Mass, momentum and force of particle ``i``, corner by corner."""
+    v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
+    bforce, forced = args
+    L0 = frame[4]
+    (r1x, r1y, r2x, r2y), (jx0, jx1, jx2, jx3), (jy0, jy1, jy2, jy3), fx, fy = st
+    gax, gay, gbx, gby, det = corner_gradients(r1x, r1y, r2x, r2y)
+    q = det_2d(F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]) * vol0[i] / (4.0 * det)
+    t00, t01, t10, t11 = stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1]
+    mq = mass[i] * 0.25
+    mvx, mvy = mq * v[i, 0], mq * v[i, 1]
+    bfx, bfy = body_force(bforce, forced, i, mq)
+    tax, tay = q * (t00 * gax + t01 * gay), q * (t10 * gax + t11 * gay)
+    tbx, tby = q * (t00 * gbx + t01 * gby), q * (t10 * gbx + t11 * gby)
+    scatter5(g, L0, jx0, jy0, fx[0], fy[0], mq, mvx, mvy, bfx + tax, bfy + tay)
+    scatter5(g, L0, jx1, jy1, fx[1], fy[1], mq, mvx, mvy, bfx - tbx, bfy - tby)
+    scatter5(g, L0, jx2, jy2, fx[2], fy[2], mq, mvx, mvy, bfx + tbx, bfy + tby)
+    scatter5(g, L0, jx3, jy3, fx[3], fy[3], mq, mvx, mvy, bfx - tax, bfy - tay)
+
+
+@inline_kernel
+def scatter_momentum(i, g, frame, st, fields, args):
+    """Momentum of particle ``i``, corner by corner."""
+    v, mass = fields.v, fields.mass
+    L0 = frame[4]
+    _, (jx0, jx1, jx2, jx3), (jy0, jy1, jy2, jy3), fx, fy = st
+    mq = mass[i] * 0.25
+    mvx, mvy = mq * v[i, 0], mq * v[i, 1]
+    scatter_mv(g, L0, jx0, jy0, fx[0], fy[0], mvx, mvy)
+    scatter_mv(g, L0, jx1, jy1, fx[1], fy[1], mvx, mvy)
+    scatter_mv(g, L0, jx2, jy2, fx[2], fy[2], mvx, mvy)
+    scatter_mv(g, L0, jx3, jy3, fx[3], fy[3], mvx, mvy)
+
+
+@inline_kernel
+def gather(step, i, g, frame, st, shape, fields):
+    """``v_p = ¼ Σ v(x_α)``, ``Δv_p`` alike and ``Δt L`` (not in MUSL's motion pass, which stops
+    before it) at particle ``i`` from its four corners."""
+    mode, dt = step[0], step[1]
+    L0 = frame[4]
+    (r1x, r1y, r2x, r2y), (jx0, jx1, jx2, jx3), (jy0, jy1, jy2, jy3), fx, fy = st
+    u0x, u0y, d0x, d0y = gather4(g, L0, jx0, jy0, fx[0], fy[0])
+    u1x, u1y, d1x, d1y = gather4(g, L0, jx1, jy1, fx[1], fy[1])
+    u2x, u2y, d2x, d2y = gather4(g, L0, jx2, jy2, fx[2], fy[2])
+    u3x, u3y, d3x, d3y = gather4(g, L0, jx3, jy3, fx[3], fy[3])
+    vx = 0.25 * (u0x + u1x + u2x + u3x)
+    vy = 0.25 * (u0y + u1y + u2y + u3y)
+    dvx = 0.25 * (d0x + d1x + d2x + d3x)
+    dvy = 0.25 * (d0y + d1y + d2y + d3y)
+    dtl = (0.0, 0.0, 0.0, 0.0)
+    if mode != G2P_MUSL_MOTION:
+        # L = (1/V) Σ v(x_α) ⊗ g_α with g = −ga, gb, −gb, ga for corners 0..3
+        gax, gay, gbx, gby, det = corner_gradients(r1x, r1y, r2x, r2y)
+        wax, way = u3x - u0x, u3y - u0y
+        wbx, wby = u1x - u2x, u1y - u2y
+        k = dt / (4.0 * det)
+        dtl = (k * (wax * gax + wbx * gbx), k * (wax * gay + wbx * gby),
+               k * (way * gax + wby * gbx), k * (way * gay + wby * gby))
+    return (vx, vy), (dvx, dvy), NO_AFFINE, dtl, ()
+
+
 @loop_kernel
 def p2g_cpdi(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
-    start = boxes.start
-    x, v, F, r0, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.r0, fields.mass,
-                                       fields.vol0, fields.stress)
-    forced = bforce.shape[0] > 0
     gsum[:] = 0.0
-    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
-    for p in range(start.size - 1):
-        g = gsum[p]
-        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
-            r1x, r1y, r2x, r2y = domain(lcr, f00, f01, f10, f11,
-                                        r0[i, 0, 0], r0[i, 0, 1], r0[i, 1, 0], r0[i, 1, 1])
-            (jx0, jx1, jx2, jx3, jy0, jy1, jy2, jy3, fx0, fx1, fx2, fx3, fy0, fy1, fy2, fy3,
-             ok) = corners((x[i, 0] - ox) * ihx, (x[i, 1] - oy) * ihy, r1x, r1y, r2x, r2y,
-                           ihx, ihy, bx, by, jlx, jly, jhx, jhy)
-            if not ok:
-                if err[0] < 0:
-                    err[0] = i
-                continue
-            gax, gay, gbx, gby, det = corner_gradients(r1x, r1y, r2x, r2y)
-            q = det_2d(f00, f01, f10, f11) * vol0[i] / (4.0 * det)
-            t00, t01, t10, t11 = stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1]
-            mq = mass[i] * 0.25
-            mvx, mvy = mq * v[i, 0], mq * v[i, 1]
-            bfx = mq * bforce[i, 0] if forced else 0.0
-            bfy = mq * bforce[i, 1] if forced else 0.0
-            tax, tay = q * (t00 * gax + t01 * gay), q * (t10 * gax + t11 * gay)
-            tbx, tby = q * (t00 * gbx + t01 * gby), q * (t10 * gbx + t11 * gby)
-            scatter5(g, L0, jx0, jy0, fx0, fy0, mq, mvx, mvy, bfx + tax, bfy + tay)
-            scatter5(g, L0, jx1, jy1, fx1, fy1, mq, mvx, mvy, bfx - tbx, bfy - tby)
-            scatter5(g, L0, jx2, jy2, fx2, fy2, mq, mvx, mvy, bfx + tbx, bfy + tby)
-            scatter5(g, L0, jx3, jy3, fx3, fy3, mq, mvx, mvy, bfx - tax, bfy - tay)
+    each_particle(support, scatter, boxes, order, gsum, err, lcr, fields,
+                  (bforce, bforce.shape[0] > 0))
 
 
 @loop_kernel
 def p2g_momentum_cpdi(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2) of ``gsum`` only."""
-    start = boxes.start
-    x, v, F, r0, mass = fields.x, fields.v, fields.F, fields.r0, fields.mass
     gsum[:, 1:3, :] = 0.0
-    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
-    for p in range(start.size - 1):
-        g = gsum[p]
-        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            r1x, r1y, r2x, r2y = domain(lcr, F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1],
-                                        r0[i, 0, 0], r0[i, 0, 1], r0[i, 1, 0], r0[i, 1, 1])
-            (jx0, jx1, jx2, jx3, jy0, jy1, jy2, jy3, fx0, fx1, fx2, fx3, fy0, fy1, fy2, fy3,
-             ok) = corners((x[i, 0] - ox) * ihx, (x[i, 1] - oy) * ihy, r1x, r1y, r2x, r2y,
-                           ihx, ihy, bx, by, jlx, jly, jhx, jhy)
-            if not ok:
-                if err[0] < 0:
-                    err[0] = i
-                continue
-            mq = mass[i] * 0.25
-            mvx, mvy = mq * v[i, 0], mq * v[i, 1]
-            scatter_momentum(g, L0, jx0, jy0, fx0, fy0, mvx, mvy)
-            scatter_momentum(g, L0, jx1, jy1, fx1, fy1, mvx, mvy)
-            scatter_momentum(g, L0, jx2, jy2, fx2, fy2, mvx, mvy)
-            scatter_momentum(g, L0, jx3, jy3, fx3, fy3, mvx, mvy)
+    each_particle(support, scatter_momentum, boxes, order, gsum, err, lcr, fields, None)
 
 
 @loop_kernel
 def g2p_cpdi(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v_x, v_y, Δv_x, Δv_y)`` rows; returns the largest ``c_p + |v_p|`` in the
-    modes that update the stress."""
-    start = boxes.start
-    x, v, F, r0, stress, dx = fields.x, fields.v, fields.F, fields.r0, fields.stress, fields.dx
-    mat, params, damage = material
-    slot_patch, new_patch = locate.slot_patch, locate.new_patch
-    vmax = 0.0
-    moved = 0
-    first_out = -1
-    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
-    for p in range(start.size - 1):
-        g = gnew[p]
-        sp = slot_patch[p]
-        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            f00, f01, f10, f11 = F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]
-            r1x, r1y, r2x, r2y = domain(lcr, f00, f01, f10, f11,
-                                        r0[i, 0, 0], r0[i, 0, 1], r0[i, 1, 0], r0[i, 1, 1])
-            xx, xy = x[i, 0], x[i, 1]
-            vpx, vpy = v[i, 0], v[i, 1]
-            (jx0, jx1, jx2, jx3, jy0, jy1, jy2, jy3, fx0, fx1, fx2, fx3, fy0, fy1, fy2, fy3,
-             ok) = corners((xx - ox) * ihx, (xy - oy) * ihy, r1x, r1y, r2x, r2y,
-                           ihx, ihy, bx, by, jlx, jly, jhx, jhy)
-            if not ok:
-                if err[0] < 0:
-                    err[0] = i
-                new_patch[i] = sp
-                continue
-            u0x, u0y, d0x, d0y = gather4(g, L0, jx0, jy0, fx0, fy0)
-            u1x, u1y, d1x, d1y = gather4(g, L0, jx1, jy1, fx1, fy1)
-            u2x, u2y, d2x, d2y = gather4(g, L0, jx2, jy2, fx2, fy2)
-            u3x, u3y, d3x, d3y = gather4(g, L0, jx3, jy3, fx3, fy3)
-            if mode != G2P_MUSL_DEFORM:
-                vx = 0.25 * (u0x + u1x + u2x + u3x)
-                vy = 0.25 * (u0y + u1y + u2y + u3y)
-                v[i, 0] = flip_pic(flip, vpx, 0.25 * (d0x + d1x + d2x + d3x), vx)
-                v[i, 1] = flip_pic(flip, vpy, 0.25 * (d0y + d1y + d2y + d3y), vy)
-                if mode == G2P_MUSL_MOTION:
-                    dx[i, 0] = dt * vx
-                    dx[i, 1] = dt * vy
-                    continue
-                x[i, 0] = xx + dt * vx
-                x[i, 1] = xy + dt * vy
-            else:
-                x[i, 0] = xx + dx[i, 0]
-                x[i, 1] = xy + dx[i, 1]
-            # where it goes next
-            pid = next_patch_2d(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, locate, p, sp)
-            moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
-            # L = (1/V) Σ v(x_α) ⊗ g_α with g = −ga, gb, −gb, ga for corners 0..3
-            gax, gay, gbx, gby, det = corner_gradients(r1x, r1y, r2x, r2y)
-            wax, way = u3x - u0x, u3y - u0y
-            wbx, wby = u1x - u2x, u1y - u2y
-            k = dt / (4.0 * det)
-            l00 = k * (wax * gax + wbx * gbx)
-            l01 = k * (wax * gay + wbx * gby)
-            l10 = k * (way * gax + wby * gbx)
-            l11 = k * (way * gay + wby * gby)
-            vmax = update_F_stress(vmax, i, (l00, l01, l10, l11), (f00, f01, f10, f11), v, F,
-                                   stress, mat, params, damage)
-    return vmax, moved, first_out
+    modes that update the stress, the particles that changed patch and the first that left the
+    grid."""
+    return each_particle_g2p(support, gather, stays, (mode, dt, flip, False), boxes, order, gnew,
+                             err, locate, lcr, fields, material)

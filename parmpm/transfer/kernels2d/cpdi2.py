@@ -18,20 +18,19 @@ G2P gathers ``v(x_α)`` and ``Δv(x_α)`` and forms ``v_p = Σ wf_α v(x_α)`` (
 position, ``c_α += Δt (v(x_α) − Σ wf v(x_α))`` (not a frozen particle's; under MUSL in the
 deformation pass, with the re-mapped velocity: :mod:`parmpm.transfer.generic` says why).
 A domain with ``V ≤ 0`` (or NaN) is reported as inverted (``err = (i, −2)``), one whose corners
-leave the patch's box as out of reach (``err = (i, −1)``).
+leave the patch's box as out of reach (``err = (i, −1)``). The loops are
+:mod:`parmpm.transfer.kernels2d.loops`'.
 """
 import math
 
-import numpy as np
-
 from parmpm.core.jit import inline_kernel, loop_kernel
 from parmpm.core.records import NO_SCALING
-from parmpm.transfer.kernels2d.cells import cells_of4, frame_2d, note_patch, slot_2d
-from parmpm.transfer.kernels2d.cpdi import gather4, scatter5, scatter_momentum
-from parmpm.transfer.kernels2d.material import update_F_stress
-from parmpm.materials.kinematics import det_2d, flip_pic
-from parmpm.grid.patch_index import next_patch_2d
-from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
+from parmpm.materials.kinematics import det_2d
+from parmpm.transfer.kernels2d.cells import cells_of4
+from parmpm.transfer.kernels2d.cpdi import gather4, scatter5, scatter_mv
+from parmpm.transfer.kernels2d.hat import body_force
+from parmpm.transfer.kernels2d.loops import NO_AFFINE, each_particle, each_particle_g2p
+from parmpm.transfer.update_order import G2P_MUSL_MOTION
 
 
 @inline_kernel
@@ -87,173 +86,127 @@ def locate4(xx, xy, x0, y0, x1, y1, x2, y2, x3, y3, ihx, ihy, bx, by, jlx, jly, 
 
 
 @inline_kernel
-def note_error(err, i, code):
-    if err[0] < 0:
-        err[0] = i
-        err[1] = code
+def support(i, frame, slot, lcr, fields):
+    """Particle ``i``'s corner weights ``(wf0..3)``, ``V·wg`` of corners 0 and 1, ``V`` and its
+    capped corners' local cells and fractions; code −2 when ``V ≤ 0`` (or NaN)."""
+    x = fields.x
+    ox, oy, ihx, ihy, _ = frame
+    bx, by, jlx, jly, jhx, jhy = slot
+    x0, y0, x1, y1, x2, y2, x3, y3 = quad(lcr, fields.corners, i)
+    wf0, wf1, wf2, wf3, g0x, g0y, g1x, g1y, V = weights(x0, y0, x1, y1, x2, y2, x3, y3)
+    (jx0, jx1, jx2, jx3, jy0, jy1, jy2, jy3, fx0, fx1, fx2, fx3, fy0, fy1, fy2, fy3,
+     ok) = locate4((x[i, 0] - ox) * ihx, (x[i, 1] - oy) * ihy, x0, y0, x1, y1, x2, y2, x3, y3,
+                   ihx, ihy, bx, by, jlx, jly, jhx, jhy)
+    code = -2 if not V > 0.0 else (0 if ok else -1)
+    return code, ((wf0, wf1, wf2, wf3), (g0x, g0y, g1x, g1y), V, (jx0, jx1, jx2, jx3),
+                  (jy0, jy1, jy2, jy3), (fx0, fx1, fx2, fx3), (fy0, fy1, fy2, fy3))
+
+
+@inline_kernel
+def scatter(i, g, frame, st, fields, args):
+    """Mass, momentum and force of particle ``i``, corner by corner."""
+    v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
+    bforce, forced = args
+    L0 = frame[4]
+    (wf0, wf1, wf2, wf3), (g0x, g0y, g1x, g1y), V, jx, jy, fx, fy = st
+    q = det_2d(F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]) * vol0[i] / V
+    t00, t01, t10, t11 = stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1]
+    m = mass[i]
+    vx, vy = v[i, 0], v[i, 1]
+    bfx, bfy = body_force(bforce, forced, i, m)
+    # −V_p σ wg_α: corner 0 and 1, their opposites 3 and 2 with the other sign
+    tax, tay = q * (t00 * g0x + t01 * g0y), q * (t10 * g0x + t11 * g0y)
+    tbx, tby = q * (t00 * g1x + t01 * g1y), q * (t10 * g1x + t11 * g1y)
+    if forced:
+        f0x, f0y, f1x, f1y = bfx * wf0 - tax, bfy * wf0 - tay, bfx * wf1 - tbx, bfy * wf1 - tby
+        f2x, f2y, f3x, f3y = bfx * wf2 + tbx, bfy * wf2 + tby, bfx * wf3 + tax, bfy * wf3 + tay
+    else:  # no 0·φ terms: the same sums
+        f0x, f0y, f1x, f1y, f2x, f2y, f3x, f3y = -tax, -tay, -tbx, -tby, tbx, tby, tax, tay
+    scatter5(g, L0, jx[0], jy[0], fx[0], fy[0], m * wf0, m * wf0 * vx, m * wf0 * vy, f0x, f0y)
+    scatter5(g, L0, jx[1], jy[1], fx[1], fy[1], m * wf1, m * wf1 * vx, m * wf1 * vy, f1x, f1y)
+    scatter5(g, L0, jx[2], jy[2], fx[2], fy[2], m * wf2, m * wf2 * vx, m * wf2 * vy, f2x, f2y)
+    scatter5(g, L0, jx[3], jy[3], fx[3], fy[3], m * wf3, m * wf3 * vx, m * wf3 * vy, f3x, f3y)
+
+
+@inline_kernel
+def scatter_momentum(i, g, frame, st, fields, args):
+    """Momentum of particle ``i``, corner by corner."""
+    v, mass = fields.v, fields.mass
+    L0 = frame[4]
+    (wf0, wf1, wf2, wf3), _, _, jx, jy, fx, fy = st
+    mvx, mvy = mass[i] * v[i, 0], mass[i] * v[i, 1]
+    scatter_mv(g, L0, jx[0], jy[0], fx[0], fy[0], mvx * wf0, mvy * wf0)
+    scatter_mv(g, L0, jx[1], jy[1], fx[1], fy[1], mvx * wf1, mvy * wf1)
+    scatter_mv(g, L0, jx[2], jy[2], fx[2], fy[2], mvx * wf2, mvy * wf2)
+    scatter_mv(g, L0, jx[3], jy[3], fx[3], fy[3], mvx * wf3, mvy * wf3)
+
+
+@inline_kernel
+def gather(step, i, g, frame, st, shape, fields):
+    """``v_p = Σ wf_α v(x_α)``, ``Δv_p`` alike and ``Δt L`` (not in MUSL's motion pass) at
+    particle ``i``; the corners' velocities go on to :func:`follow`."""
+    mode, dt = step[0], step[1]
+    L0 = frame[4]
+    (wf0, wf1, wf2, wf3), (g0x, g0y, g1x, g1y), V, jx, jy, fx, fy = st
+    u0x, u0y, d0x, d0y = gather4(g, L0, jx[0], jy[0], fx[0], fy[0])
+    u1x, u1y, d1x, d1y = gather4(g, L0, jx[1], jy[1], fx[1], fy[1])
+    u2x, u2y, d2x, d2y = gather4(g, L0, jx[2], jy[2], fx[2], fy[2])
+    u3x, u3y, d3x, d3y = gather4(g, L0, jx[3], jy[3], fx[3], fy[3])
+    vx = wf0 * u0x + wf1 * u1x + wf2 * u2x + wf3 * u3x
+    vy = wf0 * u0y + wf1 * u1y + wf2 * u2y + wf3 * u3y
+    dvx = wf0 * d0x + wf1 * d1x + wf2 * d2x + wf3 * d3x
+    dvy = wf0 * d0y + wf1 * d1y + wf2 * d2y + wf3 * d3y
+    dtl = (0.0, 0.0, 0.0, 0.0)
+    if mode != G2P_MUSL_MOTION:
+        # L = Σ v(x_α) ⊗ wg_α, wg = (g0, g1, −g1, −g0)/V
+        wax, way = u0x - u3x, u0y - u3y
+        wbx, wby = u1x - u2x, u1y - u2y
+        k = dt / V
+        dtl = (k * (wax * g0x + wbx * g1x), k * (wax * g0y + wbx * g1y),
+               k * (way * g0x + wby * g1x), k * (way * g0y + wby * g1y))
+    return ((vx, vy), (dvx, dvy), NO_AFFINE, dtl,
+            ((wf0, wf1, wf2, wf3), (u0x, u0y, u1x, u1y, u2x, u2y, u3x, u3y)))
+
+
+@inline_kernel
+def follow(i, dt, extra, fields):
+    """Move particle ``i``'s tracked corners with the grid unless its domain is frozen (MUSL: in
+    the deformation pass, with the re-mapped field; module doc)."""
+    c, rf = fields.corners, fields.rf
+    if rf[i, 0, 0] == 0.0 and rf[i, 1, 0] == 0.0:
+        (wf0, wf1, wf2, wf3), (u0x, u0y, u1x, u1y, u2x, u2y, u3x, u3y) = extra
+        ux = wf0 * u0x + wf1 * u1x + wf2 * u2x + wf3 * u3x
+        uy = wf0 * u0y + wf1 * u1y + wf2 * u2y + wf3 * u3y
+        c[i, 0, 0] += dt * (u0x - ux)
+        c[i, 0, 1] += dt * (u0y - uy)
+        c[i, 1, 0] += dt * (u1x - ux)
+        c[i, 1, 1] += dt * (u1y - uy)
+        c[i, 2, 0] += dt * (u2x - ux)
+        c[i, 2, 1] += dt * (u2y - uy)
+        c[i, 3, 0] += dt * (u3x - ux)
+        c[i, 3, 1] += dt * (u3y - uy)
 
 
 @loop_kernel
 def p2g_cpdi2(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
-    start = boxes.start
-    x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
-                                   fields.stress)
-    c = fields.corners
-    forced = bforce.shape[0] > 0
     gsum[:] = 0.0
-    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
-    for p in range(start.size - 1):
-        g = gsum[p]
-        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            x0, y0, x1, y1, x2, y2, x3, y3 = quad(lcr, c, i)
-            wf0, wf1, wf2, wf3, g0x, g0y, g1x, g1y, V = weights(x0, y0, x1, y1, x2, y2, x3, y3)
-            if not V > 0.0:
-                note_error(err, i, -2)
-                continue
-            (jx0, jx1, jx2, jx3, jy0, jy1, jy2, jy3, fx0, fx1, fx2, fx3, fy0, fy1, fy2, fy3,
-             ok) = locate4((x[i, 0] - ox) * ihx, (x[i, 1] - oy) * ihy, x0, y0, x1, y1, x2, y2,
-                           x3, y3, ihx, ihy, bx, by, jlx, jly, jhx, jhy)
-            if not ok:
-                note_error(err, i, -1)
-                continue
-            q = det_2d(F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]) * vol0[i] / V
-            t00, t01, t10, t11 = stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1]
-            m = mass[i]
-            vx, vy = v[i, 0], v[i, 1]
-            bfx = m * bforce[i, 0] if forced else 0.0
-            bfy = m * bforce[i, 1] if forced else 0.0
-            # −V_p σ wg_α: corner 0 and 1, their opposites 3 and 2 with the other sign
-            tax, tay = q * (t00 * g0x + t01 * g0y), q * (t10 * g0x + t11 * g0y)
-            tbx, tby = q * (t00 * g1x + t01 * g1y), q * (t10 * g1x + t11 * g1y)
-            if forced:
-                f0x, f0y, f1x, f1y = bfx * wf0 - tax, bfy * wf0 - tay, bfx * wf1 - tbx, bfy * wf1 - tby
-                f2x, f2y, f3x, f3y = bfx * wf2 + tbx, bfy * wf2 + tby, bfx * wf3 + tax, bfy * wf3 + tay
-            else:  # no 0·φ terms: the same sums
-                f0x, f0y, f1x, f1y, f2x, f2y, f3x, f3y = -tax, -tay, -tbx, -tby, tbx, tby, tax, tay
-            scatter5(g, L0, jx0, jy0, fx0, fy0, m * wf0, m * wf0 * vx, m * wf0 * vy, f0x, f0y)
-            scatter5(g, L0, jx1, jy1, fx1, fy1, m * wf1, m * wf1 * vx, m * wf1 * vy, f1x, f1y)
-            scatter5(g, L0, jx2, jy2, fx2, fy2, m * wf2, m * wf2 * vx, m * wf2 * vy, f2x, f2y)
-            scatter5(g, L0, jx3, jy3, fx3, fy3, m * wf3, m * wf3 * vx, m * wf3 * vy, f3x, f3y)
+    each_particle(support, scatter, boxes, order, gsum, err, lcr, fields,
+                  (bforce, bforce.shape[0] > 0))
 
 
 @loop_kernel
 def p2g_momentum_cpdi2(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2) of ``gsum`` only."""
-    start = boxes.start
-    x, v, mass = fields.x, fields.v, fields.mass
-    c = fields.corners
     gsum[:, 1:3, :] = 0.0
-    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
-    for p in range(start.size - 1):
-        g = gsum[p]
-        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            x0, y0, x1, y1, x2, y2, x3, y3 = quad(lcr, c, i)
-            wf0, wf1, wf2, wf3, _, _, _, _, V = weights(x0, y0, x1, y1, x2, y2, x3, y3)
-            if not V > 0.0:
-                note_error(err, i, -2)
-                continue
-            (jx0, jx1, jx2, jx3, jy0, jy1, jy2, jy3, fx0, fx1, fx2, fx3, fy0, fy1, fy2, fy3,
-             ok) = locate4((x[i, 0] - ox) * ihx, (x[i, 1] - oy) * ihy, x0, y0, x1, y1, x2, y2,
-                           x3, y3, ihx, ihy, bx, by, jlx, jly, jhx, jhy)
-            if not ok:
-                note_error(err, i, -1)
-                continue
-            mvx, mvy = mass[i] * v[i, 0], mass[i] * v[i, 1]
-            scatter_momentum(g, L0, jx0, jy0, fx0, fy0, mvx * wf0, mvy * wf0)
-            scatter_momentum(g, L0, jx1, jy1, fx1, fy1, mvx * wf1, mvy * wf1)
-            scatter_momentum(g, L0, jx2, jy2, fx2, fy2, mvx * wf2, mvy * wf2)
-            scatter_momentum(g, L0, jx3, jy3, fx3, fy3, mvx * wf3, mvy * wf3)
+    each_particle(support, scatter_momentum, boxes, order, gsum, err, lcr, fields, None)
 
 
 @loop_kernel
 def g2p_cpdi2(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation), moving the tracked
     corners in the modes that move the particle; returns the largest ``c_p + |v_p|`` in the
-    modes that update the stress."""
-    start = boxes.start
-    x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
-    c, rf = fields.corners, fields.rf
-    mat, params, damage = material
-    slot_patch, new_patch = locate.slot_patch, locate.new_patch
-    vmax = 0.0
-    moved = 0
-    first_out = -1
-    ox, oy, ihx, ihy, L0 = frame_2d(boxes)
-    for p in range(start.size - 1):
-        g = gnew[p]
-        sp = slot_patch[p]
-        bx, by, jlx, jly, jhx, jhy = slot_2d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            x0, y0, x1, y1, x2, y2, x3, y3 = quad(lcr, c, i)
-            wf0, wf1, wf2, wf3, g0x, g0y, g1x, g1y, V = weights(x0, y0, x1, y1, x2, y2, x3, y3)
-            xx, xy = x[i, 0], x[i, 1]
-            if not V > 0.0:
-                note_error(err, i, -2)
-                new_patch[i] = sp
-                continue
-            (jx0, jx1, jx2, jx3, jy0, jy1, jy2, jy3, fx0, fx1, fx2, fx3, fy0, fy1, fy2, fy3,
-             ok) = locate4((xx - ox) * ihx, (xy - oy) * ihy, x0, y0, x1, y1, x2, y2, x3, y3,
-                           ihx, ihy, bx, by, jlx, jly, jhx, jhy)
-            if not ok:
-                note_error(err, i, -1)
-                new_patch[i] = sp
-                continue
-            u0x, u0y, d0x, d0y = gather4(g, L0, jx0, jy0, fx0, fy0)
-            u1x, u1y, d1x, d1y = gather4(g, L0, jx1, jy1, fx1, fy1)
-            u2x, u2y, d2x, d2y = gather4(g, L0, jx2, jy2, fx2, fy2)
-            u3x, u3y, d3x, d3y = gather4(g, L0, jx3, jy3, fx3, fy3)
-            if mode != G2P_MUSL_DEFORM:
-                vx = wf0 * u0x + wf1 * u1x + wf2 * u2x + wf3 * u3x
-                vy = wf0 * u0y + wf1 * u1y + wf2 * u2y + wf3 * u3y
-                v[i, 0] = flip_pic(flip, v[i, 0], wf0 * d0x + wf1 * d1x + wf2 * d2x + wf3 * d3x, vx)
-                v[i, 1] = flip_pic(flip, v[i, 1], wf0 * d0y + wf1 * d1y + wf2 * d2y + wf3 * d3y, vy)
-                if mode == G2P_MUSL_MOTION:
-                    dx[i, 0] = dt * vx
-                    dx[i, 1] = dt * vy
-                    continue
-                x[i, 0] = xx + dt * vx
-                x[i, 1] = xy + dt * vy
-            else:
-                x[i, 0] = xx + dx[i, 0]
-                x[i, 1] = xy + dx[i, 1]
-            if rf[i, 0, 0] == 0.0 and rf[i, 1, 0] == 0.0:  # not frozen: follow the grid
-                # (MUSL: in the deformation pass, with the re-mapped field; module doc)
-                ux = wf0 * u0x + wf1 * u1x + wf2 * u2x + wf3 * u3x
-                uy = wf0 * u0y + wf1 * u1y + wf2 * u2y + wf3 * u3y
-                c[i, 0, 0] += dt * (u0x - ux)
-                c[i, 0, 1] += dt * (u0y - uy)
-                c[i, 1, 0] += dt * (u1x - ux)
-                c[i, 1, 1] += dt * (u1y - uy)
-                c[i, 2, 0] += dt * (u2x - ux)
-                c[i, 2, 1] += dt * (u2y - uy)
-                c[i, 3, 0] += dt * (u3x - ux)
-                c[i, 3, 1] += dt * (u3y - uy)
-            pid = next_patch_2d(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, locate, p, sp)
-            moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
-            # L = Σ v(x_α) ⊗ wg_α, wg = (g0, g1, −g1, −g0)/V
-            wax, way = u0x - u3x, u0y - u3y
-            wbx, wby = u1x - u2x, u1y - u2y
-            k = dt / V
-            l00 = k * (wax * g0x + wbx * g1x)
-            l01 = k * (wax * g0y + wbx * g1y)
-            l10 = k * (way * g0x + wby * g1x)
-            l11 = k * (way * g0y + wby * g1y)
-            vmax = update_F_stress(vmax, i, (l00, l01, l10, l11),
-                                   (F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]), v, F,
-                                   stress, mat, params, damage)
-    return vmax, moved, first_out
+    modes that update the stress, the particles that changed patch and the first that left the
+    grid."""
+    return each_particle_g2p(support, gather, follow, (mode, dt, flip, False), boxes, order, gnew,
+                             err, locate, lcr, fields, material)

@@ -15,19 +15,20 @@ outer products (G2P) serve all eight corners.
 Every corner's cell is located (and checked against the patch's box) before anything is
 scattered, so a particle that reaches past the ghost layer contributes nothing and sets ``err``.
 Grid rows: ``gsum[s] = (m, mv_x, mv_y, mv_z, f_x, f_y, f_z)``, ``gnew[s] = (v_x, v_y, v_z, Δv_x,
-Δv_y, Δv_z)``, node ``i0 + L0 (i1 + L1 i2)`` of the patch's ghost-inclusive box.
+Δv_y, Δv_z)``, node ``i0 + L0 (i1 + L1 i2)`` of the patch's ghost-inclusive box. The loops are
+:mod:`parmpm.transfer.kernels3d.loops`'.
 """
 import numpy as np
 
 from parmpm.core.jit import inline_kernel, loop_kernel
 from parmpm.core.records import NO_SCALING
-from parmpm.transfer.kernels2d.cells import note_patch
-from parmpm.transfer.kernels3d.cells import cells_of8, frame_3d, slot_3d
-from parmpm.transfer.kernels3d.material import update_F_stress
-from parmpm.materials.kinematics import det_3d, flip_pic
-from parmpm.grid.patch_index import next_patch_3d
+from parmpm.materials.kinematics import det_3d
 from parmpm.shapes.cpdi import cofactor_3d
 from parmpm.shapes.scaling import cap_3d
+from parmpm.transfer.kernels2d.loops import stays
+from parmpm.transfer.kernels3d.cells import cells_of8
+from parmpm.transfer.kernels3d.hat import body_force
+from parmpm.transfer.kernels3d.loops import ZERO9, each_particle, each_particle_g2p
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
 
@@ -90,7 +91,7 @@ def scatter7(g, L0, L01, jx, jy, jz, fx, fy, fz, a0, a1, a2, a3, a4, a5, a6):
 
 
 @inline_kernel
-def scatter_momentum(g, L0, L01, jx, jy, jz, fx, fy, fz, a1, a2, a3):
+def scatter_mv(g, L0, L01, jx, jy, jz, fx, fy, fz, a1, a2, a3):
     """Rows 1..3 (momentum) of :func:`scatter7`."""
     for n, s in cell_nodes(L0, L01, jx, jy, jz, fx, fy, fz):
         g[1, n] += a1 * s
@@ -144,211 +145,164 @@ def sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gx, gy, gz):
             q * (s20 * gx + s21 * gy + s22 * gz))
 
 
+@inline_kernel
+def support(i, frame, slot, lcr, fields):
+    """Particle ``i``'s domain ``R`` (row by row) and its eight corners' local cells and fractions
+    per axis: ``(R, jx, jy, jz, fx, fy, fz)``, tuples of 9 and 8."""
+    x, F, r0 = fields.x, fields.F, fields.r0
+    ox, oy, oz, ihx, ihy, ihz, _, _ = frame
+    bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot
+    R00, R01, R02, R10, R11, R12, R20, R21, R22 = domain(
+        lcr, F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1], F[i, 1, 2],
+        F[i, 2, 0], F[i, 2, 1], F[i, 2, 2],
+        r0[i, 0, 0], r0[i, 0, 1], r0[i, 0, 2], r0[i, 1, 0], r0[i, 1, 1], r0[i, 1, 2],
+        r0[i, 2, 0], r0[i, 2, 1], r0[i, 2, 2])
+    jx0, jx1, jx2, jx3, jx4, jx5, jx6, jx7, fx0, fx1, fx2, fx3, fx4, fx5, fx6, fx7, okx = \
+        axis_corners((x[i, 0] - ox) * ihx, R00 * ihx, R01 * ihx, R02 * ihx, bx, jlx, jhx)
+    jy0, jy1, jy2, jy3, jy4, jy5, jy6, jy7, fy0, fy1, fy2, fy3, fy4, fy5, fy6, fy7, oky = \
+        axis_corners((x[i, 1] - oy) * ihy, R10 * ihy, R11 * ihy, R12 * ihy, by, jly, jhy)
+    jz0, jz1, jz2, jz3, jz4, jz5, jz6, jz7, fz0, fz1, fz2, fz3, fz4, fz5, fz6, fz7, okz = \
+        axis_corners((x[i, 2] - oz) * ihz, R20 * ihz, R21 * ihz, R22 * ihz, bz, jlz, jhz)
+    return (0 if okx and oky and okz else -1), (
+        (R00, R01, R02, R10, R11, R12, R20, R21, R22),
+        (jx0, jx1, jx2, jx3, jx4, jx5, jx6, jx7), (jy0, jy1, jy2, jy3, jy4, jy5, jy6, jy7),
+        (jz0, jz1, jz2, jz3, jz4, jz5, jz6, jz7), (fx0, fx1, fx2, fx3, fx4, fx5, fx6, fx7),
+        (fy0, fy1, fy2, fy3, fy4, fy5, fy6, fy7), (fz0, fz1, fz2, fz3, fz4, fz5, fz6, fz7))
+
+
+@inline_kernel
+def scatter(i, g, frame, st, fields, args):
+    """Mass, momentum and force of particle ``i``, corner by corner."""
+    v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
+    bforce, forced = args
+    L0, L01 = frame[6], frame[7]
+    (R00, R01, R02, R10, R11, R12, R20, R21, R22), jx, jy, jz, fx, fy, fz = st
+    gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = corner_gradients(
+        R00, R01, R02, R10, R11, R12, R20, R21, R22)
+    J = det_3d(F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1], F[i, 1, 2],
+               F[i, 2, 0], F[i, 2, 1], F[i, 2, 2])
+    q = J * vol0[i] / (8.0 * det)
+    s00, s01, s02 = stress[i, 0, 0], stress[i, 0, 1], stress[i, 0, 2]
+    s10, s11, s12 = stress[i, 1, 0], stress[i, 1, 1], stress[i, 1, 2]
+    s20, s21, s22 = stress[i, 2, 0], stress[i, 2, 1], stress[i, 2, 2]
+    tAx, tAy, tAz = sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gAx, gAy, gAz)
+    tBx, tBy, tBz = sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gBx, gBy, gBz)
+    tCx, tCy, tCz = sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gCx, gCy, gCz)
+    tDx, tDy, tDz = sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gDx, gDy, gDz)
+    mq = mass[i] * 0.125
+    mvx, mvy, mvz = mq * v[i, 0], mq * v[i, 1], mq * v[i, 2]
+    bfx, bfy, bfz = body_force(bforce, forced, i, mq)
+    # corner α has g = −gA, gB, gC, gD, −gD, −gC, −gB, gA; force −q σ g
+    scatter7(g, L0, L01, jx[0], jy[0], jz[0], fx[0], fy[0], fz[0], mq, mvx, mvy, mvz,
+             bfx + tAx, bfy + tAy, bfz + tAz)
+    scatter7(g, L0, L01, jx[1], jy[1], jz[1], fx[1], fy[1], fz[1], mq, mvx, mvy, mvz,
+             bfx - tBx, bfy - tBy, bfz - tBz)
+    scatter7(g, L0, L01, jx[2], jy[2], jz[2], fx[2], fy[2], fz[2], mq, mvx, mvy, mvz,
+             bfx - tCx, bfy - tCy, bfz - tCz)
+    scatter7(g, L0, L01, jx[3], jy[3], jz[3], fx[3], fy[3], fz[3], mq, mvx, mvy, mvz,
+             bfx - tDx, bfy - tDy, bfz - tDz)
+    scatter7(g, L0, L01, jx[4], jy[4], jz[4], fx[4], fy[4], fz[4], mq, mvx, mvy, mvz,
+             bfx + tDx, bfy + tDy, bfz + tDz)
+    scatter7(g, L0, L01, jx[5], jy[5], jz[5], fx[5], fy[5], fz[5], mq, mvx, mvy, mvz,
+             bfx + tCx, bfy + tCy, bfz + tCz)
+    scatter7(g, L0, L01, jx[6], jy[6], jz[6], fx[6], fy[6], fz[6], mq, mvx, mvy, mvz,
+             bfx + tBx, bfy + tBy, bfz + tBz)
+    scatter7(g, L0, L01, jx[7], jy[7], jz[7], fx[7], fy[7], fz[7], mq, mvx, mvy, mvz,
+             bfx - tAx, bfy - tAy, bfz - tAz)
+
+
+@inline_kernel
+def scatter_momentum(i, g, frame, st, fields, args):
+    """Momentum of particle ``i``, corner by corner."""
+    v, mass = fields.v, fields.mass
+    L0, L01 = frame[6], frame[7]
+    _, jx, jy, jz, fx, fy, fz = st
+    mq = mass[i] * 0.125
+    mvx, mvy, mvz = mq * v[i, 0], mq * v[i, 1], mq * v[i, 2]
+    scatter_mv(g, L0, L01, jx[0], jy[0], jz[0], fx[0], fy[0], fz[0], mvx, mvy, mvz)
+    scatter_mv(g, L0, L01, jx[1], jy[1], jz[1], fx[1], fy[1], fz[1], mvx, mvy, mvz)
+    scatter_mv(g, L0, L01, jx[2], jy[2], jz[2], fx[2], fy[2], fz[2], mvx, mvy, mvz)
+    scatter_mv(g, L0, L01, jx[3], jy[3], jz[3], fx[3], fy[3], fz[3], mvx, mvy, mvz)
+    scatter_mv(g, L0, L01, jx[4], jy[4], jz[4], fx[4], fy[4], fz[4], mvx, mvy, mvz)
+    scatter_mv(g, L0, L01, jx[5], jy[5], jz[5], fx[5], fy[5], fz[5], mvx, mvy, mvz)
+    scatter_mv(g, L0, L01, jx[6], jy[6], jz[6], fx[6], fy[6], fz[6], mvx, mvy, mvz)
+    scatter_mv(g, L0, L01, jx[7], jy[7], jz[7], fx[7], fy[7], fz[7], mvx, mvy, mvz)
+
+
+@inline_kernel
+def gather(step, i, g, frame, st, shape, fields):
+    """``v_p = ⅛ Σ v(x_α)``, ``Δv_p`` alike (the deformation pass reads ``v`` alone) and ``Δt L``
+    (not in MUSL's motion pass) at particle ``i`` from its eight corners."""
+    mode, dt = step[0], step[1]
+    L0, L01 = frame[6], frame[7]
+    (R00, R01, R02, R10, R11, R12, R20, R21, R22), jx, jy, jz, fx, fy, fz = st
+    vx = vy = vz = dvx = dvy = dvz = 0.0
+    if mode == G2P_MUSL_DEFORM:
+        u0x, u0y, u0z = gather3(g, L0, L01, jx[0], jy[0], jz[0], fx[0], fy[0], fz[0])
+        u1x, u1y, u1z = gather3(g, L0, L01, jx[1], jy[1], jz[1], fx[1], fy[1], fz[1])
+        u2x, u2y, u2z = gather3(g, L0, L01, jx[2], jy[2], jz[2], fx[2], fy[2], fz[2])
+        u3x, u3y, u3z = gather3(g, L0, L01, jx[3], jy[3], jz[3], fx[3], fy[3], fz[3])
+        u4x, u4y, u4z = gather3(g, L0, L01, jx[4], jy[4], jz[4], fx[4], fy[4], fz[4])
+        u5x, u5y, u5z = gather3(g, L0, L01, jx[5], jy[5], jz[5], fx[5], fy[5], fz[5])
+        u6x, u6y, u6z = gather3(g, L0, L01, jx[6], jy[6], jz[6], fx[6], fy[6], fz[6])
+        u7x, u7y, u7z = gather3(g, L0, L01, jx[7], jy[7], jz[7], fx[7], fy[7], fz[7])
+    else:
+        u0x, u0y, u0z, d0x, d0y, d0z = gather6(g, L0, L01, jx[0], jy[0], jz[0], fx[0], fy[0], fz[0])
+        u1x, u1y, u1z, d1x, d1y, d1z = gather6(g, L0, L01, jx[1], jy[1], jz[1], fx[1], fy[1], fz[1])
+        u2x, u2y, u2z, d2x, d2y, d2z = gather6(g, L0, L01, jx[2], jy[2], jz[2], fx[2], fy[2], fz[2])
+        u3x, u3y, u3z, d3x, d3y, d3z = gather6(g, L0, L01, jx[3], jy[3], jz[3], fx[3], fy[3], fz[3])
+        u4x, u4y, u4z, d4x, d4y, d4z = gather6(g, L0, L01, jx[4], jy[4], jz[4], fx[4], fy[4], fz[4])
+        u5x, u5y, u5z, d5x, d5y, d5z = gather6(g, L0, L01, jx[5], jy[5], jz[5], fx[5], fy[5], fz[5])
+        u6x, u6y, u6z, d6x, d6y, d6z = gather6(g, L0, L01, jx[6], jy[6], jz[6], fx[6], fy[6], fz[6])
+        u7x, u7y, u7z, d7x, d7y, d7z = gather6(g, L0, L01, jx[7], jy[7], jz[7], fx[7], fy[7], fz[7])
+        vx = 0.125 * (u0x + u1x + u2x + u3x + u4x + u5x + u6x + u7x)
+        vy = 0.125 * (u0y + u1y + u2y + u3y + u4y + u5y + u6y + u7y)
+        vz = 0.125 * (u0z + u1z + u2z + u3z + u4z + u5z + u6z + u7z)
+        dvx = 0.125 * (d0x + d1x + d2x + d3x + d4x + d5x + d6x + d7x)
+        dvy = 0.125 * (d0y + d1y + d2y + d3y + d4y + d5y + d6y + d7y)
+        dvz = 0.125 * (d0z + d1z + d2z + d3z + d4z + d5z + d6z + d7z)
+    dtl = ZERO9
+    if mode != G2P_MUSL_MOTION:
+        # Δt L = Δt/V Σ v(x_α) ⊗ g_α, opposite corners paired (g: see scatter)
+        gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = corner_gradients(
+            R00, R01, R02, R10, R11, R12, R20, R21, R22)
+        wAx, wAy, wAz = u7x - u0x, u7y - u0y, u7z - u0z
+        wBx, wBy, wBz = u1x - u6x, u1y - u6y, u1z - u6z
+        wCx, wCy, wCz = u2x - u5x, u2y - u5y, u2z - u5z
+        wDx, wDy, wDz = u3x - u4x, u3y - u4y, u3z - u4z
+        k = dt / (8.0 * det)
+        dtl = (k * (wAx * gAx + wBx * gBx + wCx * gCx + wDx * gDx),
+               k * (wAx * gAy + wBx * gBy + wCx * gCy + wDx * gDy),
+               k * (wAx * gAz + wBx * gBz + wCx * gCz + wDx * gDz),
+               k * (wAy * gAx + wBy * gBx + wCy * gCx + wDy * gDx),
+               k * (wAy * gAy + wBy * gBy + wCy * gCy + wDy * gDy),
+               k * (wAy * gAz + wBy * gBz + wCy * gCz + wDy * gDz),
+               k * (wAz * gAx + wBz * gBx + wCz * gCx + wDz * gDx),
+               k * (wAz * gAy + wBz * gBy + wCz * gCy + wDz * gDy),
+               k * (wAz * gAz + wBz * gBz + wCz * gCz + wDz * gDz))
+    return (vx, vy, vz), (dvx, dvy, dvz), ZERO9, dtl, ()
+
+
 @loop_kernel
 def p2g_cpdi(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
-    start = boxes.start
-    x, v, F, r0, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.r0, fields.mass,
-                                       fields.vol0, fields.stress)
-    forced = bforce.shape[0] > 0
     gsum[:] = 0.0
-    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
-    for p in range(start.size - 1):
-        g = gsum[p]
-        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
-            f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
-            f20, f21, f22 = F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]
-            R00, R01, R02, R10, R11, R12, R20, R21, R22 = domain(
-                lcr, f00, f01, f02, f10, f11, f12, f20, f21, f22,
-                r0[i, 0, 0], r0[i, 0, 1], r0[i, 0, 2], r0[i, 1, 0], r0[i, 1, 1], r0[i, 1, 2],
-                r0[i, 2, 0], r0[i, 2, 1], r0[i, 2, 2])
-            jx0, jx1, jx2, jx3, jx4, jx5, jx6, jx7, fx0, fx1, fx2, fx3, fx4, fx5, fx6, fx7, okx = \
-                axis_corners((x[i, 0] - ox) * ihx, R00 * ihx, R01 * ihx, R02 * ihx, bx, jlx, jhx)
-            jy0, jy1, jy2, jy3, jy4, jy5, jy6, jy7, fy0, fy1, fy2, fy3, fy4, fy5, fy6, fy7, oky = \
-                axis_corners((x[i, 1] - oy) * ihy, R10 * ihy, R11 * ihy, R12 * ihy, by, jly, jhy)
-            jz0, jz1, jz2, jz3, jz4, jz5, jz6, jz7, fz0, fz1, fz2, fz3, fz4, fz5, fz6, fz7, okz = \
-                axis_corners((x[i, 2] - oz) * ihz, R20 * ihz, R21 * ihz, R22 * ihz, bz, jlz, jhz)
-            if not (okx and oky and okz):
-                if err[0] < 0:
-                    err[0] = i
-                continue
-            gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = corner_gradients(
-                R00, R01, R02, R10, R11, R12, R20, R21, R22)
-            J = det_3d(f00, f01, f02, f10, f11, f12, f20, f21, f22)
-            q = J * vol0[i] / (8.0 * det)
-            s00, s01, s02 = stress[i, 0, 0], stress[i, 0, 1], stress[i, 0, 2]
-            s10, s11, s12 = stress[i, 1, 0], stress[i, 1, 1], stress[i, 1, 2]
-            s20, s21, s22 = stress[i, 2, 0], stress[i, 2, 1], stress[i, 2, 2]
-            tAx, tAy, tAz = sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gAx, gAy, gAz)
-            tBx, tBy, tBz = sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gBx, gBy, gBz)
-            tCx, tCy, tCz = sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gCx, gCy, gCz)
-            tDx, tDy, tDz = sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gDx, gDy, gDz)
-            mq = mass[i] * 0.125
-            mvx, mvy, mvz = mq * v[i, 0], mq * v[i, 1], mq * v[i, 2]
-            bfx = mq * bforce[i, 0] if forced else 0.0
-            bfy = mq * bforce[i, 1] if forced else 0.0
-            bfz = mq * bforce[i, 2] if forced else 0.0
-            # corner α has g = −gA, gB, gC, gD, −gD, −gC, −gB, gA; force −q σ g
-            scatter7(g, L0, L01, jx0, jy0, jz0, fx0, fy0, fz0, mq, mvx, mvy, mvz,
-                     bfx + tAx, bfy + tAy, bfz + tAz)
-            scatter7(g, L0, L01, jx1, jy1, jz1, fx1, fy1, fz1, mq, mvx, mvy, mvz,
-                     bfx - tBx, bfy - tBy, bfz - tBz)
-            scatter7(g, L0, L01, jx2, jy2, jz2, fx2, fy2, fz2, mq, mvx, mvy, mvz,
-                     bfx - tCx, bfy - tCy, bfz - tCz)
-            scatter7(g, L0, L01, jx3, jy3, jz3, fx3, fy3, fz3, mq, mvx, mvy, mvz,
-                     bfx - tDx, bfy - tDy, bfz - tDz)
-            scatter7(g, L0, L01, jx4, jy4, jz4, fx4, fy4, fz4, mq, mvx, mvy, mvz,
-                     bfx + tDx, bfy + tDy, bfz + tDz)
-            scatter7(g, L0, L01, jx5, jy5, jz5, fx5, fy5, fz5, mq, mvx, mvy, mvz,
-                     bfx + tCx, bfy + tCy, bfz + tCz)
-            scatter7(g, L0, L01, jx6, jy6, jz6, fx6, fy6, fz6, mq, mvx, mvy, mvz,
-                     bfx + tBx, bfy + tBy, bfz + tBz)
-            scatter7(g, L0, L01, jx7, jy7, jz7, fx7, fy7, fz7, mq, mvx, mvy, mvz,
-                     bfx - tAx, bfy - tAy, bfz - tAz)
+    each_particle(support, scatter, boxes, order, gsum, err, lcr, fields,
+                  (bforce, bforce.shape[0] > 0))
 
 
 @loop_kernel
 def p2g_momentum_cpdi(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
-    start = boxes.start
-    x, v, F, r0, mass = fields.x, fields.v, fields.F, fields.r0, fields.mass
     gsum[:, 1:4, :] = 0.0
-    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
-    for p in range(start.size - 1):
-        g = gsum[p]
-        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            R00, R01, R02, R10, R11, R12, R20, R21, R22 = domain(
-                lcr, F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1], F[i, 1, 2],
-                F[i, 2, 0], F[i, 2, 1], F[i, 2, 2],
-                r0[i, 0, 0], r0[i, 0, 1], r0[i, 0, 2], r0[i, 1, 0], r0[i, 1, 1], r0[i, 1, 2],
-                r0[i, 2, 0], r0[i, 2, 1], r0[i, 2, 2])
-            jx0, jx1, jx2, jx3, jx4, jx5, jx6, jx7, fx0, fx1, fx2, fx3, fx4, fx5, fx6, fx7, okx = \
-                axis_corners((x[i, 0] - ox) * ihx, R00 * ihx, R01 * ihx, R02 * ihx, bx, jlx, jhx)
-            jy0, jy1, jy2, jy3, jy4, jy5, jy6, jy7, fy0, fy1, fy2, fy3, fy4, fy5, fy6, fy7, oky = \
-                axis_corners((x[i, 1] - oy) * ihy, R10 * ihy, R11 * ihy, R12 * ihy, by, jly, jhy)
-            jz0, jz1, jz2, jz3, jz4, jz5, jz6, jz7, fz0, fz1, fz2, fz3, fz4, fz5, fz6, fz7, okz = \
-                axis_corners((x[i, 2] - oz) * ihz, R20 * ihz, R21 * ihz, R22 * ihz, bz, jlz, jhz)
-            if not (okx and oky and okz):
-                if err[0] < 0:
-                    err[0] = i
-                continue
-            mq = mass[i] * 0.125
-            mvx, mvy, mvz = mq * v[i, 0], mq * v[i, 1], mq * v[i, 2]
-            scatter_momentum(g, L0, L01, jx0, jy0, jz0, fx0, fy0, fz0, mvx, mvy, mvz)
-            scatter_momentum(g, L0, L01, jx1, jy1, jz1, fx1, fy1, fz1, mvx, mvy, mvz)
-            scatter_momentum(g, L0, L01, jx2, jy2, jz2, fx2, fy2, fz2, mvx, mvy, mvz)
-            scatter_momentum(g, L0, L01, jx3, jy3, jz3, fx3, fy3, fz3, mvx, mvy, mvz)
-            scatter_momentum(g, L0, L01, jx4, jy4, jz4, fx4, fy4, fz4, mvx, mvy, mvz)
-            scatter_momentum(g, L0, L01, jx5, jy5, jz5, fx5, fy5, fz5, mvx, mvy, mvz)
-            scatter_momentum(g, L0, L01, jx6, jy6, jz6, fx6, fy6, fz6, mvx, mvy, mvz)
-            scatter_momentum(g, L0, L01, jx7, jy7, jz7, fx7, fy7, fz7, mvx, mvy, mvz)
+    each_particle(support, scatter_momentum, boxes, order, gsum, err, lcr, fields, None)
 
 
 @loop_kernel
 def g2p_cpdi(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes (USL; MUSL motion; MUSL deformation) from
     ``gnew[slot] = (v, Δv)`` rows (the deformation mode reads only ``v``); returns the largest
-    ``c_p + |v_p|`` in the modes that update the stress."""
-    start = boxes.start
-    x, v, F, r0, stress, dx = fields.x, fields.v, fields.F, fields.r0, fields.stress, fields.dx
-    mat, params, damage = material
-    slot_patch, new_patch = locate.slot_patch, locate.new_patch
-    vmax = 0.0
-    moved = 0
-    first_out = -1
-    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
-    for p in range(start.size - 1):
-        g = gnew[p]
-        sp = slot_patch[p]
-        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
-            f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
-            f20, f21, f22 = F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]
-            R00, R01, R02, R10, R11, R12, R20, R21, R22 = domain(
-                lcr, f00, f01, f02, f10, f11, f12, f20, f21, f22,
-                r0[i, 0, 0], r0[i, 0, 1], r0[i, 0, 2], r0[i, 1, 0], r0[i, 1, 1], r0[i, 1, 2],
-                r0[i, 2, 0], r0[i, 2, 1], r0[i, 2, 2])
-            xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
-            jx0, jx1, jx2, jx3, jx4, jx5, jx6, jx7, fx0, fx1, fx2, fx3, fx4, fx5, fx6, fx7, okx = \
-                axis_corners((xx - ox) * ihx, R00 * ihx, R01 * ihx, R02 * ihx, bx, jlx, jhx)
-            jy0, jy1, jy2, jy3, jy4, jy5, jy6, jy7, fy0, fy1, fy2, fy3, fy4, fy5, fy6, fy7, oky = \
-                axis_corners((xy - oy) * ihy, R10 * ihy, R11 * ihy, R12 * ihy, by, jly, jhy)
-            jz0, jz1, jz2, jz3, jz4, jz5, jz6, jz7, fz0, fz1, fz2, fz3, fz4, fz5, fz6, fz7, okz = \
-                axis_corners((xz - oz) * ihz, R20 * ihz, R21 * ihz, R22 * ihz, bz, jlz, jhz)
-            if not (okx and oky and okz):
-                if err[0] < 0:
-                    err[0] = i
-                new_patch[i] = sp
-                continue
-            if mode == G2P_MUSL_DEFORM:
-                u0x, u0y, u0z = gather3(g, L0, L01, jx0, jy0, jz0, fx0, fy0, fz0)
-                u1x, u1y, u1z = gather3(g, L0, L01, jx1, jy1, jz1, fx1, fy1, fz1)
-                u2x, u2y, u2z = gather3(g, L0, L01, jx2, jy2, jz2, fx2, fy2, fz2)
-                u3x, u3y, u3z = gather3(g, L0, L01, jx3, jy3, jz3, fx3, fy3, fz3)
-                u4x, u4y, u4z = gather3(g, L0, L01, jx4, jy4, jz4, fx4, fy4, fz4)
-                u5x, u5y, u5z = gather3(g, L0, L01, jx5, jy5, jz5, fx5, fy5, fz5)
-                u6x, u6y, u6z = gather3(g, L0, L01, jx6, jy6, jz6, fx6, fy6, fz6)
-                u7x, u7y, u7z = gather3(g, L0, L01, jx7, jy7, jz7, fx7, fy7, fz7)
-                x[i, 0], x[i, 1], x[i, 2] = xx + dx[i, 0], xy + dx[i, 1], xz + dx[i, 2]
-            else:
-                u0x, u0y, u0z, d0x, d0y, d0z = gather6(g, L0, L01, jx0, jy0, jz0, fx0, fy0, fz0)
-                u1x, u1y, u1z, d1x, d1y, d1z = gather6(g, L0, L01, jx1, jy1, jz1, fx1, fy1, fz1)
-                u2x, u2y, u2z, d2x, d2y, d2z = gather6(g, L0, L01, jx2, jy2, jz2, fx2, fy2, fz2)
-                u3x, u3y, u3z, d3x, d3y, d3z = gather6(g, L0, L01, jx3, jy3, jz3, fx3, fy3, fz3)
-                u4x, u4y, u4z, d4x, d4y, d4z = gather6(g, L0, L01, jx4, jy4, jz4, fx4, fy4, fz4)
-                u5x, u5y, u5z, d5x, d5y, d5z = gather6(g, L0, L01, jx5, jy5, jz5, fx5, fy5, fz5)
-                u6x, u6y, u6z, d6x, d6y, d6z = gather6(g, L0, L01, jx6, jy6, jz6, fx6, fy6, fz6)
-                u7x, u7y, u7z, d7x, d7y, d7z = gather6(g, L0, L01, jx7, jy7, jz7, fx7, fy7, fz7)
-                vx = 0.125 * (u0x + u1x + u2x + u3x + u4x + u5x + u6x + u7x)
-                vy = 0.125 * (u0y + u1y + u2y + u3y + u4y + u5y + u6y + u7y)
-                vz = 0.125 * (u0z + u1z + u2z + u3z + u4z + u5z + u6z + u7z)
-                dvx = 0.125 * (d0x + d1x + d2x + d3x + d4x + d5x + d6x + d7x)
-                dvy = 0.125 * (d0y + d1y + d2y + d3y + d4y + d5y + d6y + d7y)
-                dvz = 0.125 * (d0z + d1z + d2z + d3z + d4z + d5z + d6z + d7z)
-                v[i, 0] = flip_pic(flip, v[i, 0], dvx, vx)
-                v[i, 1] = flip_pic(flip, v[i, 1], dvy, vy)
-                v[i, 2] = flip_pic(flip, v[i, 2], dvz, vz)
-                if mode == G2P_MUSL_MOTION:
-                    dx[i, 0], dx[i, 1], dx[i, 2] = dt * vx, dt * vy, dt * vz
-                    continue
-                x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
-            pid = next_patch_3d(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, locate, p,
-                                sp)
-            moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
-            # Δt L = Δt/V Σ v(x_α) ⊗ g_α, opposite corners paired (g: see p2g_cpdi)
-            gAx, gAy, gAz, gBx, gBy, gBz, gCx, gCy, gCz, gDx, gDy, gDz, det = corner_gradients(
-                R00, R01, R02, R10, R11, R12, R20, R21, R22)
-            wAx, wAy, wAz = u7x - u0x, u7y - u0y, u7z - u0z
-            wBx, wBy, wBz = u1x - u6x, u1y - u6y, u1z - u6z
-            wCx, wCy, wCz = u2x - u5x, u2y - u5y, u2z - u5z
-            wDx, wDy, wDz = u3x - u4x, u3y - u4y, u3z - u4z
-            k = dt / (8.0 * det)
-            l00 = k * (wAx * gAx + wBx * gBx + wCx * gCx + wDx * gDx)
-            l01 = k * (wAx * gAy + wBx * gBy + wCx * gCy + wDx * gDy)
-            l02 = k * (wAx * gAz + wBx * gBz + wCx * gCz + wDx * gDz)
-            l10 = k * (wAy * gAx + wBy * gBx + wCy * gCx + wDy * gDx)
-            l11 = k * (wAy * gAy + wBy * gBy + wCy * gCy + wDy * gDy)
-            l12 = k * (wAy * gAz + wBy * gBz + wCy * gCz + wDy * gDz)
-            l20 = k * (wAz * gAx + wBz * gBx + wCz * gCx + wDz * gDx)
-            l21 = k * (wAz * gAy + wBz * gBy + wCz * gCy + wDz * gDy)
-            l22 = k * (wAz * gAz + wBz * gBz + wCz * gCz + wDz * gDz)
-            vmax = update_F_stress(vmax, i, (l00, l01, l02, l10, l11, l12, l20, l21, l22),
-                                   (f00, f01, f02, f10, f11, f12, f20, f21, f22),
-                                   v, F, stress, mat, params, damage)
-    return vmax, moved, first_out
+    ``c_p + |v_p|`` in the modes that update the stress, the particles that changed patch and the
+    first that left the grid."""
+    return each_particle_g2p(support, gather, stays, (mode, dt, flip, False), boxes, order, gnew,
+                             err, locate, lcr, fields, material)

@@ -11,26 +11,26 @@ into the eight nodes of the corner's cell; G2P gathers ``v(x_α)``, ``Δv(x_α)`
 corners, ``c_α += Δt (v(x_α) − Σ wf v(x_α))``, in USL and in MUSL's deformation pass (not a
 frozen particle's; :mod:`parmpm.transfer.generic` says why). Errors as in :mod:`parmpm.transfer.kernels2d.cpdi2`.
 
-The per-particle scratch (capped corners and weights, the corners' cells and fractions) comes from
-the ``@kernel`` wrappers; the loops run without reference counting.
+The per-particle scratch (capped corners and weights, the corners' cells and fractions, their
+velocities) comes from the ``@kernel`` wrappers; the loops (:mod:`parmpm.transfer.kernels3d.loops`)
+run without reference counting.
 """
 import numpy as np
 
 from parmpm.core.jit import inline_kernel, kernel, loop_kernel
-from parmpm.transfer.kernels2d.cells import cell_of, note_patch
-from parmpm.transfer.kernels2d.cpdi2 import note_error
-from parmpm.transfer.kernels3d.cells import frame_3d, slot_3d
-from parmpm.transfer.kernels3d.cpdi import gather6, scatter7, scatter_momentum
-from parmpm.transfer.kernels3d.material import update_F_stress
-from parmpm.materials.kinematics import det_3d, flip_pic
-from parmpm.grid.patch_index import next_patch_3d
 from parmpm.shapes.cpdi2 import GAUSS, SCRATCH_SHAPE, WF, WG, cap_corners, corner_shape
-from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
+from parmpm.transfer.kernels2d.cells import cell_of
+from parmpm.transfer.kernels3d.cpdi import gather6, scatter7, scatter_mv
+from parmpm.transfer.kernels3d.hat import body_force, volume_stress
+from parmpm.transfer.kernels3d.loops import ZERO9, each_particle, each_particle_g2p
 
 
 @inline_kernel
-def _scratch():
-    return np.zeros(SCRATCH_SHAPE), np.zeros((8, 3), np.int64), np.zeros((8, 3))
+def _scratch(lcr):
+    """The loops' ``shape``: ``lcr`` and the scratch (capped corners and weights ``sc``, the
+    corners' ``cells`` and fractions ``fr``, their velocities ``u``: G2P)."""
+    return (lcr, np.zeros(SCRATCH_SHAPE), np.zeros((8, 3), np.int64), np.zeros((8, 3)),
+            np.zeros((8, 6)))
 
 
 def _shape_table() -> np.ndarray:
@@ -111,15 +111,19 @@ def hex_weights(sc):
 
 
 @inline_kernel
-def prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr):
-    """Capped corners and weights of particle ``i`` into ``sc`` and its corners' local cells and
-    fractions into ``cells``, ``fr``; returns ``(V, code)``: code 0, −2 (inverted) or −1 (a
-    corner's nodes leave the box)."""
-    cap_corners(3, c[i], lcr, sc)
+def support(i, frame, slot, shape, fields):
+    """Particle ``i``'s capped corners and weights into the scratch ``sc`` and its corners' local
+    cells and fractions into ``cells``, ``fr`` (the stencil is the scratch, ``shape``); code −2
+    (inverted: nothing located) or −1 (a corner's nodes leave the box)."""
+    lcr, sc, cells, fr, _ = shape
+    x = fields.x
+    cap_corners(3, fields.corners[i], lcr, sc)
     V = hex_weights(sc)
     if not V > 0.0:
-        return V, -2
-    bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
+        return -2, shape
+    ox, oy, oz, ihx, ihy, ihz, _, _ = frame
+    bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot
+    o, ih = (ox, oy, oz), (ihx, ihy, ihz)
     base, jlo, jhi = (bx, by, bz), (jlx, jly, jlz), (jhx, jhy, jhz)
     ok = True
     for a in range(8):
@@ -128,88 +132,114 @@ def prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr):
             cells[a, k] = j
             fr[a, k] = f
             ok = ok and j >= 0
-    return V, 0 if ok else -1
+    return (0 if ok else -1), shape
+
+
+@inline_kernel
+def scatter(i, g, frame, st, fields, args):
+    """Mass, momentum and force of particle ``i``, corner by corner."""
+    v, mass = fields.v, fields.mass
+    bforce, forced = args
+    L0, L01 = frame[6], frame[7]
+    _, sc, cells, fr, _ = st
+    t00, t01, t02, t10, t11, t12, t20, t21, t22 = volume_stress(i, fields)
+    m = mass[i]
+    vx, vy, vz = v[i, 0], v[i, 1], v[i, 2]
+    bfx, bfy, bfz = body_force(bforce, forced, i, m)
+    for a in range(8):
+        wf, gx, gy, gz = sc[a, WF], sc[a, WG], sc[a, WG + 1], sc[a, WG + 2]
+        mw = m * wf
+        scatter7(g, L0, L01, cells[a, 0], cells[a, 1], cells[a, 2], fr[a, 0], fr[a, 1],
+                 fr[a, 2], mw, mw * vx, mw * vy, mw * vz,
+                 bfx * wf - (t00 * gx + t01 * gy + t02 * gz),
+                 bfy * wf - (t10 * gx + t11 * gy + t12 * gz),
+                 bfz * wf - (t20 * gx + t21 * gy + t22 * gz))
+
+
+@inline_kernel
+def scatter_momentum(i, g, frame, st, fields, args):
+    """Momentum of particle ``i``, corner by corner."""
+    v, mass = fields.v, fields.mass
+    L0, L01 = frame[6], frame[7]
+    _, sc, cells, fr, _ = st
+    m = mass[i]
+    for a in range(8):
+        mw = m * sc[a, WF]
+        scatter_mv(g, L0, L01, cells[a, 0], cells[a, 1], cells[a, 2], fr[a, 0], fr[a, 1],
+                   fr[a, 2], mw * v[i, 0], mw * v[i, 1], mw * v[i, 2])
+
+
+@inline_kernel
+def gather(step, i, g, frame, st, shape, fields):
+    """``v_p = Σ wf_α v(x_α)``, ``Δv_p`` alike and ``Δt L`` at particle ``i``; the corners'
+    velocities (scratch ``u`` of ``shape``) go on to :func:`follow`."""
+    dt = step[1]
+    L0, L01 = frame[6], frame[7]
+    _, sc, cells, fr, _ = st
+    u = shape[4]
+    vx = vy = vz = dvx = dvy = dvz = 0.0
+    l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
+    for a in range(8):
+        u0, u1, u2, u3, u4, u5 = gather6(g, L0, L01, cells[a, 0], cells[a, 1],
+                                         cells[a, 2], fr[a, 0], fr[a, 1], fr[a, 2])
+        u[a, 0], u[a, 1], u[a, 2] = u0, u1, u2
+        wf, gx, gy, gz = sc[a, WF], sc[a, WG], sc[a, WG + 1], sc[a, WG + 2]
+        vx += wf * u0
+        vy += wf * u1
+        vz += wf * u2
+        dvx += wf * u3
+        dvy += wf * u4
+        dvz += wf * u5
+        l00 += u0 * gx
+        l01 += u0 * gy
+        l02 += u0 * gz
+        l10 += u1 * gx
+        l11 += u1 * gy
+        l12 += u1 * gz
+        l20 += u2 * gx
+        l21 += u2 * gy
+        l22 += u2 * gz
+    return ((vx, vy, vz), (dvx, dvy, dvz), ZERO9,
+            (dt * l00, dt * l01, dt * l02, dt * l10, dt * l11, dt * l12, dt * l20, dt * l21,
+             dt * l22), (u, vx, vy, vz))
+
+
+@inline_kernel
+def follow(i, dt, extra, fields):
+    """Move particle ``i``'s tracked corners with the grid, ``c_α += Δt (v(x_α) − v_p)``, unless
+    its domain is frozen."""
+    c, rf = fields.corners, fields.rf
+    u, vx, vy, vz = extra
+    if rf[i, 0, 0] == 0.0 and rf[i, 1, 0] == 0.0 and rf[i, 2, 0] == 0.0:  # not frozen
+        for a in range(8):
+            c[i, a, 0] += dt * (u[a, 0] - vx)
+            c[i, a, 1] += dt * (u[a, 1] - vy)
+            c[i, a, 2] += dt * (u[a, 2] - vz)
 
 
 @kernel
 def p2g_cpdi2(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum and force rows of ``gsum[slot]`` from every slot's particles."""
-    sc, cells, fr = _scratch()
-    _p2g_loop(lcr, boxes, order, fields, bforce, gsum, err, sc, cells, fr)
+    _p2g_loop(boxes, order, fields, bforce, gsum, err, _scratch(lcr))
 
 
 @loop_kernel
-def _p2g_loop(lcr, boxes, order, fields, bforce, gsum, err, sc, cells, fr):
-    start = boxes.start
-    x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
-                                   fields.stress)
-    c = fields.corners
-    forced = bforce.shape[0] > 0
+def _p2g_loop(boxes, order, fields, bforce, gsum, err, shape):
     gsum[:] = 0.0
-    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
-    o, ih = (ox, oy, oz), (ihx, ihy, ihz)
-    for p in range(start.size - 1):
-        g = gsum[p]
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
-            if code < 0:
-                note_error(err, i, code)
-                continue
-            Vp = det_3d(F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1], F[i, 1, 2],
-                        F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]) * vol0[i]
-            t00, t01, t02 = Vp * stress[i, 0, 0], Vp * stress[i, 0, 1], Vp * stress[i, 0, 2]
-            t10, t11, t12 = Vp * stress[i, 1, 0], Vp * stress[i, 1, 1], Vp * stress[i, 1, 2]
-            t20, t21, t22 = Vp * stress[i, 2, 0], Vp * stress[i, 2, 1], Vp * stress[i, 2, 2]
-            m = mass[i]
-            vx, vy, vz = v[i, 0], v[i, 1], v[i, 2]
-            bfx = m * bforce[i, 0] if forced else 0.0
-            bfy = m * bforce[i, 1] if forced else 0.0
-            bfz = m * bforce[i, 2] if forced else 0.0
-            for a in range(8):
-                wf, gx, gy, gz = sc[a, WF], sc[a, WG], sc[a, WG + 1], sc[a, WG + 2]
-                mw = m * wf
-                scatter7(g, L0, L01, cells[a, 0], cells[a, 1], cells[a, 2], fr[a, 0], fr[a, 1],
-                         fr[a, 2], mw, mw * vx, mw * vy, mw * vz,
-                         bfx * wf - (t00 * gx + t01 * gy + t02 * gz),
-                         bfy * wf - (t10 * gx + t11 * gy + t12 * gz),
-                         bfz * wf - (t20 * gx + t21 * gy + t22 * gz))
+    each_particle(support, scatter, boxes, order, gsum, err, shape, fields,
+                  (bforce, bforce.shape[0] > 0))
 
 
 @kernel
 def p2g_momentum_cpdi2(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
-    sc, cells, fr = _scratch()
-    _p2g_momentum_loop(lcr, boxes, order, fields, gsum, err, sc, cells, fr)
+    _p2g_momentum_loop(boxes, order, fields, gsum, err, _scratch(lcr))
 
 
 @loop_kernel
-def _p2g_momentum_loop(lcr, boxes, order, fields, gsum, err, sc, cells, fr):
-    start = boxes.start
-    x, v, mass = fields.x, fields.v, fields.mass
-    c = fields.corners
+def _p2g_momentum_loop(boxes, order, fields, gsum, err, shape):
     gsum[:, 1:4, :] = 0.0
-    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
-    o, ih = (ox, oy, oz), (ihx, ihy, ihz)
-    for p in range(start.size - 1):
-        g = gsum[p]
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
-            if code < 0:
-                note_error(err, i, code)
-                continue
-            m = mass[i]
-            for a in range(8):
-                mw = m * sc[a, WF]
-                scatter_momentum(g, L0, L01, cells[a, 0], cells[a, 1], cells[a, 2], fr[a, 0],
-                                 fr[a, 1], fr[a, 2], mw * v[i, 0], mw * v[i, 1], mw * v[i, 2])
+    each_particle(support, scatter_momentum, boxes, order, gsum, err, shape, fields, None)
 
 
 @kernel
@@ -217,82 +247,11 @@ def g2p_cpdi2(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, lo
     """G2P in one of the three modes, moving the tracked corners in USL and MUSL's deformation
     pass; returns (largest ``c_p + |v_p|`` when the stress is updated, particles that changed
     patch, first particle off the grid)."""
-    sc, cells, fr = _scratch()
-    u = np.zeros((8, 6))
-    return _g2p_loop(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate,
-                     sc, cells, fr, u)
+    return _g2p_loop(mode, boxes, order, dt, flip, fields, material, gnew, err, locate,
+                     _scratch(lcr))
 
 
 @loop_kernel
-def _g2p_loop(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate, sc, cells, fr,
-              u):
-    start = boxes.start
-    x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
-    c, rf = fields.corners, fields.rf
-    mat, params, damage = material
-    slot_patch, new_patch = locate.slot_patch, locate.new_patch
-    vmax = 0.0
-    moved = 0
-    first_out = -1
-    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
-    o, ih = (ox, oy, oz), (ihx, ihy, ihz)
-    for p in range(start.size - 1):
-        g = gnew[p]
-        sp = slot_patch[p]
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            V, code = prepare(lcr, c, i, x, o, ih, boxes, p, sc, cells, fr)
-            if code < 0:
-                note_error(err, i, code)
-                new_patch[i] = sp
-                continue
-            vx = vy = vz = dvx = dvy = dvz = 0.0
-            l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
-            for a in range(8):
-                u0, u1, u2, u3, u4, u5 = gather6(g, L0, L01, cells[a, 0], cells[a, 1],
-                                                 cells[a, 2], fr[a, 0], fr[a, 1], fr[a, 2])
-                u[a, 0], u[a, 1], u[a, 2] = u0, u1, u2
-                wf, gx, gy, gz = sc[a, WF], sc[a, WG], sc[a, WG + 1], sc[a, WG + 2]
-                vx += wf * u0
-                vy += wf * u1
-                vz += wf * u2
-                dvx += wf * u3
-                dvy += wf * u4
-                dvz += wf * u5
-                l00 += u0 * gx
-                l01 += u0 * gy
-                l02 += u0 * gz
-                l10 += u1 * gx
-                l11 += u1 * gy
-                l12 += u1 * gz
-                l20 += u2 * gx
-                l21 += u2 * gy
-                l22 += u2 * gz
-            xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
-            if mode != G2P_MUSL_DEFORM:
-                v[i, 0] = flip_pic(flip, v[i, 0], dvx, vx)
-                v[i, 1] = flip_pic(flip, v[i, 1], dvy, vy)
-                v[i, 2] = flip_pic(flip, v[i, 2], dvz, vz)
-                if mode == G2P_MUSL_MOTION:
-                    dx[i, 0], dx[i, 1], dx[i, 2] = dt * vx, dt * vy, dt * vz
-                    continue
-                x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
-            else:
-                x[i, 0], x[i, 1], x[i, 2] = xx + dx[i, 0], xy + dx[i, 1], xz + dx[i, 2]
-            if rf[i, 0, 0] == 0.0 and rf[i, 1, 0] == 0.0 and rf[i, 2, 0] == 0.0:  # not frozen
-                for a in range(8):
-                    c[i, a, 0] += dt * (u[a, 0] - vx)
-                    c[i, a, 1] += dt * (u[a, 1] - vy)
-                    c[i, a, 2] += dt * (u[a, 2] - vz)
-            pid = next_patch_3d(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, locate, p,
-                                sp)
-            moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
-            vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
-                                             dt * l12, dt * l20, dt * l21, dt * l22),
-                                   (F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
-                                    F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]),
-                                   v, F, stress, mat, params, damage)
-    return vmax, moved, first_out
+def _g2p_loop(mode, boxes, order, dt, flip, fields, material, gnew, err, locate, shape):
+    return each_particle_g2p(support, gather, follow, (mode, dt, flip, False), boxes, order, gnew,
+                             err, locate, shape, fields, material)

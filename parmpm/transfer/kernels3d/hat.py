@@ -6,16 +6,16 @@ eight nodes get ``φ = S_x S_y S_z`` (``S = 1 − f`` or ``f``) and
 ``φ m_p v_p`` and ``−V_p σ_p ∇φ (+ φ m_p b_p)`` (``V_p = J_p V0_p``); G2P gathers
 ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇φ`` (:mod:`parmpm.transfer.generic` has the
 full step). Grid rows as in :mod:`parmpm.transfer.kernels3d.cpdi`; node ``i0 + L0 (i1 + L1 i2)``.
+The loops are :mod:`parmpm.transfer.kernels3d.loops`'.
 """
 import numpy as np
 
 from parmpm.core.jit import inline_kernel, loop_kernel
-from parmpm.transfer.kernels2d.cells import hat_cell_of, note_patch
-from parmpm.transfer.kernels3d.cells import frame_3d, slot_3d
-from parmpm.transfer.kernels3d.material import update_F_stress
-from parmpm.materials.kinematics import det_3d, flip_pic
-from parmpm.grid.patch_index import next_patch_3d
-from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_USL
+from parmpm.materials.kinematics import det_3d
+from parmpm.transfer.kernels2d.cells import hat_cell_of
+from parmpm.transfer.kernels2d.loops import stays
+from parmpm.transfer.kernels3d.loops import ZERO9, centre_support, each_particle, each_particle_g2p
+from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
 
 @inline_kernel
@@ -69,153 +69,122 @@ def scatter_node(g, e, a, t, forced):
     add_force(g, node, S, gx, gy, gz, (bfx, bfy, bfz), t, forced)
 
 
+@inline_kernel
+def support(i, frame, slot, lcr, fields):
+    """Particle ``i``'s local cell and fractions ``(jx, jy, jz, fx, fy, fz)`` (``lcr`` unused)."""
+    return centre_support(hat_cell_of, i, frame, slot, fields)
+
+
+@inline_kernel
+def volume_stress(i, fields):
+    """``t = V_p σ_p`` (row by row) with ``V_p = J_p V0_p``."""
+    F, stress = fields.F, fields.stress
+    V = det_3d(F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1], F[i, 1, 2],
+               F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]) * fields.vol0[i]
+    return (V * stress[i, 0, 0], V * stress[i, 0, 1], V * stress[i, 0, 2],
+            V * stress[i, 1, 0], V * stress[i, 1, 1], V * stress[i, 1, 2],
+            V * stress[i, 2, 0], V * stress[i, 2, 1], V * stress[i, 2, 2])
+
+
+@inline_kernel
+def body_force(bforce, forced, i, m):
+    """``m b_p`` of particle ``i`` (zeros when no body force acts)."""
+    return ((m * bforce[i, 0] if forced else 0.0), (m * bforce[i, 1] if forced else 0.0),
+            (m * bforce[i, 2] if forced else 0.0))
+
+
+@inline_kernel
+def scatter(i, g, frame, st, fields, args):
+    """Mass, momentum and force of particle ``i`` into its cell's eight nodes."""
+    v, mass = fields.v, fields.mass
+    bforce, forced = args
+    _, _, _, ihx, ihy, ihz, L0, L01 = frame
+    jx, jy, jz, fx, fy, fz = st
+    t = volume_stress(i, fields)
+    m = mass[i]
+    bfx, bfy, bfz = body_force(bforce, forced, i, m)
+    a = (m, m * v[i, 0], m * v[i, 1], m * v[i, 2], bfx, bfy, bfz)
+    n0 = jx + L0 * jy + L01 * jz
+    e0, e1, e2, e3, e4, e5, e6, e7 = nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz)
+    scatter_node(g, e0, a, t, forced)
+    scatter_node(g, e1, a, t, forced)
+    scatter_node(g, e2, a, t, forced)
+    scatter_node(g, e3, a, t, forced)
+    scatter_node(g, e4, a, t, forced)
+    scatter_node(g, e5, a, t, forced)
+    scatter_node(g, e6, a, t, forced)
+    scatter_node(g, e7, a, t, forced)
+
+
+@inline_kernel
+def scatter_momentum(i, g, frame, st, fields, args):
+    """Momentum of particle ``i`` into its cell's eight nodes."""
+    v, mass = fields.v, fields.mass
+    _, _, _, ihx, ihy, ihz, L0, L01 = frame
+    jx, jy, jz, fx, fy, fz = st
+    m = mass[i]
+    mvx, mvy, mvz = m * v[i, 0], m * v[i, 1], m * v[i, 2]
+    n0 = jx + L0 * jy + L01 * jz
+    for node, S, _, _, _ in nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz):
+        g[1, node] += mvx * S
+        g[2, node] += mvy * S
+        g[3, node] += mvz * S
+
+
+@inline_kernel
+def gather(step, i, g, frame, st, shape, fields):
+    """``v``, ``Δv`` (not in MUSL's deformation pass, which reads neither) and ``Δt L`` at
+    particle ``i`` from its cell's eight nodes."""
+    mode, dt = step[0], step[1]
+    _, _, _, ihx, ihy, ihz, L0, L01 = frame
+    jx, jy, jz, fx, fy, fz = st
+    n0 = jx + L0 * jy + L01 * jz
+    vx = vy = vz = dvx = dvy = dvz = 0.0
+    l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
+    for node, S, gx, gy, gz in nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz):
+        nvx, nvy, nvz = g[0, node], g[1, node], g[2, node]
+        if mode != G2P_MUSL_DEFORM:
+            vx += S * nvx
+            vy += S * nvy
+            vz += S * nvz
+            dvx += S * g[3, node]
+            dvy += S * g[4, node]
+            dvz += S * g[5, node]
+        l00 += nvx * gx
+        l01 += nvx * gy
+        l02 += nvx * gz
+        l10 += nvy * gx
+        l11 += nvy * gy
+        l12 += nvy * gz
+        l20 += nvz * gx
+        l21 += nvz * gy
+        l22 += nvz * gz
+    dtl = ZERO9
+    if mode != G2P_MUSL_MOTION:
+        dtl = (dt * l00, dt * l01, dt * l02, dt * l10, dt * l11, dt * l12, dt * l20, dt * l21,
+               dt * l22)
+    return (vx, vy, vz), (dvx, dvy, dvz), ZERO9, dtl, ()
+
+
 @loop_kernel
 def p2g_hat(lcr, boxes, order, fields, bforce, gsum, err):
     """Mass, momentum and force (``gsum``) of every patch slot from its particles (``lcr`` unused:
     the signature is the CPDI kernel's)."""
-    start = boxes.start
-    x, v, F, mass, vol0, stress = (fields.x, fields.v, fields.F, fields.mass, fields.vol0,
-                                   fields.stress)
-    forced = bforce.shape[0] > 0
     gsum[:] = 0.0
-    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
-    for p in range(start.size - 1):
-        g = gsum[p]
-        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
-            jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
-            jz, fz = hat_cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
-            if jx < 0 or jy < 0 or jz < 0:
-                if err[0] < 0:
-                    err[0] = i
-                continue
-            f00, f01, f02 = F[i, 0, 0], F[i, 0, 1], F[i, 0, 2]
-            f10, f11, f12 = F[i, 1, 0], F[i, 1, 1], F[i, 1, 2]
-            f20, f21, f22 = F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]
-            V = det_3d(f00, f01, f02, f10, f11, f12, f20, f21, f22) * vol0[i]
-            t = (V * stress[i, 0, 0], V * stress[i, 0, 1], V * stress[i, 0, 2],
-                 V * stress[i, 1, 0], V * stress[i, 1, 1], V * stress[i, 1, 2],
-                 V * stress[i, 2, 0], V * stress[i, 2, 1], V * stress[i, 2, 2])
-            m = mass[i]
-            bfx = m * bforce[i, 0] if forced else 0.0
-            bfy = m * bforce[i, 1] if forced else 0.0
-            bfz = m * bforce[i, 2] if forced else 0.0
-            a = (m, m * v[i, 0], m * v[i, 1], m * v[i, 2], bfx, bfy, bfz)
-            n0 = jx + L0 * jy + L01 * jz
-            e0, e1, e2, e3, e4, e5, e6, e7 = nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz)
-            scatter_node(g, e0, a, t, forced)
-            scatter_node(g, e1, a, t, forced)
-            scatter_node(g, e2, a, t, forced)
-            scatter_node(g, e3, a, t, forced)
-            scatter_node(g, e4, a, t, forced)
-            scatter_node(g, e5, a, t, forced)
-            scatter_node(g, e6, a, t, forced)
-            scatter_node(g, e7, a, t, forced)
+    each_particle(support, scatter, boxes, order, gsum, err, lcr, fields,
+                  (bforce, bforce.shape[0] > 0))
 
 
 @loop_kernel
 def p2g_momentum_hat(lcr, boxes, order, fields, gsum, err):
     """The MUSL re-map: momentum rows (1, 2, 3) of ``gsum`` only."""
-    start = boxes.start
-    x, v, mass = fields.x, fields.v, fields.mass
     gsum[:, 1:4, :] = 0.0
-    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
-    for p in range(start.size - 1):
-        g = gsum[p]
-        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            jx, fx = hat_cell_of((x[i, 0] - ox) * ihx, bx, jlx, jhx)
-            jy, fy = hat_cell_of((x[i, 1] - oy) * ihy, by, jly, jhy)
-            jz, fz = hat_cell_of((x[i, 2] - oz) * ihz, bz, jlz, jhz)
-            if jx < 0 or jy < 0 or jz < 0:
-                if err[0] < 0:
-                    err[0] = i
-                continue
-            m = mass[i]
-            mvx, mvy, mvz = m * v[i, 0], m * v[i, 1], m * v[i, 2]
-            n0 = jx + L0 * jy + L01 * jz
-            for node, S, _, _, _ in nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz):
-                g[1, node] += mvx * S
-                g[2, node] += mvy * S
-                g[3, node] += mvz * S
+    each_particle(support, scatter_momentum, boxes, order, gsum, err, lcr, fields, None)
 
 
 @loop_kernel
 def g2p_hat(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, locate):
     """G2P in one of the three modes; returns the largest ``c_p + |v_p|`` when the stress is
-    updated."""
-    start = boxes.start
-    x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
-    mat, params, damage = material
-    slot_patch, new_patch = locate.slot_patch, locate.new_patch
-    vmax = 0.0
-    moved = 0
-    first_out = -1
-    ox, oy, oz, ihx, ihy, ihz, L0, L01 = frame_3d(boxes)
-    for p in range(start.size - 1):
-        g = gnew[p]
-        sp = slot_patch[p]
-        bx, by, bz, jlx, jly, jlz, jhx, jhy, jhz = slot_3d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            if order is None:  # rows in canonical order (compiled apart: no load)
-                i = kk
-            else:
-                i = order[kk]  # the physical row (Particles.order)
-            xx, xy, xz = x[i, 0], x[i, 1], x[i, 2]
-            jx, fx = hat_cell_of((xx - ox) * ihx, bx, jlx, jhx)
-            jy, fy = hat_cell_of((xy - oy) * ihy, by, jly, jhy)
-            jz, fz = hat_cell_of((xz - oz) * ihz, bz, jlz, jhz)
-            if jx < 0 or jy < 0 or jz < 0:
-                if err[0] < 0:
-                    err[0] = i
-                new_patch[i] = sp
-                continue
-            n0 = jx + L0 * jy + L01 * jz
-            vx = vy = vz = dvx = dvy = dvz = 0.0
-            l00 = l01 = l02 = l10 = l11 = l12 = l20 = l21 = l22 = 0.0
-            for node, S, gx, gy, gz in nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz):
-                nvx, nvy, nvz = g[0, node], g[1, node], g[2, node]
-                if mode != G2P_MUSL_DEFORM:
-                    vx += S * nvx
-                    vy += S * nvy
-                    vz += S * nvz
-                    dvx += S * g[3, node]
-                    dvy += S * g[4, node]
-                    dvz += S * g[5, node]
-                l00 += nvx * gx
-                l01 += nvx * gy
-                l02 += nvx * gz
-                l10 += nvy * gx
-                l11 += nvy * gy
-                l12 += nvy * gz
-                l20 += nvz * gx
-                l21 += nvz * gy
-                l22 += nvz * gz
-            if mode != G2P_MUSL_DEFORM:
-                v[i, 0] = flip_pic(flip, v[i, 0], dvx, vx)
-                v[i, 1] = flip_pic(flip, v[i, 1], dvy, vy)
-                v[i, 2] = flip_pic(flip, v[i, 2], dvz, vz)
-                if mode != G2P_USL:
-                    dx[i, 0], dx[i, 1], dx[i, 2] = dt * vx, dt * vy, dt * vz
-                    continue
-                x[i, 0], x[i, 1], x[i, 2] = xx + dt * vx, xy + dt * vy, xz + dt * vz
-            else:
-                x[i, 0], x[i, 1], x[i, 2] = xx + dx[i, 0], xy + dx[i, 1], xz + dx[i, 2]
-            pid = next_patch_3d(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, locate, p,
-                                sp)
-            moved, first_out = note_patch(new_patch, i, pid, sp, moved, first_out)
-            vmax = update_F_stress(vmax, i, (dt * l00, dt * l01, dt * l02, dt * l10, dt * l11,
-                                             dt * l12, dt * l20, dt * l21, dt * l22),
-                                   (F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
-                                    F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]),
-                                   v, F, stress, mat, params, damage)
-    return vmax, moved, first_out
+    updated, the particles that changed patch and the first that left the grid."""
+    return each_particle_g2p(support, gather, stays, (mode, dt, flip, False), boxes, order, gnew,
+                             err, locate, lcr, fields, material)
