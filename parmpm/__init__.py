@@ -16,7 +16,7 @@ The packages are the layers, listed top to bottom; a package imports only packag
 ``scene``      TOML in, a validated and resolved scene out; built-in scenes
 ``output``     what a run reports: history, energy ledger, metrics, particle domains
 ``step``       the explicit step as ordered phases (USL or MUSL)
-``particles``  the particle store, its canonical order, seeding bodies into it
+``particles``  the particle store, its canonical order, locating patches, seeding bodies into it
 ``loads``      forcings applied to bodies (the manufactured solution)
 ``transfer``   particle ↔ grid transfers: generic loops, 2D/3D kernels, update orders
 ``shapes``     interpolators: weights and gradients (hat, GIMP, B-spline, CPDI, CPDI2)

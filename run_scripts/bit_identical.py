@@ -3,8 +3,8 @@
 A renovation (a refactoring, a kernel regrouped, a formula moved) must not change one bit of any
 result. This saves the final particle state (gid, x, v, F, stress, damage in global-id order) and
 the summary's metrics, totals, step count and time of a fixed set of cases on 1-4 ranks, and
-compares two such saves byte for byte. The cases are the rank-independence test's
-(``tests/test_mpi_ranks.py``: 1D/2D/3D, every interpolator, USL and MUSL, unscaled CPDI,
+compares two such saves byte for byte. The cases (``rank_cases.py``) are the rank-independence
+test's (``tests/test_mpi_ranks.py``: 1D/2D/3D, every interpolator, USL and MUSL, unscaled CPDI,
 crossing and re-balancing, the manufactured solution, a spinning disk, damage and freezing, the
 tension bar) plus linear elasticity and MUSL for every interpolator in 2D and 3D, 3D damage with
 freezing, 3D unscaled CPDI and the vibrating bar (48 cases).
@@ -13,7 +13,7 @@ freezing, 3D unscaled CPDI and the vibrating bar (48 cases).
     python run_scripts/bit_identical.py save AFTER_DIR       # on the new code
     python run_scripts/bit_identical.py compare BEFORE_DIR AFTER_DIR
 
-``save`` runs ``tests/mpi_driver.py`` under ``mpirun -n P`` for ``--ranks`` (default 1 2 3 4;
+``save`` runs ``save_final_states.py`` under ``mpirun -n P`` for ``--ranks`` (default 1 2 3 4;
 ~4 minutes each on two cores). ``compare`` prints every field that differs and exits 1 if any
 does, or if it found nothing to compare (it compares the rank counts present in the second
 folder).
@@ -27,40 +27,18 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from rank_cases import renovation_cases
+from study import mpirun
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))  # the cases and the launcher live beside the tests
 FIELDS = ("gid", "x", "v", "F", "stress", "damage")
 SUMMARY_KEYS = ("metrics", "final", "steps", "time")
 
 
-def cases() -> dict:
-    """The rank-independence cases plus the extra kernel paths listed in the module docstring."""
-    from test_mpi_ranks import CASES, OFF
-
-    out = dict(CASES)
-    bar3 = ["grid.patch_size=3", "bodies.0.ppc=2", "time.steps=8"]
-    for m in ("mpm", "ugimp", "cpgimp", "cpdi"):
-        interp = f"method.interpolator={m}"
-        for law_or_update, tag in (("materials.bar.model=linear_elastic", "linear"),
-                                   ("method.update=musl", "musl")):
-            out[f"2d_{m}_{tag}"] = ["hanging_bar", OFF + [law_or_update, interp, "grid.patch_size=4",
-                                                          "time.steps=40"]]
-            out[f"3d_{m}_{tag}"] = ["hanging_bar_3d", OFF + [law_or_update, interp] + bar3]
-    out["3d_cpdi_damage"] = ["hanging_bar_3d", OFF + [
-        "materials.bar.damage={onset=1.02, fracture=1.5, freeze=0.3}", "grid.patch_size=3",
-        "bodies.0.ppc=2", "time.steps=30", "metrics.stop_on_separation=false"]]
-    out["3d_cpdi_unscaled"] = ["hanging_bar_3d", OFF + ["method.lcr=none"] + bar3]
-    out["vibrating_bar"] = ["vibrating_bar", OFF + ["time.steps=100"]]
-    return out
-
-
 def save(folder: Path, ranks: list[int]) -> None:
-    from mpi_launch import mpirun
-
     spec = folder / "cases.json"
     folder.mkdir(parents=True, exist_ok=True)
-    spec.write_text(json.dumps(cases()), encoding="utf-8")
+    spec.write_text(json.dumps(renovation_cases()), encoding="utf-8")
     launcher = mpirun()
     if launcher is None:
         raise SystemExit("bit_identical: no mpirun found (install the mpich extra)")
@@ -68,7 +46,7 @@ def save(folder: Path, ranks: list[int]) -> None:
         out = folder / f"np{n}"
         out.mkdir(exist_ok=True)
         proc = subprocess.run([launcher, "-n", str(n), sys.executable,
-                               str(ROOT / "tests" / "mpi_driver.py"), str(out), str(spec)],
+                               str(ROOT / "run_scripts" / "save_final_states.py"), str(out), str(spec)],
                               cwd=ROOT, capture_output=True, text=True, timeout=3600)
         if proc.returncode != 0:
             raise SystemExit(f"bit_identical: {n} ranks failed:\n{proc.stderr[-3000:]}")

@@ -146,7 +146,7 @@ class KeepMetrics:
         self.metrics, self.profile, self.state = None, profile, None
 
     def __call__(self, sim) -> None:
-        self.metrics = sim.metrics
+        self.metrics = sim.state.metrics
         if self.profile:
             P = sim.particles
             g = sim.gather({"x": P.x[:, 0], "x0": P.x0[:, 0], "F": P.F[:, 0, 0]})

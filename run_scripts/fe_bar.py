@@ -183,7 +183,7 @@ def mpm_bar(cell: float, end: float, support: str, comm):
 
     class Keep:
         def __call__(self, sim):
-            sim_hist["metrics"] = sim.metrics
+            sim_hist["metrics"] = sim.state.metrics
 
     summary, wall = run_case(scene, ["output.every_steps=1000000"], comm, [Keep()])
     m = sim_hist["metrics"]

@@ -113,7 +113,7 @@ def worker(particles: int, out: Path) -> None:
         sim = Simulation(build_bench_scene(DIM, "cpdi", particles, 2, steps=2), tmp / "big",
                          quiet=True, comm=comm)
         setup = sm._peak(hwm)
-        own, n = sim.particles.n, sim.n_total
+        own, n = sim.particles.n, sim.state.n_total
         sim.run()
         step = sm._peak(hwm)
         path = sim.write_checkpoint()
@@ -152,10 +152,7 @@ def launch(ranks: int, args: list[str], out: Path, timeout: float = 3600) -> dic
 
 
 def sm_mpirun() -> str:
-    sys.path.insert(0, str(study.ROOT / "tests"))
-    from mpi_launch import mpirun
-
-    launcher = mpirun()
+    launcher = study.mpirun()
     if launcher is None:
         raise SystemExit("io_scaling: no mpirun (install the mpich extra)")
     return launcher

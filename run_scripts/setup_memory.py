@@ -126,7 +126,7 @@ def worker(case: str, quick: bool, out: Path) -> None:
         sim = parmpm.Simulation(parmpm.load_scene(name, OFF + (small if quick else big) + steps),
                                 tmp / "big", quiet=True, comm=comm, overwrite=True)
         setup = _peak(hwm)
-        own, n = sim.particles.n, sim.n_total
+        own, n = sim.particles.n, sim.state.n_total
         sim.run()
         step = _peak(hwm)
         del sim
@@ -140,10 +140,7 @@ def worker(case: str, quick: bool, out: Path) -> None:
 
 # --- the driver: every case on every rank count, the table, CSV and figure ---------------------
 def run(case: str, ranks: int, quick: bool) -> dict:
-    sys.path.insert(0, str(study.ROOT / "tests"))
-    from mpi_launch import mpirun
-
-    launcher = mpirun()
+    launcher = study.mpirun()
     if launcher is None:
         raise SystemExit("setup_memory: no mpirun (install the mpich extra)")
     with tempfile.TemporaryDirectory() as tmp:

@@ -156,11 +156,11 @@ class StaticBarError:
         g = sim.gather({"x": P.x[:, 0].copy(), "x0": P.x0[:, 0].copy()})
         err = None
         if g is not None:
-            body = sim.data["bodies"][0]
-            mat = sim.data["materials"][body["material"]]
+            body = sim.state.data["bodies"][0]
+            mat = sim.state.data["materials"][body["material"]]
             top, L = float(body["max"][0]), float(body["max"][0] - body["min"][0])
             law = nominal_stress_1d(mat["model"], mat["youngs_modulus"], mat["poisson_ratio"])
-            grav = abs(float(sim.data["gravity"]["g"][0]))
+            grav = abs(float(sim.state.data["gravity"]["g"][0]))
             X = top - g["x0"]                      # distance from the support
             exact = hanging_bar_static_displacement(np.append(X, L), L, mat["density"], grav, law)
             u = g["x0"] - g["x"]                   # displacement along gravity

@@ -254,18 +254,18 @@ class Watch:
         from decomposition import allreduce_max
 
         P, d = sim.particles, sim.dim
-        axis = sim.data["metrics"]["axis"]
-        b = sim.data["boundary"]
+        axis = sim.state.data["metrics"]["axis"]
+        b = sim.state.data["boundary"]
         y_s = min(r["min"][axis] for r in b["fixed_regions"] + [
             r for r in b["slip_regions"] if r["normal"] == "xyz"[axis]])
-        h = sim.data["grid"]["cell_size"][axis]
-        if sim.interp.name == "mpm":
+        h = sim.state.data["grid"]["cell_size"][axis]
+        if sim.state.interp.name == "mpm":
             tops, reach, corner = P.x[:, axis], np.zeros(1), np.zeros(1)
         else:
-            corners = parmpm.domain_corners(d, sim.interp.code, sim.lcr, P.x, P.F, P.r0, P.lh0,
+            corners = parmpm.domain_corners(d, sim.state.interp.code, sim.state.lcr, P.x, P.F, P.r0, P.lh0,
                                             corners=P.corners)
             tops = corners[:, :, axis].max(axis=1)
-            reach = np.abs(corners - P.x[:, None, :]).max(axis=1) / sim.data["grid"]["cell_size"]
+            reach = np.abs(corners - P.x[:, None, :]).max(axis=1) / sim.state.data["grid"]["cell_size"]
             corner = np.linalg.norm(corners - P.x[:, None, :], axis=2)
         top, reach, corner = allreduce_max(sim.comm, np.array([
             tops.max() if P.n else -np.inf, reach.max() if reach.size else 0.0,

@@ -84,6 +84,12 @@ def world():
     return _world()
 
 
+def mpirun() -> str | None:
+    """The ``mpirun`` beside this Python (the venv's MPICH wheel), else the one on PATH, else None."""
+    beside = Path(sys.executable).parent / "mpirun"
+    return str(beside) if beside.exists() else shutil.which("mpirun")
+
+
 def is_root(comm) -> bool:
     return comm.Get_rank() == 0
 
@@ -351,7 +357,7 @@ class ManufacturedError:
 
     def __call__(self, sim) -> None:
         P = sim.particles
-        sums, _ = sim.metrics.terms(P.gid, P.x, P.v, P.F, t=sim.t, particles=P)
+        sums, _ = sim.state.metrics.terms(P.gid, P.x, P.v, P.F, t=sim.t, particles=P)
         g = sim.gather({"e2": np.ascontiguousarray(sums[:, 0])})
         rms = math.sqrt(float(np.sum(g["e2"])) / g["e2"].size) if g is not None else None
         self.t.append(float(sim.t))

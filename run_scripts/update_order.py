@@ -234,8 +234,8 @@ class Tiling:
         import parmpm
 
         P = sim.particles
-        self.end = sim.data["time"]["end"]
-        a = 0.5 * parmpm.domain_sizes(1, sim.disc.method, sim.disc.lcr, P.F, P.r0, P.lh0,
+        self.end = sim.state.data["time"]["end"]
+        a = 0.5 * parmpm.domain_sizes(1, sim.state.disc.method, sim.state.disc.lcr, P.F, P.r0, P.lh0,
                                       corners=P.corners)
         g = sim.gather({"x": P.x[:, 0].copy(), "x0": P.x0[:, 0].copy(), "a": a})
         out = None
@@ -245,11 +245,11 @@ class Tiling:
             total = float(np.sum(2.0 * a))
             length = float((x[-1] + a[-1]) - (x[0] - a[0]))
             gaps = (x[1:] - a[1:]) - (x[:-1] + a[:-1])
-            h = float(sim.disc.h[0])
+            h = float(sim.state.disc.h[0])
             exact = math.nan
             if self.problem == "vibrating_bar":
-                vib = sim.data["bodies"][0]["vibration"]
-                mat = next(iter(sim.data["materials"].values()))
+                vib = sim.state.data["bodies"][0]["vibration"]
+                mat = next(iter(sim.state.data["materials"].values()))
                 c = math.sqrt(mat["youngs_modulus"] / mat["density"])
                 beta = (2 * vib["mode"] - 1) * math.pi / (2 * BAR_LEN)
                 w = c * beta

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from run_waits import HISTORY_EVERY_STEP, wait_for_steps
 from mpi_launch import MPI_MARKS, mpirun, needs_mpi
-from test_mpi_ranks import CROSSING
+from rank_cases import CROSSING
 
 from parmpm.cli.main import main
 

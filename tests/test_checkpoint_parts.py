@@ -24,7 +24,7 @@ import h5py
 import numpy as np
 import pytest
 from test_checkpoint_faults import write_v3
-from test_mpi_ranks import CROSSING
+from rank_cases import CROSSING
 
 from decomposition import SerialComm
 from decomposition.layout import PatchLayout

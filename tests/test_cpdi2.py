@@ -234,11 +234,11 @@ def test_damage_freezes_cpdi2_domains(tmp_path):
                     "materials.bar.damage={onset=1.02, fracture=1.5, freeze=0.3}",
                     "metrics.stop_on_separation=false"]
     sim = _run(load_scene("hanging_bar", over), tmp_path)
-    st, P = sim.stepper, sim.particles
+    st, P = sim.state.stepper, sim.particles
     assert st.freezing and st.frozen > 0
     frozen = np.flatnonzero(np.any(P.rf[:, :, 0] != 0, axis=1))
     gid, before = P.gid[frozen].copy(), P.corners[frozen].copy()
-    st.step(sim.last_dt, sim.gravity(sim.t), sim.t)
+    st.step(sim.state.clock.last_dt, sim.gravity(sim.t), sim.t)
     P = sim.particles
     at = np.searchsorted(P.gid, gid, sorter=np.argsort(P.gid))
     np.testing.assert_array_equal(P.corners[np.argsort(P.gid)[at]], before)
@@ -254,7 +254,7 @@ def test_snapshots_draw_the_capped_tracked_corners(d, tmp_path):
     over = ["method.interpolator=cpdi2", "time.steps=4", "output.every_steps=2",
             "output.figure=false"] + (["bodies.0.ppc=2"] if d == 3 else [])
     sim = _run(load_scene(SCENES[d], over), tmp_path)
-    P, disc = sim.particles, sim.disc
+    P, disc = sim.particles, sim.state.disc
     o = np.argsort(P.gid)
     x, corners = P.x[o], P.corners[o]
     capped, sizes = capped_corners(d, disc.lcr, corners)

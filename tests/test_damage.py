@@ -14,6 +14,7 @@ import parmpm
 from parmpm.core.errors import SceneError
 from parmpm.transfer.kernels2d import KERNELS_2D
 from parmpm.materials import material_table
+from parmpm.scene.records import Damage, Material
 from parmpm.materials.damage import (damage_scalar, damage_update, degrade, degrade_2d, degrade_3d,
                                      max_stretch, max_stretch_2d, max_stretch_3d)
 from parmpm.materials.laws import cauchy_stress
@@ -23,9 +24,8 @@ QUIET = ["output.snapshots=false", "output.figure=false"]
 
 
 def material(softening="linear", onset=1.2, fracture=1.8, model="neo_hookean"):
-    return {"m": {"model": model, "density": 1000.0, "youngs_modulus": 1e6, "poisson_ratio": 0.3,
-                  "damage": {"criterion": "max_principal_stretch", "onset": onset,
-                             "fracture": fracture, "softening": softening, "freeze": 0.9}}}
+    return {"m": Material(model, 1000.0, 1e6, 0.3, Damage("max_principal_stretch", onset, fracture,
+                                                        softening, 0.9))}
 
 
 def expected_damage(softening, lam, onset=1.2, fracture=1.8):
@@ -167,9 +167,9 @@ def test_damaging_run_specialised_equals_generic(softening, tmp_path):
         sim = Simulation(parmpm.load_scene("hanging_bar", over), tmp_path / str(specialised),
                          quiet=True)
         if not specialised:
-            sim.stepper.use_kernels("generic")
+            sim.state.stepper.use_kernels("generic")
         else:
-            assert tuple(sim.stepper.transfers.kernels) == KERNELS_2D[sim.stepper.disc.method]
+            assert tuple(sim.state.stepper.transfers.kernels) == KERNELS_2D[sim.state.stepper.disc.method]
         sim.run()
         results.append(sim.particles)
     fast, gen = results

@@ -39,7 +39,7 @@ def test_ledger_steps_against_an_independent_account(interpolator):
                                          "output.history=false", "grid.patch_size=12",
                                          "method.update=usl"])
     sim = Simulation(scene, None, quiet=True)
-    S, P, ledger = sim.stepper, sim.particles, sim.energy.ledger
+    S, P, ledger = sim.state.stepper, sim.particles, sim.state.energy.ledger
     S.ledger = ledger
     d, dt, g = 2, 5e-4, np.zeros(3)
     t = 0.0
@@ -68,7 +68,7 @@ def test_ledger_steps_against_an_independent_account(interpolator):
         assert transfer == pytest.approx(j_g - j_p, rel=1e-7, abs=1e-12)
         assert j_g >= j_p  # Jensen: the particles' increments are means of the grid's
     # and the stored energy the ledger's residual uses is the particles' own sum
-    k, psi, _ = energy_totals(sim.comm, sim.patches.local_ids, P, sim.params, g)
+    k, psi, _ = energy_totals(sim.comm, sim.state.patches.local_ids, P, sim.state.params, g)
     assert k == pytest.approx(_kinetic(P), rel=1e-12)
     assert psi > 0.0
 

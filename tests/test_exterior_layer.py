@@ -89,7 +89,7 @@ def _scene(tmp_path, text, name, overrides=()):
 def _nodes(sim):
     """(global node index (n, 3), mass (n,), velocity (n, d)) of every node the local patches own,
     as the last grid update left them."""
-    D, st = sim.disc, sim.stepper
+    D, st = sim.state.disc, sim.state.stepper
     idx, mass, vel = [], [], []
     L = D.nloc
     for s in range(D.base.shape[0]):
@@ -117,7 +117,7 @@ def test_gimp_box_against_fixed_and_slip_walls(tmp_path, method, exterior):
             "layer_y": False, "slip_moves": False}
 
     def check(sim):
-        D, P = sim.disc, sim.particles
+        D, P = sim.state.disc, sim.particles
         half = P.lh0 * (np.abs(np.einsum("nii->ni", P.F)) if method == "cpgimp" else 1.0)
         g, m, v = _nodes(sim)
         on_x, on_y = g[:, 0] <= D.face_lo3[0], g[:, 1] <= D.face_lo3[1]
@@ -140,7 +140,7 @@ def test_gimp_box_against_fixed_and_slip_walls(tmp_path, method, exterior):
     # auto: a layer only on the two faces the body touches, as wide as the ghost layer
     want = [[pad, pad], [0, 0]] if exterior == "auto" else [[pad, pad], [pad, pad]]
     assert summary["grid"]["cells"] == [10, 10] and summary["grid"]["exterior"] == want
-    assert list(sim.disc.face_lo3[:2]) == [pad, pad]
+    assert list(sim.state.disc.face_lo3[:2]) == [pad, pad]
     assert seen["steps"] == 20 and all(seen.values()), seen
 
 
@@ -259,7 +259,7 @@ def test_rank_independent_with_a_layer(tmp_path):
     for n in (1, 2):
         folder = tmp_path / f"np{n}"
         folder.mkdir()
-        proc = subprocess.run([mpirun(), "-n", str(n), sys.executable, str(HERE / "mpi_driver.py"),
+        proc = subprocess.run([mpirun(), "-n", str(n), sys.executable, str(HERE.parent / "run_scripts" / "save_final_states.py"),
                                str(folder), str(spec)], capture_output=True, text=True, timeout=400)
         assert proc.returncode == 0, f"{n} ranks failed:\n{proc.stderr[-3000:]}"
         got[n] = folder

@@ -10,16 +10,15 @@ import pytest
 
 import parmpm
 from parmpm.materials import material_table
+from parmpm.scene.records import Damage, Material
 from parmpm.shapes.freeze import freeze_domains, polar_rotation
 
 QUIET = ["output.snapshots=false", "output.figure=false"]
 
 
 def table(freeze=0.5):
-    params, _ = material_table({"m": {
-        "model": "neo_hookean", "density": 1000.0, "youngs_modulus": 1e6, "poisson_ratio": 0.3,
-        "damage": {"criterion": "max_principal_stretch", "onset": 1.2, "fracture": 2.0,
-                   "softening": "linear", "freeze": freeze}}})
+    params, _ = material_table({"m": Material("neo_hookean", 1000.0, 1e6, 0.3, Damage(
+        "max_principal_stretch", 1.2, 2.0, "linear", freeze))})
     return params
 
 
@@ -115,9 +114,9 @@ def test_3d_domains_freeze_and_kernels_agree(tmp_path):
         sim = Simulation(parmpm.load_scene("hanging_bar_3d", over), tmp_path / str(specialised),
                          quiet=True)
         if not specialised:
-            sim.stepper.use_kernels("generic")
+            sim.state.stepper.use_kernels("generic")
         sim.run()
-        runs.append((sim.stepper.frozen, sim.particles))
+        runs.append((sim.state.stepper.frozen, sim.particles))
     (nf, a), (ng, b) = runs
     assert nf == ng > 0
     np.testing.assert_allclose(a.damage, b.damage, rtol=0, atol=1e-8)

@@ -57,7 +57,7 @@ def test_p2g_folds_dt_times_the_force_into_the_momentum(dim, kind, forced, tmp_p
     momentum of ``Δt = 0`` plus ``Δt f``, body force included; the mass does not depend on Δt."""
     sim, st, P = deformed_stepper(dim, "bspline", "mls", tmp=tmp_path)
     st.use_kernels(kind)
-    st.ledger = sim.energy.ledger
+    st.ledger = sim.state.energy.ledger
     bforce = (np.random.default_rng(6).normal(0, 5.0, (P.n, dim)) if forced
               else np.zeros((0, dim)))
     st.p2g(bforce, 0.0)
@@ -100,7 +100,7 @@ def test_the_energy_ledger_does_not_change_an_mls_run(tmp_path):
         sim = Simulation(load_scene("manufactured", over + [f"output.history={history}"]),
                          tmp_path / str(k), quiet=True)
         sim.run()
-        assert (sim.stepper.ledger is not None) == (history == "true")
+        assert (sim.state.stepper.ledger is not None) == (history == "true")
         P = sim.particles
         o = np.argsort(P.gid)
         states.append({f: getattr(P, f)[o].copy() for f in ("x", "v", "F", "affine")})

@@ -6,7 +6,7 @@ import time
 
 import pytest
 from mpi_launch import MPI_MARKS, mpirun
-from test_mpi_ranks import CROSSING
+from rank_cases import CROSSING
 
 pytestmark = MPI_MARKS  # every test here launches mpirun
 

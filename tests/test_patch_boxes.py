@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from decomposition import PatchLayout, boxes
-from parmpm.particles.store import locate_patches
+from parmpm.particles.locate import locate_patches
 from parmpm.core.records import Locate
 from parmpm.grid.patch_index import (next_patch_2d, next_patch_3d, patch_id1, patch_id2, patch_id3,
                                  patch_index, patches_holding_node)

@@ -329,7 +329,7 @@ def test_the_watch_is_quiet_on_a_sound_run_and_reports(tmp_path):
 
 def test_a_blow_up_under_dt_max_names_dt_max(tmp_path):
     sim = _sim(tmp_path, "time.dt_max=1e-5")
-    clock = sim.clock
+    clock = sim.state.clock
     clock.next_dt()
     clock.last_dt = 1e-5
     assert clock.dt_limit == "time.dt_max"

@@ -43,7 +43,7 @@ def test_the_folder_holds_the_resolved_scene_and_claims_it(tmp_path):
     sim = _sim(tmp_path / "o", "method.interpolator=ugimp")
     sim.run()
     folder = tmp_path / "o"
-    assert parmpm.load_scene(folder / "scene.toml").data == sim.scene.data
+    assert parmpm.load_scene(folder / "scene.toml").data == sim.state.scene.data
     marker = json.loads((folder / "parmpm-run.json").read_text())
     assert "scene.toml" in marker["files"]
     claim(folder, {"files": []}, explicit=True, overwrite=True)  # --overwrite

@@ -10,7 +10,7 @@ import pytest
 
 from parmpm import Simulation, load_scene
 from parmpm.materials import material_table
-from parmpm.particles.store import locate_patches
+from parmpm.particles.locate import locate_patches
 from parmpm.particles import seeding
 from parmpm.geometry.primitives import turn as _turn
 from parmpm.particles.seeding import _Ball, _Lattice, _lattice, _Turned, seed_bodies
@@ -44,8 +44,8 @@ def test_counts_and_members_match_locating_every_particle(scene, over, block, tm
     monkeypatch.setattr(seeding, "BLOCK", block)
     sc = load_scene(scene, over)
     sim = Simulation(sc, tmp_path, quiet=True)  # for its discretisation
-    D, lay = sim.disc, sim.disc.layout
-    _, names = material_table(sc.data["materials"])
+    D, lay = sim.state.disc, sim.state.disc.layout
+    _, names = material_table(sc.spec.materials)
     seeds = seed_bodies(sc.spec.grid, sc.spec.bodies, {n: i for i, n in enumerate(names)})
     x = seeds.x
     if sc.data.get("manufactured"):  # the particles start displaced: found where they start
@@ -60,7 +60,7 @@ def test_counts_and_members_match_locating_every_particle(scene, over, block, tm
     owned = np.random.default_rng(1).random(lay.n_patches) < 0.4
     mine = seeds.members(D, owned)
     assert np.array_equal(mine, np.flatnonzero(owned[where]))
-    params, _ = material_table(sc.data["materials"])
+    params, _ = material_table(sc.spec.materials)
     np.testing.assert_array_equal(seeds.particles(params, mine).x0, seeds.x[mine])
 
 

@@ -64,7 +64,7 @@ def main() -> None:
         compile_first(sc.spec, comm)  # rank 0's tiny warm-up run seeds too: not this scene's
         seeding.WATCH.reset()
         sim = Simulation(sc, out / name, quiet=True, comm=comm, overwrite=True)
-        m = sim.metrics
+        m = sim.state.metrics
         mine = {"own": sim.particles.n, "largest": seeding.WATCH.largest,
                 "metric_rows": _largest_metric_array(m),
                 "metric_fields": [k for k in ("x0", "mass") if getattr(m, k, None) is not None]}

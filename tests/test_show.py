@@ -74,7 +74,7 @@ def test_show_errors_are_one_line(tmp_path, capsys):
 
 
 def test_show_then_run_runs_the_same_scene(tmp_path):
-    """The README's ``parmpm show hanging_bar > my.toml; parmpm run my.toml``, as a user types
+    """The getting-started page's ``parmpm show hanging_bar > my_scene.toml; parmpm run my_scene.toml``, as a user types
     it (shortened), and the run folder's scene.toml is the same scene once more."""
     proc = _cli("show", "hanging_bar_1d", "--set", "time.steps=3", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr

@@ -16,7 +16,7 @@ from decomposition import PatchLayout
 from parmpm.cli.bench import build_bench_scene
 from parmpm.transfer.discretisation import Discretisation, exterior_cells
 from parmpm.core.errors import SceneError
-from parmpm.particles.store import locate_patches
+from parmpm.particles.locate import locate_patches
 from parmpm.scene.patch_size import (MAX_DENSE_PATCHES, _rank_list, auto_patch_size, covered_patches,
                                floor_size, idle_ranks_warning)
 from parmpm.driver.set_up import _patch_size
@@ -27,7 +27,7 @@ from parmpm.shapes import INTERPOLATORS
 HERE = Path(__file__).parent
 FIELDS = ("gid", "x", "v", "F", "stress", "damage")
 
-#: the README's minimal scene: 20 x 32 cells, a 10 x 10-cell box (one patch of the old default)
+#: the minimal scene of docs/reference/scenes.md: 20 x 32 cells, a 10 x 10-cell box (one patch of the old default)
 SMALL = """\
 dim = 2
 [grid]
@@ -234,7 +234,7 @@ def _launch(mpirun, ranks, folder, cases):
     folder.mkdir(parents=True)
     spec = folder / "cases.json"
     spec.write_text(json.dumps(cases))
-    proc = subprocess.run([mpirun, "-n", str(ranks), sys.executable, str(HERE / "mpi_driver.py"),
+    proc = subprocess.run([mpirun, "-n", str(ranks), sys.executable, str(HERE.parent / "run_scripts" / "save_final_states.py"),
                            str(folder), str(spec)], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, f"{ranks} ranks failed:\n{proc.stderr[-3000:]}"
     return proc

@@ -92,7 +92,7 @@ def particle_state(sim):
 def test_fields_types_and_attributes(run):
     path, sim = run
     s = load_snapshots(path)
-    dim, n = sim.dim, sim.n_total
+    dim, n = sim.dim, sim.state.n_total
     assert set(s.fields) == FIELDS and s.dim == dim
     assert len(s) == 3 and list(s.steps) == [0, 2, 4] and s.times[0] == 0.0
     last = s.at(-1)
@@ -126,7 +126,7 @@ def test_domains_are_the_interpolation_domains(run):
         np.testing.assert_array_equal(s["domains"][-1], corners)
     *_, (_, blocks) = vtk_steps(path)
     grid = blocks["domains"]
-    assert grid.GetNumberOfCells() == sim.n_total
+    assert grid.GetNumberOfCells() == sim.state.n_total
     assert {grid.GetCellType(i) for i in range(grid.GetNumberOfCells())} == {VTK_CELL[sim.dim]}
     np.testing.assert_allclose(vtk_sizes(grid), sizes, rtol=1e-12)
 
@@ -145,7 +145,7 @@ def test_vtk_reader_sees_moving_particles(run):
         np.testing.assert_array_equal(points[:, :sim.dim], s["x"][k])
         gid = grid.GetPointData().GetArray("gid")
         assert gid.GetDataTypeAsString() in ("long", "long long", "idtype")
-        np.testing.assert_array_equal(vtk_to_numpy(gid), np.arange(sim.n_total))
+        np.testing.assert_array_equal(vtk_to_numpy(gid), np.arange(sim.state.n_total))
         damage = blocks["domains"].GetCellData().GetArray("damage")
         np.testing.assert_array_equal(vtk_to_numpy(damage), s["damage"][k])
     first = vtk_to_numpy(steps[0][1]["particles"].GetPoints().GetData())
@@ -163,7 +163,7 @@ def test_meshio_public_reader(run):
     with meshio.xdmf.TimeSeriesReader(path) as reader:
         points, cells = reader.read_points_cells()
         np.testing.assert_array_equal(points[:, :sim.dim], s["x"][0])
-        assert cells[0].type == "vertex" and len(cells[0].data) == sim.n_total
+        assert cells[0].type == "vertex" and len(cells[0].data) == sim.state.n_total
         assert reader.num_steps == len(s)
         for k in range(reader.num_steps):
             t, pd, _ = reader.read_data(k)
@@ -176,8 +176,8 @@ def test_meshio_public_reader(run):
     mesh = s.to_meshio(-1, domains=True)
     mesh.write(path.parent / "last.vtu")
     back = meshio.read(path.parent / "last.vtu")
-    assert back.cells[0].data.shape == (sim.n_total, 2 ** sim.dim)
-    np.testing.assert_array_equal(back.cell_data["gid"][0], np.arange(sim.n_total))
+    assert back.cells[0].data.shape == (sim.state.n_total, 2 ** sim.dim)
+    np.testing.assert_array_equal(back.cell_data["gid"][0], np.arange(sim.state.n_total))
 
 
 def test_history_goes_into_the_snapshot_file(run):

@@ -8,7 +8,7 @@ P2G sums, the MUSL momentum re-map and every G2P mode (positions, velocities, F,
 speed) agree to round-off, with and without domain scaling (an ``l_cr`` that caps some but not
 all domains), body forces and every registered material law; the stress pass agrees; a support
 past the ghost layer is caught the same way; G2P finds each particle's next patch as
-:func:`parmpm.particles.store.locate_patches` does. The kernels switch through
+:func:`parmpm.particles.locate.locate_patches` does. The kernels switch through
 :meth:`parmpm.step.stepper.Stepper.use_kernels` (never by their positional signatures); every kernel
 also runs through ``.py_func`` (readable failures, coverage).
 """
@@ -21,7 +21,7 @@ from parmpm.transfer.kernels2d.material import stress_pass as stress_pass_2d
 from parmpm.transfer.kernels3d.cells import cells_of8
 from parmpm.transfer.kernels3d.material import stress_pass as stress_pass_3d
 from parmpm.materials import MODELS
-from parmpm.particles.store import locate_patches
+from parmpm.particles.locate import locate_patches
 from parmpm.shapes import BSPLINE, CPDI, CPDI2, INTERPOLATORS
 from parmpm.shapes.cpdi2 import affine_corners
 from parmpm.driver.simulation import Simulation
@@ -89,7 +89,7 @@ def deformed_stepper(dim, method, lcr, model="neo_hookean", seed=1, tmp=None):
     if lcr in ("apic", "mls"):
         over.append(f"method.transfer={lcr}")
     sim = Simulation(parmpm.load_scene(SCENE[dim], over), tmp, quiet=True)
-    st, P = sim.stepper, sim.stepper.P
+    st, P = sim.state.stepper, sim.state.stepper.P
     rng = np.random.default_rng(seed)
     P.F[:] = _deformation(rng, P.n, dim)
     P.v[:] = rng.normal(0.0, 1.0, (P.n, dim))
@@ -148,7 +148,7 @@ def test_p2g_matches_generic(dim, method, lcr, forced, tmp_path):
     if st.mls:  # its force rows are written for the energy ledger alone
         st.p2g(bforce, dt)
         assert not np.any(st.grid.gf) and np.any(st.grid.gmv)
-        st.ledger = sim.energy.ledger
+        st.ledger = sim.state.energy.ledger
     st.p2g(bforce, dt)
     fast = st.grid.gsum.copy()
     st.use_kernels("generic")

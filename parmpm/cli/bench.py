@@ -256,7 +256,7 @@ def run_bench(args: argparse.Namespace, comm=None) -> dict:
     finally:
         if tmp:
             shutil.rmtree(tmp, ignore_errors=True)
-    rows = comm.allgather((setup, sim.stepper.moves.migrated, _peak_rss_mb(), grown, stress))
+    rows = comm.allgather((setup, sim.state.stepper.moves.migrated, _peak_rss_mb(), grown, stress))
     result = summarise(summary, max(r[0] for r in rows), sum(r[1] for r in rows),
                        max(r[2] for r in rows))
     result.update(jit_warmup_seconds=warmup, bytes_per_particle=max(r[3] for r in rows),
@@ -283,7 +283,7 @@ def _warm_up(dim: int, method: str, update: str, comm, transfer: str = "flip") -
         scene = build_bench_scene(dim, method, WARMUP_PARTICLES[dim], 2, 3, update=update,
                                   transfer=transfer)
         sim = Simulation(scene, tmp, quiet=True, comm=comm, warm_up=compile_first)
-        sim.stepper.compile_lazy_order()  # the measured steps must not compile it
+        sim.state.stepper.compile_lazy_order()  # the measured steps must not compile it
         sim.run()
         wall = time.perf_counter() - t0
     finally:
@@ -298,7 +298,7 @@ def _time_stress(sim, repeats: int = 3) -> float:
     from parmpm.transfer.kernels3d.material import stress_pass as stress_pass_3d
     from parmpm.transfer.generic import stress_pass
 
-    P, st = sim.particles, sim.stepper
+    P, st = sim.particles, sim.state.stepper
     out = np.empty_like(P.stress)
     if st.transfers.kernels is not None and P.dim in (2, 3):
         fast = stress_pass_2d if P.dim == 2 else stress_pass_3d

@@ -88,7 +88,7 @@ def unless_written(callback: Callback, sim) -> bool:
 def standard_callbacks(sim) -> list[Callback]:
     """The callbacks a scene asks for (see the module doc), with their schedules set from the
     run's clock (and, on restart, the checkpointed output schedule)."""
-    spec, clock = sim.spec, sim.clock
+    spec, clock = sim.spec, sim.state.clock
     out, ck, me = spec.output, spec.checkpoint, spec.metrics
     every_step = Schedule(every_steps=1)
     sim.out_schedule = Schedule(out.every, out.every_steps, clock.t, sim.state.next_output)
@@ -107,7 +107,7 @@ def standard_callbacks(sim) -> list[Callback]:
     hist = out.history
     if hist.enabled:  # after the watch: a blown-up state is not sampled
         sim.history = HistoryOutput(sim)
-        sim.stepper.ledger = sim.energy.ledger
+        sim.state.stepper.ledger = sim.state.energy.ledger
         callbacks += [
             Callback("history", lambda sim: sim.history.sample(sim),
                      Schedule(hist.every, hist.every_steps, clock.t), start=3,
@@ -129,9 +129,9 @@ def standard_callbacks(sim) -> list[Callback]:
 
 # --- the actions --------------------------------------------------------------------------------
 def check_finite(sim) -> None:
-    if not math.isfinite(sim.clock.vmax):
+    if not math.isfinite(sim.state.clock.vmax):
         raise SimulationError(f"non-finite velocity or stress at step {sim.nstep} "
-                              f"(t = {sim.t:.6g} s); {sim.clock.unstable_hint()}")
+                              f"(t = {sim.t:.6g} s); {sim.state.clock.unstable_hint()}")
 
 
 def check_energy(sim) -> None:
@@ -146,7 +146,7 @@ def check_energy(sim) -> None:
             f"the run is unstable: at step {sim.nstep} (t = {sim.t:.6g} s) the body holds "
             f"{k + psi:.4g} J (kinetic {k:.3g} J, elastic {psi:.3g} J) but was given "
             f"{s.energy.initial + work:.4g} J (a growth of {growth:.3g} times that; "
-            f"time.max_energy_growth = {s.energy.limit:g}); {sim.clock.unstable_hint()}")
+            f"time.max_energy_growth = {s.energy.limit:g}); {sim.state.clock.unstable_hint()}")
 
 
 def sample_metrics_of(sim) -> None:
@@ -178,7 +178,7 @@ def checkpoint(sim) -> None:
 
 def check_interrupt(sim) -> None:
     """Some rank got a stop signal (agreed at the end of the step): checkpoint, stop."""
-    if sim.stepper.stop_requested:
+    if sim.state.stepper.stop_requested:
         raise interrupted(sim)
 
 
@@ -192,7 +192,7 @@ class Checkpoints:
 
     def write_for(self, sim) -> Path:
         """Write ``checkpoint_<step>.h5`` (collective, atomic; :mod:`parmpm.driver.checkpoint_writer`)."""
-        s, clock = sim.state, sim.clock
+        s, clock = sim.state, sim.state.clock
         state = {"metrics": s.metrics.state() if s.metrics is not None else None,
                  "next_output": sim.out_schedule.next_time if sim.out_schedule else None,
                  "energy": s.energy.state(),
@@ -212,7 +212,7 @@ class Checkpoints:
 
 def stop_agreed(sim) -> bool:
     """Whether any rank got a stop signal (collective; outside the step loop)."""
-    flag = np.array([1.0 if sim.stepper.stop_flag else 0.0])
+    flag = np.array([1.0 if sim.state.stepper.stop_flag else 0.0])
     return bool(allreduce_max(sim.comm, flag)[0] > 0)
 
 

@@ -35,11 +35,12 @@ from parmpm.driver.checkpoint_writer import load_patches, load_rows
 from parmpm.core.log import get_logger
 from parmpm.materials import PARAM, material_table
 from parmpm.output.metrics import make_metrics
-from parmpm.particles.store import Particles, locate_patches
+from parmpm.particles.locate import locate_patches
+from parmpm.particles.store import Particles
 from parmpm.scene.patch_size import (TARGET_PATCHES, auto_patch_size, covered_patches, floor_size,
                                idle_ranks_warning)
 from parmpm.transfer.reach import fmt_vec
-from parmpm.scene.records import Boundary, Grid, Method, SceneSpec, material_tables
+from parmpm.scene.records import Boundary, Grid, Method, SceneSpec
 from parmpm.scene.schema import DEFAULT_PATCH_SIZE
 from parmpm.driver.schedule import Clock
 from parmpm.particles.seeding import seed_bodies
@@ -130,7 +131,7 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     cut = check_blocks(D.layout, D.face_lo3, D.face_hi3, bc)
     if cut is not None:
         raise SceneError(f"scene '{scene.source}': {cut}")
-    params, names = material_table(material_tables(spec.materials))
+    params, names = material_table(spec.materials)
     rows = {n: i for i, n in enumerate(names)}
     P, patches, n_total, metrics = _particles(spec, comm, D, params, rows, checkpoint)
     had = P.optional

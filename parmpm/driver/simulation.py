@@ -36,11 +36,6 @@ from parmpm.driver.run_files import RunFiles
 log = get_logger(__name__)
 
 
-def _of(part: str, name: str, doc: str = "") -> property:
-    """A read-only view of ``self.<part>.<name>``: the rank's state read as the run's own."""
-    return property(lambda self: getattr(getattr(self, part), name), doc=doc)
-
-
 class Simulation:
     """One run of a resolved scene on this process's patches (``comm``: an mpi4py communicator;
     None runs every patch here). ``observers``: callables ``f(simulation)`` run (collectively)
@@ -82,40 +77,22 @@ class Simulation:
             sim.out_dir = Path(path).parent / f"restart_{sim.nstep:08d}"
         return sim
 
-    # the rank's state and clock, read as the run's own (sim.particles, sim.t, ...)
-    scene = _of("state", "scene")
-    comm = _of("state", "comm")
-    spec = _of("state", "spec", "the scene's records (scene.spec): what the run reads")
-    data = _of("state", "data", "the scene's serialised form (scene.data)")
-    dim = _of("state", "dim")
-    rank = _of("state", "rank")
-    size = _of("state", "size")
-    interp = _of("state", "interp")
-    lcr = _of("state", "lcr")
-    update = _of("state", "update")
-    disc = _of("state", "disc")
-    params = _of("state", "params")
-    patches = _of("state", "patches")
-    particles = _of("state", "particles")
-    stepper = _of("state", "stepper")
-    n_total = _of("state", "n_total")
-    metrics = _of("state", "metrics")
-    energy = _of("state", "energy")
-    clock = _of("state", "clock")
-    run_id = _of("state", "run_id")
-    t = _of("clock", "t")
-    nstep = _of("clock", "nstep")
-    last_dt = _of("clock", "last_dt")
-    vmax = _of("clock", "vmax")
-    dt_limit = _of("clock", "dt_limit")
+    # What observers and studies read most: the rest is ``sim.state`` (the rank's state:
+    # particles, patches, stepper, energy, metrics...) and ``sim.state.clock`` (Δt, the CFL limit).
+    particles = property(lambda self: self.state.particles, doc="this rank's particles")
+    t = property(lambda self: self.state.clock.t, doc="the time reached (s)")
+    nstep = property(lambda self: self.state.clock.nstep, doc="the steps taken")
+    dim = property(lambda self: self.state.dim, doc="the scene's dimension")
+    comm = property(lambda self: self.state.comm, doc="the communicator the run is on")
+    spec = property(lambda self: self.state.spec, doc="the scene's records (scene.spec)")
 
     # --- the clock and the load ---------------------------------------------------------------
     def next_dt(self) -> float:
         """The CFL step, capped by ``time.dt_max`` and the end time (:class:`parmpm.driver.schedule.Clock`)."""
-        return self.clock.next_dt()
+        return self.state.clock.next_dt()
 
     def done(self) -> bool:
-        return self.clock.done()
+        return self.state.clock.done()
 
     def gravity(self, t: float) -> np.ndarray:
         """Gravity at time ``t`` (ramped over ``gravity.ramp_time``), padded to 3 components."""
@@ -149,7 +126,7 @@ class Simulation:
     def run(self) -> dict:
         """Step to the end (collective). Every rank returns the same summary; rank 0 writes the
         shared files (summary.json, snapshots, figure) into the folder the run claims first."""
-        with stop_signals(self.stepper):
+        with stop_signals(self.state.stepper):
             s = self.state
             name = self.spec.name
             series = name if not s.restart else f"{name}_from_{self.nstep:08d}"
@@ -159,7 +136,7 @@ class Simulation:
             try:  # the claim (rank 0's lock: the run is alive) is held until the run is over
                 self.out_dir = self.files.claim({
                     "run_id": s.run_id, "continues": s.continues, "scene": name,
-                    "ranks": self.size,
+                    "ranks": self.state.size,
                     "files": ["scene.toml", "summary.json", f"{series}.xdmf", f"{series}.h5",
                               f"{name}.png", "history.csv", "history.h5", "history.png"]})
                 self.files.write_scene(s.scene.to_toml())  # what ran, as a scene file
@@ -185,7 +162,7 @@ class Simulation:
         self._warm_wall, self._warm_steps, self._loop_wall = None, 0, None
         tm = self.spec.time
         progress = Progress(total_steps=tm.steps, end_time=tm.end,
-                            enabled=not self.quiet and self.rank == 0)
+                            enabled=not self.quiet and self.state.rank == 0)
         self._wall0 = time.perf_counter()
         try:
             try:
@@ -215,7 +192,7 @@ class Simulation:
     def _loop(self, callbacks: list, progress: Progress) -> None:
         """Step until the clock is done or a callback stops the run; keeps the wall clock after
         the first step (which includes JIT compilation) and the steps after it."""
-        clock, stepper = self.clock, self.stepper
+        clock, stepper = self.state.clock, self.state.stepper
         while not clock.done():
             dt = clock.next_dt()
             clock.tick(dt, stepper.step(dt, self.gravity(clock.t), clock.t))
@@ -234,7 +211,7 @@ class Simulation:
             warm_steps = self._warm_steps
             elapsed = time.perf_counter() - (self._warm_wall or self._wall0)
             elapsed -= self._compiling.seconds - self._compile_warm  # kernels met mid-run
-            rate = self.n_total * warm_steps / elapsed if warm_steps and elapsed > 0 else 0.0
+            rate = self.state.n_total * warm_steps / elapsed if warm_steps and elapsed > 0 else 0.0
             progress.update(clock.nstep, clock.t, rate)
 
     def _write_summary(self) -> dict:
@@ -250,7 +227,7 @@ class Simulation:
         summary = measures.summary(self.state, self.out_dir, self.stopped, wall - compiled,
                                    loop - in_loop, self._warm_steps)
         summary["compile_seconds"] = compiled
-        summary.update(run_info(self.size))
+        summary.update(run_info(self.state.size))
         if self.stopped == "interrupted":
             summary["checkpoint"] = str(self.checkpoints.last_path)
         self.files.write_summary(summary)
@@ -281,7 +258,7 @@ class Simulation:
                 fields["corners"] = corners
             name = self.spec.name
             self.files.write_figure(name, self.gather(fields), self.dim,
-                                    f"{name} · {self.interp.name} · t = {self.t:.3g} s")
+                                    f"{name} · {self.state.interp.name} · t = {self.t:.3g} s")
         if stop_agreed(self):  # a signal while the figure was drawn
             raise interrupted(self)
         return summary

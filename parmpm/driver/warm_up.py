@@ -239,7 +239,7 @@ def warm_up(dim: int, method: str, update: str, transfer: str = "flip") -> float
     try:
         with _only_compile_messages():
             sim = Simulation(scene, tmp, quiet=True, comm=SerialComm())
-            sim.stepper.compile_lazy_order()
+            sim.state.stepper.compile_lazy_order()
             sim.run()
             sim.domain_corners()  # the figure's (2D; the tiny run draws none)
             sim.state.comm = ClaimsTwoRanks()
@@ -257,7 +257,7 @@ def _patch_set_change(sim) -> None:
     or empty, or a re-balance moved other ranks' patches): the particles' runs move to their
     new slots (:meth:`parmpm.particles.store.Particles.group_by_patch`). The tiny grid's patches are
     all active from the start, so its run never changes them."""
-    P, ps = sim.particles, sim.patches
+    P, ps = sim.particles, sim.state.patches
     P.group_by_patch(P.rows.patch, ps.slot_of, ps.n_local, force=True)
 
 
@@ -270,11 +270,11 @@ def _idle_rank_step(sim) -> None:
     rank would compile in the cache too). Last: it empties the tiny run."""
     import numpy as np
 
-    st, ps = sim.stepper, sim.patches
+    st, ps = sim.state.stepper, sim.state.patches
     sim.particles.permute(np.zeros(0, np.int64))
-    ps.update(np.zeros(sim.disc.layout.n_patches, np.int64))  # nothing occupied: no patch
+    ps.update(np.zeros(sim.state.disc.layout.n_patches, np.int64))  # nothing occupied: no patch
     st.patches_changed()
-    dt = sim.last_dt or 1e-6
+    dt = sim.state.clock.last_dt or 1e-6
     st.step(dt, sim.gravity(sim.t), sim.t)
 
 

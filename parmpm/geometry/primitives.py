@@ -29,28 +29,28 @@ def rotated_box_bounds(bmin: list, bmax: list, angle: float) -> tuple[list, list
     return [m - r for m, r in zip(mid, reach)], [m + r for m, r in zip(mid, reach)]
 
 
-def body_bounds(body: dict) -> tuple[list, list]:
-    """Axis-aligned bounds of a resolved body: a box's corners (a turned box's bounding box), a
-    disk's or sphere's centre ± radius."""
-    if body["shape"] == "box":
-        if body.get("angle"):
-            return rotated_box_bounds(body["min"], body["max"], body["angle"])
-        return list(body["min"]), list(body["max"])
-    return ([c - body["radius"] for c in body["center"]],
-            [c + body["radius"] for c in body["center"]])
+def body_bounds(body) -> tuple[list, list]:
+    """Axis-aligned bounds of a resolved body (a :class:`parmpm.scene.records.Body`: ``shape``,
+    ``min``, ``max``, ``angle``, ``center``, ``radius``): a box's corners (a turned box's
+    bounding box), a disk's or sphere's centre ± radius."""
+    if body.shape == "box":
+        if body.angle:
+            return rotated_box_bounds(body.min, body.max, body.angle)
+        return list(body.min), list(body.max)
+    return [c - body.radius for c in body.center], [c + body.radius for c in body.center]
 
 
-def inside(body: dict, dim: int, x: np.ndarray) -> np.ndarray:
+def inside(body, dim: int, x: np.ndarray) -> np.ndarray:
     """Which points ``x`` (n, dim) lie strictly inside ``body`` (by more than 1e-9 of its size:
     points on its surface are outside)."""
     x = np.asarray(x, float).reshape(-1, dim)
-    if body["shape"] == "box":
-        lo, hi = np.asarray(body["min"], float), np.asarray(body["max"], float)
+    if body.shape == "box":
+        lo, hi = np.asarray(body.min, float), np.asarray(body.max, float)
         tol = 1e-9 * float(np.max(hi - lo))
         mid, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
         r = x - mid
-        if body.get("angle"):  # into the box's own axes: local = turnᵀ (x − mid)
-            r = r @ turn(dim, body["angle"])
+        if body.angle:  # into the box's own axes: local = turnᵀ (x − mid)
+            r = r @ turn(dim, body.angle)
         return np.all(np.abs(r) < half - tol, axis=1)
-    c, radius = np.asarray(body["center"], float), float(body["radius"])
+    c, radius = np.asarray(body.center, float), float(body.radius)
     return np.sum((x - c) ** 2, axis=1) < (radius * (1.0 - 1e-9)) ** 2

@@ -14,6 +14,7 @@ refuses to import while a registered law has no branch).
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -56,22 +57,25 @@ def lame(E: float, nu: float) -> tuple[float, float]:
     return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
 
 
-def material_table(materials: dict) -> tuple[np.ndarray, list[str]]:
-    """Parameter table (n_materials, N_PARAMS) and the material names in row order."""
+def material_table(materials: Mapping) -> tuple[np.ndarray, list[str]]:
+    """Parameter table (n_materials, N_PARAMS) and the material names in row order, from the
+    scene's material records by name (:class:`parmpm.scene.records.Material`: ``model``,
+    ``density``, ``youngs_modulus``, ``poisson_ratio``, ``damage``)."""
     names = sorted(materials)
     table = np.zeros((len(names), N_PARAMS))
     for row, name in enumerate(names):
         m = materials[name]
-        lam, mu = lame(m["youngs_modulus"], m["poisson_ratio"])
+        E, nu, rho = m.youngs_modulus, m.poisson_ratio, m.density
+        lam, mu = lame(E, nu)
         r = table[row]
-        r[COL_LAW], r[COL_DENSITY] = MODELS[m["model"]], m["density"]
-        r[COL_E], r[COL_NU], r[COL_LAM], r[COL_MU] = m["youngs_modulus"], m["poisson_ratio"], lam, mu
-        r[COL_C2], r[COL_INV_DENSITY] = (lam + 2 * mu) / m["density"], 1 / m["density"]
-        dmg = m.get("damage")
+        r[COL_LAW], r[COL_DENSITY] = MODELS[m.model], rho
+        r[COL_E], r[COL_NU], r[COL_LAM], r[COL_MU] = E, nu, lam, mu
+        r[COL_C2], r[COL_INV_DENSITY] = (lam + 2 * mu) / rho, 1 / rho
+        dmg = m.damage
         if dmg:
-            r[COL_DAMAGE], r[COL_ONSET] = SOFTENING[dmg["softening"]], dmg["onset"]
-            r[COL_FRACTURE] = dmg["fracture"]
-            r[COL_FREEZE] = FREEZE_NEVER if dmg["freeze"] == "never" else dmg["freeze"]
+            r[COL_DAMAGE], r[COL_ONSET] = SOFTENING[dmg.softening], dmg.onset
+            r[COL_FRACTURE] = dmg.fracture
+            r[COL_FREEZE] = FREEZE_NEVER if dmg.freeze == "never" else dmg.freeze
     return table, names
 
 

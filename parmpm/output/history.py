@@ -263,7 +263,7 @@ class HistoryOutput:
         self.last = None
         self.scale, self.warned, self.warned_residual = 0.0, False, False
         problem = None
-        if sim.rank == 0:
+        if sim.state.rank == 0:
             try:
                 from parmpm.io.history_file import HistoryFile
                 self.file = HistoryFile(sim.out_dir, self.history.columns)
@@ -291,18 +291,18 @@ class HistoryOutput:
         was given by over ``GROWTH_WARNING`` of the largest energy given (the blow-up watch,
         :mod:`parmpm.output.energy`, stops the run at ``time.max_energy_growth``)."""
         r = self.last
-        k0, psi0 = sim.energy.ledger.baseline[:2]
+        k0, psi0 = sim.state.energy.ledger.baseline[:2]
         self.scale = max(self.scale, k0 + psi0 + r["work_gravity"], k0 + psi0)
         # rigid walls and supports do no work (their nodes do not move): W_bc is not energy
         # given to the body (with FLIP the particles keep much of what it removes from the grid)
         gained = (r["kinetic"] + r["elastic"] - k0 - psi0 - r["work_gravity"]
                   + r["damping_dissipation"])
-        sim.energy.balance = {
+        sim.state.energy.balance = {
             "gained": gained, "scale": self.scale,
             **{c: r[c] for c in ENERGY_COLUMNS[3:] + ("residual_estimate",)}}
         if not self.warned and self.scale > 0 and gained > GROWTH_WARNING * self.scale:
             self.warned = True
-            if sim.rank == 0:  # every rank knows it: one line
+            if sim.state.rank == 0:  # every rank knows it: one line
                 log.warning("at t = %.6g s the body holds %.4g J more than it was given (%.1f %% of "
                             "%.4g J): a sign of instability (see history.csv; lower time.cfl, or "
                             "method.update = \"musl\")", sim.t, gained,
@@ -321,7 +321,7 @@ class HistoryOutput:
         if self.warned_residual or not abs(off) > RESIDUAL_WARNING * self.scale:
             return
         self.warned_residual = True
-        if sim.rank == 0:
+        if sim.state.rank == 0:
             log.warning("at t = %.6g s the energy residual R = %.4g J is %.1f %% of the %.4g J given "
                         "but its smooth-loading estimate is %.4g J: an impact, or grid velocity "
                         "increments the particles do not receive, whose energy R shares with "
@@ -346,7 +346,7 @@ class HistoryOutput:
                     write_table_h5(sim.out_dir / "history.h5", "history", columns, attrs)
                 if sim.spec.output.figure and self.file.count > 1:
                     plot_history(columns, sim.out_dir / "history.png",
-                                 f"{sim.spec.name} · {sim.interp.name} · energy history")
+                                 f"{sim.spec.name} · {sim.state.interp.name} · energy history")
             except ParmpmError as exc:  # the snapshot writer's one line (a full disk)
                 problem = str(exc)
             except OSError as exc:

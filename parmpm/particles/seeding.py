@@ -25,7 +25,8 @@ import numpy as np
 from decomposition.boxes import patch_of_coordinate
 from parmpm.geometry.primitives import turn as rotation
 from parmpm.core.errors import SceneError, SimulationError
-from parmpm.particles.store import Particles, locate_patches
+from parmpm.particles.locate import locate_patches
+from parmpm.particles.store import Particles
 from parmpm.transfer.reach import fmt_vec
 from parmpm.shapes.cpdi2 import affine_corners
 
@@ -243,7 +244,7 @@ class Seeds:
     def _axis_patches(lat: _Lattice, disc):
         """Per axis, the patch index of every lattice coordinate — the same
         :func:`~decomposition.boxes.patch_of_coordinate` as
-        :func:`parmpm.particles.store.locate_patches`, on the same ``(x − origin)·(1/h)`` — or None if
+        :func:`parmpm.particles.locate.locate_patches`, on the same ``(x − origin)·(1/h)`` — or None if
         one lies outside the grid."""
         lay = disc.layout
         per_axis = []

@@ -15,11 +15,8 @@ MUSL.
 from __future__ import annotations
 
 import numpy as np
-from numba import literal_unroll, literally
 
-from parmpm.core.jit import DIMS, kernel, loop_kernel
 from parmpm.particles.order import LEFT, merge_order, move_runs
-from parmpm.grid.patch_index import patch_id1, patch_id2, patch_id3
 
 FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx", "rf",
                 "affine", "corners")
@@ -353,51 +350,3 @@ def _field(name: str) -> property:
 
 for _name in INT_FIELDS + FLOAT_FIELDS:
     setattr(Particles, _name, _field(_name))
-
-
-def locate_patches(d, x, origin, inv_h, cells, psize, ppa, current, out, order=None):
-    """Flat global patch id of each particle's position into ``out``; a particle outside the
-    grid keeps ``current``. Returns (the row of the first particle outside the grid, in
-    ``order`` (:meth:`Particles.order`), or -1; how many particles changed patch). The id is :mod:`parmpm.grid.patch_index`'s, the one G2P's
-    specialised kernels use; the loop is compiled per dimension without reference counting."""
-    if order is None:
-        order = np.arange(x.shape[0], dtype=np.uint64)
-    return _locate_patches(d, x, origin, inv_h, cells, psize, ppa, current, out, order)
-
-
-@kernel
-def _locate_patches(d, x, origin, inv_h, cells, psize, ppa, current, out, order):
-    loc = np.zeros((3, 3), np.int64)
-    inv_ps = np.zeros(3)
-    for k in range(d):
-        loc[0, k], loc[1, k], loc[2, k] = cells[k], psize[k], ppa[k]
-        inv_ps[k] = 1.0 / psize[k]
-    result = (-1, 0)
-    for dim in literal_unroll(DIMS):
-        if dim == d:
-            result = _locate_loop(dim, x, origin, inv_h, loc, inv_ps, current, out, order)
-    return result
-
-
-@loop_kernel
-def _locate_loop(dim, x, origin, inv_h, loc, inv_ps, current, out, order):
-    literally(dim)
-    first = -1
-    moved = 0
-    for k in range(order.size):
-        i = order[k]
-        if dim == 1:
-            pid = patch_id1(x[i, 0], origin, inv_h, loc, inv_ps)
-        elif dim == 2:
-            pid = patch_id2(x[i, 0], x[i, 1], origin, inv_h, loc, inv_ps)
-        else:
-            pid = patch_id3(x[i, 0], x[i, 1], x[i, 2], origin, inv_h, loc, inv_ps)
-        if pid < 0:  # outside the grid (NaN too)
-            out[i] = current[i]
-            if first < 0:
-                first = np.int64(i)
-        else:
-            out[i] = pid
-            if pid != current[i]:
-                moved += 1
-    return first, moved

@@ -51,7 +51,7 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none", at most the largest
   cell count or 64 cells, whichever is more; default "2dx" for cpdi and cpdi2,
   "none" otherwise, and any other value is an error with another interpolator), ``update``
-  ("auto" | "usl" | "musl", default "auto": USL for cpdi and cpdi2, whose domains then keep tiling the body exactly, MUSL for the others, which USL destabilises through nearly empty nodes — see README), ``flip`` (0..1, default 1.0;
+  ("auto" | "usl" | "musl", default "auto": USL for cpdi and cpdi2, whose domains then keep tiling the body exactly, MUSL for the others, which USL destabilises through nearly empty nodes — docs/concepts/update-orders.md), ``flip`` (0..1, default 1.0;
   not with APIC or MLS), ``transfer`` ("flip" | "apic" | "mls", default "flip"; "apic" and
   "mls" need "bspline": :mod:`parmpm.transfer.affine`).
 * ``[gravity]``: ``g`` (default 0), ``ramp_time`` (>= 0 s, default 0: applied suddenly).

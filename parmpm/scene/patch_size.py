@@ -9,7 +9,7 @@ but one would idle. :func:`auto_patch_size` therefore starts from the default an
 the bodies cover fewer than :data:`TARGET_PATCHES` patches, down to :func:`floor_size`.
 
 Why these numbers (``parmpm bench`` and direct runs, one rank, ns per particle-step, best of 3;
-``g``: ghost cells; the README's scene at 64 and 32 is one 20 x 32 patch):
+``g``: ghost cells; the minimal scene of docs/reference/scenes.md at 64 and 32 is one 20 x 32 patch):
 
 ==============================  =====  =====  =====  =====  =====
 case                               64     32     16      8      4
@@ -21,7 +21,7 @@ case                               64     32     16      8      4
 2D mpm, 1e5 particles, g 0         69     70     74     79     95
 3D cpdi, 1e5 particles, g 2         -      -    451    428    472
 1D cpdi, 1e4 particles, g 2        92     91     93    114    146
-README's scene, 400 particles       -    196    207    215    247
+minimal scene, 400 particles        -    196    207    215    247
 ==============================  =====  =====  =====  =====  =====
 
 Patches of 8 cells cost at most 5 % more than 64 in 2D and 3D (mpm: 14 %), 4 cells 10-60 %, and

@@ -110,11 +110,11 @@ class Body:
     def bounds(self) -> tuple[list, list]:
         """Axis-aligned bounds: a box's corners (a turned box's bounding box), a disk's or
         sphere's centre ± radius (:func:`parmpm.geometry.primitives.body_bounds`)."""
-        return body_bounds(as_table(self))
+        return body_bounds(self)
 
     def inside(self, dim: int, x):
         """Which points ``x`` (n, dim) lie strictly inside (:func:`parmpm.geometry.primitives.inside`)."""
-        return inside(as_table(self), dim, x)
+        return inside(self, dim, x)
 
 
 @dataclass(frozen=True, slots=True)
@@ -358,19 +358,6 @@ def _frozen(value):
     return value
 
 
-def as_table(record) -> dict:
-    """A record as a table of the serialised form, for the lower layers that still read keys
-    (:func:`parmpm.geometry.primitives.body_bounds`, :func:`parmpm.materials.material_table`,
-    :class:`parmpm.driver.schedule.Clock`)."""
-    return dataclasses.asdict(record)
-
-
-def material_tables(materials: Mapping[str, Material]) -> dict[str, dict]:
-    """``materials`` as :func:`parmpm.materials.material_table` reads them."""
-    return {name: as_table(m) for name, m in materials.items()}
-
-
 __all__ = ["SceneSpec", "Grid", "Material", "Damage", "Body", "Vibration", "Method", "Gravity",
            "Damping", "Manufactured", "Box", "SlipRegion", "Boundary", "Time", "Probe", "History",
-           "Output", "Metrics", "Decomposition", "Checkpoint", "build", "as_table",
-           "material_tables"]
+           "Output", "Metrics", "Decomposition", "Checkpoint", "build"]

@@ -59,7 +59,7 @@ METRICS_KEYS = ("kind", "every_steps", "axis", "stop_on_separation", "grip")
 DECOMPOSITION_KEYS = ("rebalance_threshold", "rebalance_cooldown")
 CHECKPOINT_KEYS = ("every_steps", "every", "wall_minutes", "keep", "at_end", "ranks_per_file")
 
-DEFAULT_PATCH_SIZE = {1: 64, 2: 64, 3: 16}  # measured: see README "Throughput"
+DEFAULT_PATCH_SIZE = {1: 64, 2: 64, 3: 16}  # measured: parmpm.scene.patch_size
 DEFAULT_LCR = "2dx"  # for the interpolators that cap their domains (LCR_INTERPOLATORS)
 
 # ---------------------------------------------------------------- sections

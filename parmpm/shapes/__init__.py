@@ -3,7 +3,8 @@
 Nothing here compiles: reading or checking a scene needs the names, not the kernels. The kernels
 dispatch on the integer code (:func:`parmpm.shapes.support.particle_support`, the one switch;
 numba cannot cache kernels that take functions as arguments), and the scene schema, the CLI and
-the README's table read the names and documentation from :data:`INTERPOLATORS`.
+the interpolator tables of the README and of ``docs/concepts/methods.md`` read the names and
+documentation from :data:`INTERPOLATORS`.
 
 Ghost width (cells) is derived from the support. A particle owned by a patch has its centre in a
 patch cell, so a support reaching ``r`` grid units from the centre touches nodes at most
@@ -55,7 +56,7 @@ def _capped_at_lcr(lcr: float | None, min_dx: float) -> int:
 @dataclass(frozen=True)
 class Interpolator:
     """One interpolator: ``summary`` (one line, the CLI's), ``weight``, ``nodes`` and ``ghost``
-    (the README's table columns), ``bounded`` (support bounded a priori, by the method or by
+    (the tables' columns), ``bounded`` (support bounded a priori, by the method or by
     l_cr) and ``ghost_rule(lcr, min_dx)`` (see the module doc)."""
 
     name: str
@@ -106,7 +107,8 @@ def interpolator_names() -> str:
 
 
 def interpolator_table() -> str:
-    """The README's interpolator table (Markdown), one row per registered interpolator."""
+    """The interpolator table of the README and the methods page (Markdown), one row per
+    registered interpolator."""
     rows = ["| name | weight `φ_ip` | nodes per particle | ghost cells |", "|---|---|---|---|"]
     rows += [f"| `{i.name}` | {i.weight} | {i.nodes} | {i.ghost} |" for i in INTERPOLATORS.values()]
     return "\n".join(rows)

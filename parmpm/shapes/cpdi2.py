@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from parmpm.core.jit import helper_kernel
+from parmpm.core.jit import helper_kernel, inline_kernel
 from parmpm.shapes.cpdi import cell_node, cofactor_3d
 from parmpm.shapes.hat import hat_axis
 
@@ -98,6 +98,29 @@ def corner_shape(alpha, d, e0, e1, e2):
     return f0 * f1 * f2, 0.5 * s0 * f1 * f2, dn1, dn2
 
 
+@inline_kernel
+def add_point_weights(sc, a, det, cof, shape):
+    """One quadrature point's share of corner ``a``'s weight ``∫N_a`` and gradient weight
+    ``∫∇N_a`` (``cof``: the columns of ``J``'s cofactor, ``det = det J``; ``shape``:
+    ``(N_a, ∂N_a/∂ξ)`` there); shared by the generic and the 3D kernels."""
+    k1x, k1y, k1z, k2x, k2y, k2z, k3x, k3y, k3z = cof
+    n, g0, g1, g2 = shape
+    sc[a, WF] += n * det
+    sc[a, WG] += k1x * g0 + k2x * g1 + k3x * g2
+    sc[a, WG + 1] += k1y * g0 + k2y * g1 + k3y * g2
+    sc[a, WG + 2] += k1z * g0 + k2z * g1 + k3z * g2
+
+
+@inline_kernel
+def normalise_weights(sc, nc, vol):
+    """Divide the ``nc`` corners' weights by the domain's volume, when it is positive."""
+    if vol > 0.0:
+        inv_v = 1.0 / vol
+        for a in range(nc):
+            for k in range(WF, WG + 3):
+                sc[a, k] *= inv_v
+
+
 @helper_kernel
 def domain_weights(d, sc):
     """Fill ``sc[α, WF] = wf_α`` and ``sc[α, WG:WG+3] = wg_α`` (physical units, zero-padded)
@@ -138,16 +161,9 @@ def domain_weights(d, sc):
          det) = cofactor_3d(J00, J01, J02, J10, J11, J12, J20, J21, J22)
         vol += det
         for a in range(nc):
-            n, g0, g1, g2 = corner_shape(a, d, e0, e1, e2)
-            sc[a, WF] += n * det
-            sc[a, WG] += k1x * g0 + k2x * g1 + k3x * g2
-            sc[a, WG + 1] += k1y * g0 + k2y * g1 + k3y * g2
-            sc[a, WG + 2] += k1z * g0 + k2z * g1 + k3z * g2
-    if vol > 0.0:
-        inv_v = 1.0 / vol
-        for a in range(nc):
-            for k in range(WF, WG + 3):
-                sc[a, k] *= inv_v
+            add_point_weights(sc, a, det, (k1x, k1y, k1z, k2x, k2y, k2z, k3x, k3y, k3z),
+                              corner_shape(a, d, e0, e1, e2))
+    normalise_weights(sc, nc, vol)
     return vol
 
 

@@ -72,6 +72,20 @@ def inverse_transpose3(X, out):
 
 
 @kernel
+def transpose_times(d, A, B, C, out):
+    """``out = Aᵀ·B·C`` (d × d), summed as ``Σ_k A[k, a] (Σ_m B[k, m] C[m, b])``."""
+    for a in range(d):
+        for b in range(d):
+            acc = 0.0
+            for k in range(d):
+                BC = 0.0
+                for m in range(d):
+                    BC += B[k, m] * C[m, b]
+                acc += A[k, a] * BC
+            out[a, b] = acc
+
+
+@kernel
 def freeze_domains(d, F, r0, rf, damage, mat, params):
     """Freeze the domains of particles whose damage reached their material's ``freeze`` value
     and keep every frozen domain at ``R = R_F·rf`` (module docstring). Returns how many
@@ -95,15 +109,7 @@ def freeze_domains(d, F, r0, rf, damage, mat, params):
                 Fi[a, b] = F[i, a, b]
         polar_rotation(d, Fi, Q)
         if not is_frozen:  # rf = Qᵀ·F·r0 (= U·R0): the domain now, unrotated
-            for a in range(d):
-                for b in range(d):
-                    acc = 0.0
-                    for k in range(d):
-                        FR = 0.0
-                        for m in range(d):
-                            FR += F[i, k, m] * r0[i, m, b]
-                        acc += Q[k, a] * FR
-                    rf[i, a, b] = acc
+            transpose_times(d, Q, F[i], r0[i], rf[i])
         frozen += 1
         # r0 = F⁻¹·Q·rf
         if d == 1:
@@ -115,13 +121,5 @@ def freeze_domains(d, F, r0, rf, damage, mat, params):
             FinvT[1, 0], FinvT[1, 1] = -Fi[0, 1] / det, Fi[0, 0] / det
         else:
             inverse_transpose3(Fi, FinvT)
-        for a in range(d):
-            for b in range(d):
-                acc = 0.0
-                for k in range(d):
-                    QR = 0.0
-                    for m in range(d):
-                        QR += Q[k, m] * rf[i, m, b]
-                    acc += FinvT[k, a] * QR  # (F⁻¹)[a, k] = F⁻ᵀ[k, a]
-                r0[i, a, b] = acc
+        transpose_times(d, FinvT, Q, rf[i], r0[i])  # F⁻¹ = (F⁻ᵀ)ᵀ
     return frozen

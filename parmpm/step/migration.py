@@ -14,7 +14,7 @@ import numpy as np
 
 from decomposition import exchange, is_parallel, migrate
 from parmpm.core.records import Locate
-from parmpm.particles.store import locate_patches
+from parmpm.particles.locate import locate_patches
 from parmpm.transfer.reach import fmt_vec, grid_extent
 
 

@@ -21,7 +21,7 @@ counts and each rank reads exactly its patches' rows (contiguous ranges of the p
 changed the patch grid).
 """
 from parmpm.driver.checkpoint_writer.collective import write_collective
-from parmpm.driver.checkpoint_writer.restart import load_patches, load_rows
+from parmpm.driver.checkpoint_writer.read_back import load_patches, load_rows
 from parmpm.driver.checkpoint_writer.rows import stored
 from parmpm.driver.checkpoint_writer.write import write_checkpoint
 

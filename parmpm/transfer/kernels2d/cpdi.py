@@ -61,6 +61,23 @@ def corners(xx, xy, r1x, r1y, r2x, r2y, ihx, ihy, bx, by, jlx, jly, jhx, jhy):
 
 
 @inline_kernel
+def add5(g, n, s, a0, a1, a2, a3, a4):
+    """``g[c, n] += a_c · s`` for the five rows (mass, momentum, force)."""
+    g[0, n] += a0 * s
+    g[1, n] += a1 * s
+    g[2, n] += a2 * s
+    g[3, n] += a3 * s
+    g[4, n] += a4 * s
+
+
+@inline_kernel
+def add_momentum(g, n, s, a1, a2):
+    """``g[c, n] += a_c · s`` for the momentum rows 1 and 2."""
+    g[1, n] += a1 * s
+    g[2, n] += a2 * s
+
+
+@inline_kernel
 def scatter5(g, L0, jx, jy, fx, fy, a0, a1, a2, a3, a4):
     """``g[c, node] += S_node(f) · a_c`` over the four nodes of local cell ``(jx, jy)``."""
     n0 = jx + L0 * jy
@@ -69,26 +86,10 @@ def scatter5(g, L0, jx, jy, fx, fy, a0, a1, a2, a3, a4):
     s1 = fx * (1.0 - fy)
     s2 = (1.0 - fx) * fy
     s3 = fx * fy
-    g[0, n0] += a0 * s0
-    g[1, n0] += a1 * s0
-    g[2, n0] += a2 * s0
-    g[3, n0] += a3 * s0
-    g[4, n0] += a4 * s0
-    g[0, n0 + 1] += a0 * s1
-    g[1, n0 + 1] += a1 * s1
-    g[2, n0 + 1] += a2 * s1
-    g[3, n0 + 1] += a3 * s1
-    g[4, n0 + 1] += a4 * s1
-    g[0, n2] += a0 * s2
-    g[1, n2] += a1 * s2
-    g[2, n2] += a2 * s2
-    g[3, n2] += a3 * s2
-    g[4, n2] += a4 * s2
-    g[0, n2 + 1] += a0 * s3
-    g[1, n2 + 1] += a1 * s3
-    g[2, n2 + 1] += a2 * s3
-    g[3, n2 + 1] += a3 * s3
-    g[4, n2 + 1] += a4 * s3
+    add5(g, n0, s0, a0, a1, a2, a3, a4)
+    add5(g, n0 + 1, s1, a0, a1, a2, a3, a4)
+    add5(g, n2, s2, a0, a1, a2, a3, a4)
+    add5(g, n2 + 1, s3, a0, a1, a2, a3, a4)
 
 
 @inline_kernel
@@ -100,14 +101,10 @@ def scatter_mv(g, L0, jx, jy, fx, fy, a1, a2):
     s1 = fx * (1.0 - fy)
     s2 = (1.0 - fx) * fy
     s3 = fx * fy
-    g[1, n0] += a1 * s0
-    g[2, n0] += a2 * s0
-    g[1, n0 + 1] += a1 * s1
-    g[2, n0 + 1] += a2 * s1
-    g[1, n2] += a1 * s2
-    g[2, n2] += a2 * s2
-    g[1, n2 + 1] += a1 * s3
-    g[2, n2 + 1] += a2 * s3
+    add_momentum(g, n0, s0, a1, a2)
+    add_momentum(g, n0 + 1, s1, a1, a2)
+    add_momentum(g, n2, s2, a1, a2)
+    add_momentum(g, n2 + 1, s3, a1, a2)
 
 
 @inline_kernel

@@ -18,7 +18,8 @@ run without reference counting.
 import numpy as np
 
 from parmpm.core.jit import inline_kernel, kernel, loop_kernel
-from parmpm.shapes.cpdi2 import GAUSS, SCRATCH_SHAPE, WF, WG, cap_corners, corner_shape
+from parmpm.shapes.cpdi2 import (GAUSS, SCRATCH_SHAPE, WF, WG, add_point_weights, cap_corners,
+                                  corner_shape, normalise_weights)
 from parmpm.transfer.kernels2d.cells import cell_of
 from parmpm.transfer.kernels3d.cpdi import gather6, scatter7, scatter_mv
 from parmpm.transfer.kernels3d.hat import body_force, volume_stress
@@ -97,16 +98,10 @@ def hex_weights(sc):
         det = a0 * k1x + a1 * k1y + a2 * k1z
         vol += det
         for al in range(8):
-            n, g0, g1, g2 = SHAPES[q, al, 0], SHAPES[q, al, 1], SHAPES[q, al, 2], SHAPES[q, al, 3]
-            sc[al, WF] += n * det
-            sc[al, WG] += k1x * g0 + k2x * g1 + k3x * g2
-            sc[al, WG + 1] += k1y * g0 + k2y * g1 + k3y * g2
-            sc[al, WG + 2] += k1z * g0 + k2z * g1 + k3z * g2
-    if vol > 0.0:
-        inv_v = 1.0 / vol
-        for al in range(8):
-            for k in range(WF, WG + 3):
-                sc[al, k] *= inv_v
+            add_point_weights(sc, al, det, (k1x, k1y, k1z, k2x, k2y, k2z, k3x, k3y, k3z),
+                              (SHAPES[q, al, 0], SHAPES[q, al, 1], SHAPES[q, al, 2],
+                               SHAPES[q, al, 3]))
+    normalise_weights(sc, 8, vol)
     return vol
 
 

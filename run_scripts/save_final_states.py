@@ -1,6 +1,7 @@
-"""Run scenes under ``mpirun -n P`` and save each final particle state (for rank-count tests).
+"""Run scenes under ``mpirun -n P`` and save each final particle state (for rank-count
+comparisons: ``tests/test_mpi_ranks.py``, ``bit_identical.py``).
 
-    mpirun -n 3 python tests/mpi_driver.py OUT_DIR CASES_JSON
+    mpirun -n 3 python run_scripts/save_final_states.py OUT_DIR CASES_JSON
 
 ``CASES_JSON`` maps a case name to ``[scene, [overrides...]]``. For each case, rank 0 writes
 ``OUT_DIR/<case>.npz`` holding gid, x, v, F, stress, damage (and cpdi2's corners; global-id
@@ -38,6 +39,6 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    from mpi_script import run_or_abort
+    from study import main_guard
 
-    run_or_abort(main)
+    main_guard(main)

@@ -1,0 +1,99 @@
+"""The scenes whose final states must not depend on the rank count, nor change in a renovation.
+
+:data:`CASES` (``tests/test_mpi_ranks.py`` runs them on 1-4 ranks and compares): 1D, 2D and 3D,
+every interpolator, USL and MUSL, unscaled CPDI, a scene whose particles cross patch and rank
+boundaries many times and that re-balances, the manufactured solution (per-particle body force,
+mirror faces), a spinning disk, a damaging material, the tension bar.
+:func:`renovation_cases` adds the kernel paths ``bit_identical.py`` also saves. A case is
+``name: [scene, [overrides...]]``, as :mod:`save_final_states` reads it.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+OFF = ["output.snapshots=false", "output.figure=false"]
+CROSSING = str(ROOT / "tests" / "scenes" / "crossing.toml")
+METHODS = ("mpm", "ugimp", "cpgimp", "cpdi")
+
+
+def _cases() -> dict:
+    cases = {}
+    for m in METHODS:
+        cases[f"1d_{m}"] = ["hanging_bar_1d", OFF + [f"method.interpolator={m}", "grid.patch_size=4",
+                                                     "time.steps=60"]]
+        cases[f"2d_{m}"] = ["hanging_bar", OFF + [f"method.interpolator={m}", "grid.patch_size=4",
+                                                  "time.steps=40"]]
+        cases[f"3d_{m}"] = ["hanging_bar_3d", OFF + [f"method.interpolator={m}", "grid.patch_size=3",
+                                                     "bodies.0.ppc=2", "time.steps=8"]]
+    cases["2d_cpdi_unscaled"] = ["hanging_bar", OFF + ["method.lcr=none", "grid.patch_size=4",
+                                                       "time.steps=40"]]
+    cases["2d_cpdi_musl"] = ["hanging_bar", OFF + ["method.update=musl", "grid.patch_size=4",
+                                                   "time.steps=40"]]
+    # two patches only: on 3 and 4 ranks some ranks hold nothing; with snapshots and figure on
+    cases["1d_cpdi_idle_ranks"] = ["hanging_bar_1d", ["grid.patch_size=16", "time.steps=30"]]
+    # CPDI2 (generic kernels): the tracked corners migrate with their particles
+    cases["2d_cpdi2"] = ["hanging_bar", OFF + ["method.interpolator=cpdi2", "grid.patch_size=4",
+                                               "time.steps=40"]]
+    # the quadratic B-spline (generic kernels): one 2D case
+    cases["2d_bspline"] = ["hanging_bar", OFF + ["method.interpolator=bspline", "grid.patch_size=4",
+                                                 "time.steps=40"]]
+    for m in ("cpdi", "mpm", "ugimp"):
+        cases[f"crossing_{m}"] = [CROSSING, [f"method.interpolator={m}"]]
+    # per-particle body force and mirror faces folded patch by patch (manufactured solution;
+    # the B-spline's MUSL re-map folds the momentum again); a spinning body
+    cases["2d_manufactured_cpgimp"] = ["manufactured", OFF + ["method.interpolator=cpgimp",
+                                                              "method.lcr=none", "grid.patch_size=5",
+                                                              "time.steps=40"]]
+    cases["2d_manufactured_bspline"] = ["manufactured", OFF + ["method.interpolator=bspline",
+                                                               "grid.patch_size=4",
+                                                               "time.steps=40"]]
+    # the odd mirror of a clamped face (1D B-spline vibrating bar, folded patch by patch)
+    cases["1d_vibrating_bspline_clamped"] = ["vibrating_bar", OFF + [
+        "method.interpolator=bspline", "grid.patch_size=4", "time.steps=120"]]
+    cases["2d_spinning_cpdi"] = ["spinning_disk", OFF + ["grid.patch_size=6", "time.steps=60",
+                                                         "metrics.every_steps=5"]]
+    # APIC: the affine field migrates with its particles (the disk crosses patches)
+    cases["2d_spinning_bspline_apic"] = ["spinning_disk", OFF + [
+        "method.interpolator=bspline", "method.transfer=apic", "grid.patch_size=6",
+        "time.steps=60", "metrics.every_steps=5"]]
+    # a damaging material (stretch-driven damage degrading the stress), specialised 2D kernels
+    # and the generic 1D ones
+    damage = "materials.bar.damage={onset=1.05, fracture=1.6}"
+    cases["2d_cpdi_damage"] = ["hanging_bar", OFF + [damage, "grid.patch_size=4", "time.steps=60"]]
+    cases["2d_cpdi_freeze"] = ["hanging_bar", OFF + [
+        "materials.bar.damage={onset=1.02, fracture=1.5, freeze=0.3}", "grid.patch_size=4",
+        "time.steps=150", "metrics.stop_on_separation=false"]]
+    cases["1d_cpdi_damage"] = ["hanging_bar_1d", OFF + [damage, "grid.patch_size=4",
+                                                        "time.steps=60"]]
+    # no metrics: every rank counts the particles per patch axis by axis and builds only its
+    # own (parmpm.particles.seeding); the same run as 2d_cpdi, whose metrics make every rank seed all
+    cases["2d_cpdi_no_metrics"] = ["hanging_bar", OFF + ["metrics.kind=none", "grid.patch_size=4",
+                                                         "time.steps=40"]]
+    # the tension bar: grips, a weak band, domains freezing; separation counted across ranks
+    cases["2d_tension_bar"] = ["tension_bar", OFF + ["grid.patch_size=8"]]
+    return cases
+
+
+CASES = _cases()
+
+
+def renovation_cases() -> dict:
+    """The rank-independence cases plus the extra kernel paths :mod:`bit_identical` checks: linear
+    elasticity and MUSL for every interpolator in 2D and 3D, 3D damage with freezing, 3D unscaled
+    CPDI and the vibrating bar (48 cases)."""
+    out = dict(CASES)
+    bar3 = ["grid.patch_size=3", "bodies.0.ppc=2", "time.steps=8"]
+    for m in ("mpm", "ugimp", "cpgimp", "cpdi"):
+        interp = f"method.interpolator={m}"
+        for law_or_update, tag in (("materials.bar.model=linear_elastic", "linear"),
+                                   ("method.update=musl", "musl")):
+            out[f"2d_{m}_{tag}"] = ["hanging_bar", OFF + [law_or_update, interp, "grid.patch_size=4",
+                                                          "time.steps=40"]]
+            out[f"3d_{m}_{tag}"] = ["hanging_bar_3d", OFF + [law_or_update, interp] + bar3]
+    out["3d_cpdi_damage"] = ["hanging_bar_3d", OFF + [
+        "materials.bar.damage={onset=1.02, fracture=1.5, freeze=0.3}", "grid.patch_size=3",
+        "bodies.0.ppc=2", "time.steps=30", "metrics.stop_on_separation=false"]]
+    out["3d_cpdi_unscaled"] = ["hanging_bar_3d", OFF + ["method.lcr=none"] + bar3]
+    out["vibrating_bar"] = ["vibrating_bar", OFF + ["time.steps=100"]]
+    return out
