@@ -26,7 +26,7 @@ from parmpm.shapes import BSPLINE, CPDI, CPDI2, INTERPOLATORS
 from parmpm.shapes.cpdi2 import affine_corners
 from parmpm.driver.simulation import Simulation
 from parmpm.step.transfers import SPECIALISED, SPECIALISED_MLS
-from parmpm.transfer.generic import stress_pass as generic_stress_pass
+from parmpm.materials.passes import stress_pass as generic_stress_pass
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
 
 QUIET = ["output.snapshots=false", "output.figure=false", "time.steps=1"]

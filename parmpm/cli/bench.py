@@ -296,7 +296,7 @@ def _time_stress(sim, repeats: int = 3) -> float:
     ``repeats``), on a copy of the stress so the run's state is untouched."""
     from parmpm.transfer.kernels2d.material import stress_pass as stress_pass_2d
     from parmpm.transfer.kernels3d.material import stress_pass as stress_pass_3d
-    from parmpm.transfer.generic import stress_pass
+    from parmpm.materials.passes import stress_pass
 
     P, st = sim.particles, sim.state.stepper
     out = np.empty_like(P.stress)

@@ -47,7 +47,7 @@ from parmpm.particles.seeding import seed_bodies
 from parmpm.shapes import CAPPED, CPDI2, INTERPOLATORS
 from parmpm.shapes.cpdi2 import affine_corners
 from parmpm.step.stepper import Stepper
-from parmpm.transfer.generic import max_speed
+from parmpm.materials.passes import max_speed
 
 logger = get_logger(__name__)
 

@@ -343,18 +343,6 @@ def _g2p_one(i, p, n, d, how, boxes, fields, scratch, material, args, vmax):
     return vmax
 
 
-@loop_kernel
-def max_speed(d, v, F, mat, params):
-    """Largest ``c_p + |v_p|`` (current-configuration wave speed plus particle speed)."""
-    vmax = 0.0
-    for i in range(v.shape[0]):
-        s = 0.0
-        for a in range(d):
-            s += v[i, a] * v[i, a]
-        vmax = max(vmax, wave_speed(d, params[mat[i]], F[i]) + math.sqrt(s))
-    return vmax
-
-
 @kernel
 def support_nodes(how, boxes, fields, nodes, count, err):
     """Global flat ids of the nodes each particle touches with nonzero weight (for separation
@@ -393,15 +381,3 @@ def _support_nodes_one(i, p, n, d, how, boxes, fields, scratch, out, args, acc):
         c += 1
     count[i] = c
     return acc
-
-
-@loop_kernel
-def stress_pass(d, F, mat, params, damage, stress):
-    """Stress and wave speed of every particle on their own (G2P fuses them into its loop; the
-    benchmark times this to report the stress update's share)."""
-    vmax = 0.0
-    for i in range(F.shape[0]):
-        prm = params[mat[i]]
-        cauchy_stress(d, prm, F[i], damage[i], stress[i])
-        vmax = max(vmax, wave_speed(d, prm, F[i]))
-    return vmax
