@@ -178,13 +178,13 @@ def _discretisation(comm, spec: SceneSpec, interp, lcr: float | None) -> Discret
 def _clock(scene, comm, D, P, params, metrics, energy, checkpoint):
     """(the clock, the run a restart continues, the output schedule's next time): a fresh run's,
     or a restart's, whose metrics and energy watch are restored too."""
-    time_table = scene.spec.time
+    tm = scene.spec.time  # the Time record: cfl, dt_max, end, steps
     h_min = float(D.h.min())
     if checkpoint is None:
         vmax = max_speed(D.dim, P.v, P.F, P.mat, params)
-        return Clock(time_table, h_min, float(allreduce_max(comm, np.array([vmax]))[0])), None, None
+        return Clock(tm, h_min, float(allreduce_max(comm, np.array([vmax]))[0])), None, None
     a = checkpoint.attrs
-    clock = Clock(time_table, h_min, float(a["vmax"]), float(a["time"]), int(a["step"]),
+    clock = Clock(tm, h_min, float(a["vmax"]), float(a["time"]), int(a["step"]),
                   float(a["dt"]))
     state = checkpoint.state
     next_output = state.get("next_output")
