@@ -116,7 +116,7 @@ def test_a_rank_reads_exactly_the_rows_of_its_patches(tmp_path, how):
 # --- many writers without the solver: synthetic particles dealt out by patch ------------------------
 WRITE = """
 import sys
-sys.path.insert(0, {tests!r})
+sys.path[:0] = [{tests!r}, {tests!r} + "/../run_scripts"]  # as pytest's pythonpath
 import numpy as np
 from pathlib import Path
 from decomposition import world

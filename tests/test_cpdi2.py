@@ -123,7 +123,7 @@ def test_hanging_bar_runs_with_cpdi2(scene, extra, tmp_path):
     one = _run(load_scene(scene, over + ["method.interpolator=cpdi"]), tmp_path, "one")
     m2, m1 = two.summary["metrics"], one.summary["metrics"]
     assert not m2["separated"] and two.nstep == one.nstep
-    assert two.update == "usl" and two.lcr == pytest.approx(2 * two.scene.min_dx)  # as cpdi's
+    assert two.state.update == "usl" and two.state.lcr == pytest.approx(2 * two.state.scene.min_dx)  # as cpdi's
     tol = 1e-12 if scene == "hanging_bar_1d" else 2e-3  # 1D: CPDI1 exactly (to round-off)
     assert m2["tip_displacement"] == pytest.approx(m1["tip_displacement"], rel=tol)
 

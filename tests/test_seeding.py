@@ -100,7 +100,7 @@ def test_outside_the_grid_names_the_particle(tmp_path):
     from parmpm.core.errors import SimulationError
 
     sc = load_scene("spinning_disk", ["grid.patch_size=6"])
-    D = Simulation(sc, tmp_path, quiet=True).disc
+    D = Simulation(sc, tmp_path, quiet=True).state.disc
     seeds = seed_bodies(sc.spec.grid, sc.spec.bodies, {"disk": 0})
     seeds.motion = lambda X: X + np.where(np.arange(len(X))[:, None] == 7, 5.0, 0.0)
     with pytest.raises(SimulationError, match=r"particle 7 at \(.*\) is outside the grid"):
@@ -162,7 +162,7 @@ def _seeded_twice(path):
 
     scene = load_scene(path)
     data, spec = scene.data, scene.spec
-    names = material_table(data["materials"])[1]
+    names = material_table(spec.materials)[1]
     seeds = seed_bodies(spec.grid, spec.bodies, {n: i for i, n in enumerate(names)})
     return seeded_twice(None, spec, seeds, np.arange(seeds.n), seeds.x), data, seeds
 
@@ -180,7 +180,7 @@ def test_two_overlapping_boxes_report_the_closed_form_overlap(tmp_path, dim):
     assert found[0]["volume"] == pytest.approx(exact, rel=1e-12)
     assert found[0]["mass"] == pytest.approx(1000.0 * exact, rel=1e-12)
     # what was seeded twice is exactly the excess over the union's mass (2 + 1.75 − overlap)
-    names = material_table(data["materials"])[1]
+    names = sorted(data["materials"])  # material_table's row order
     params = np.zeros((len(names), 2))
     params[:, 1] = [data["materials"][n]["density"] for n in names]
     excess = seeds.mass(params).sum() - 1000.0 * (2.0 + 1.75 - exact)

@@ -101,7 +101,7 @@ def test_turned_box_seeds_a_turned_lattice_with_turned_domains():
                    "velocity_gradient = [[0.5, 0.1], [0.0, -0.2]]")
     plain = _scene()
     from parmpm.materials import material_table
-    params, names = material_table(scene.data["materials"])
+    params, names = material_table(scene.spec.materials)
     rows = {n: i for i, n in enumerate(names)}
     P = bodies_to_particles(scene.spec.grid, scene.spec.bodies, rows, params)
     Q = bodies_to_particles(plain.spec.grid, plain.spec.bodies, rows, params)
@@ -208,7 +208,7 @@ def test_seeds_build_exactly_the_kept_particles():
     from parmpm.particles.seeding import seed_bodies
 
     scene = load_scene("tension_bar", ["bodies.1.angle=3.0", "bodies.2.angular_velocity=1.5"])
-    params, names = material_table(scene.data["materials"])
+    params, names = material_table(scene.spec.materials)
     seeds = seed_bodies(scene.spec.grid, scene.spec.bodies, {n: i for i, n in enumerate(names)})
     full = seeds.particles(params)
     keep = np.sort(np.random.default_rng(3).choice(seeds.n, seeds.n // 3, replace=False))
@@ -227,7 +227,7 @@ def test_freeze_never_reads_back_from_the_resolved_scene(tmp_path):
     again = scene_from_toml(scene.to_toml(), "again.toml")
     assert again.data == scene.data
     from parmpm.materials import material_table
-    params, names = material_table(scene.data["materials"])
+    params, names = material_table(scene.spec.materials)
     assert params[names.index("band"), 11] == 2.0 and params[names.index("bar"), 11] == 1.0
 
 
