@@ -72,6 +72,9 @@ def _cases() -> dict:
                                                          "time.steps=40"]]
     # the tension bar: grips, a weak band, domains freezing; separation counted across ranks
     cases["2d_tension_bar"] = ["tension_bar", OFF + ["grid.patch_size=8"]]
+    # a CSG body (box minus disk: the plate-with-hole example), seeded patch by patch
+    cases["2d_csg_plate_with_hole"] = [str(ROOT / "docs" / "examples" / "plate_with_hole.toml"),
+                                       OFF + ["grid.patch_size=8", "time.steps=40"]]
     return cases
 
 

@@ -49,6 +49,13 @@ QUIET = ["--quiet", "--set", "time.steps=2", "--set", "output.figure=false"]
     # before: ran out of memory without a message (a huge ppc; 1.6e16 patches to index)
     ("hanging_bar", "bodies.0.ppc=1000", "needs about"),
     ("hanging_bar", "grid.cells=[1000000000,1000000000]", "of 1.56e+16 in the grid"),
+    # issue 30: CSG bodies (every part's case: tests/test_csg.py)
+    ("spinning_disk", 'bodies.0.shape="half_space"', "bodies.0.shape: a half_space is unbounded"),
+    ("spinning_disk", "bodies.0={shape='difference', material='disk', parts=[{shape='disk', "
+     "center=[0, 0], radius=0.4}, {shape='disk', center=[0, 0], radius=nan}]}",
+     "bodies.0.parts.1.radius: expected a number > 0, got nan"),
+    ("spinning_disk", "bodies.0={shape='polygon', material='disk', vertices=[[0, 0], [0.2, 0.2], "
+     "[0.2, 0], [0, 0.1]]}", "bodies.0.vertices: expected a simple polygon"),
 ])
 def test_bad_input_is_one_line(tmp_path, scene, override, fragment):
     proc = cli("run", scene, *QUIET, "--set", override, "-o", str(tmp_path / "o"), cwd=tmp_path)

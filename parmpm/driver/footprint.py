@@ -58,6 +58,9 @@ def _body_particles(body: Body, h: tuple[float, ...], dim: int) -> float:
     if body.shape == "box":
         return math.prod(max(1.0, round((hi - lo) / hk * p))
                          for lo, hi, hk, p in zip(body.min, body.max, h, ppc))
+    if body.shape not in ("disk", "sphere"):  # polygon, cylinder, CSG: its bounding box's lattice
+        lo, hi = body.bounds()
+        return math.prod((b - a) / hk * p + 1 for a, b, hk, p in zip(lo, hi, h, ppc))
     inscribed = {1: 1.0, 2: math.pi / 4, 3: math.pi / 6}[dim]
     return inscribed * math.prod(2 * body.radius / hk * p + 1 for hk, p in zip(h, ppc))
 

@@ -1,5 +1,6 @@
 """Scene schema, bodies: ``[[bodies]]`` tables — shape, placement (turned boxes), material,
 particles per cell and the initial velocity field (uniform, affine, spin, vibration mode).
+Cylinders, polygons and CSG bodies (``parts``) are checked by :mod:`parmpm.scene.parts`.
 
 Split from :mod:`parmpm.scene.schema` (which calls :func:`check_bodies`); the same conventions: every
 problem is a one-line ``SceneError`` naming the key, the value and what was expected.
@@ -11,12 +12,18 @@ from typing import Any
 
 from parmpm.geometry.primitives import rotated_box_bounds
 from parmpm.scene.check import AXIS_NAMES, Checker, show
+from parmpm.scene.parts import PART_DIMS, PART_KEYS, check_part, csg_bounds
 
-SHAPE_DIMS = {"box": (1, 2, 3), "disk": (2,), "sphere": (3,)}
+SHAPE_DIMS = {"box": (1, 2, 3), "disk": (2,), "sphere": (3,),
+              **{s: d for s, d in PART_DIMS.items() if s != "half_space"}}
 BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration",
-             "angular_velocity", "angle", "velocity_gradient")
-SHAPE_KEYS = {"box": ("min", "max"), "disk": ("center", "radius"), "sphere": ("center", "radius")}
-_SHAPE_ONLY_KEYS = ("min", "max", "center", "radius")
+             "angular_velocity", "angle", "velocity_gradient", "axis", "length", "vertices",
+             "parts")
+SHAPE_KEYS = {"box": ("min", "max"), "disk": ("center", "radius"), "sphere": ("center", "radius"),
+              **{s: k for s, k in PART_KEYS.items() if s not in ("box", "half_space")}}
+_SHAPE_ONLY_KEYS = ("min", "max", "center", "radius", "axis", "length", "vertices", "parts")
+#: the key a body outside the grid is blamed on, by shape
+_PLACED_BY = {"disk": "center", "sphere": "center", "cylinder": "center", "polygon": "vertices"}
 VIBRATION_KEYS = ("amplitude", "mode", "axis")
 
 
@@ -39,6 +46,9 @@ def check_bodies(c: Checker, raw: Any, dim: int, grid: dict, materials: dict) ->
 
 def _body(c: Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: dict,
           materials: dict) -> dict:
+    if isinstance(raw, dict) and raw.get("shape") == "half_space":
+        c.fail(f"{key}.shape", 'a half_space is unbounded: use it as one of the parts of an '
+                               '"intersection" or "difference" (e.g. to notch a box)')
     t = c.table(key, raw, BODY_KEYS)
     shape = _shape(c, key, t, dim)
     material = c.string(f"{key}.material", c.required(key, t, "material", "a material name"))
@@ -51,7 +61,8 @@ def _body(c: Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: di
         tol = 1e-9 * grid["cell_size"][axis]
         below, above = bmin[axis] < lo[axis] - tol, bmax[axis] > hi[axis] + tol
         if below or above:
-            side = "center" if shape != "box" else ("min" if below else "max")
+            side = (("min" if below else "max") if shape == "box"
+                    else _PLACED_BY.get(shape, "parts"))
             c.fail(f"{key}.{side}", f"body {key.split('.')[1]} spans [{bmin[axis]!r}, {bmax[axis]!r}] on "
                         f"axis {axis} ({AXIS_NAMES[axis]}), expected it inside the grid "
                         f"[{lo[axis]!r}, {hi[axis]!r}]")
@@ -79,8 +90,9 @@ def _shape(c: Checker, key: str, t: dict, dim: int) -> str:
 
 
 def _placement(c: Checker, key: str, t: dict, dim: int, out: dict) -> tuple[list, list]:
-    """Into ``out``: a box's ``min``, ``max`` and ``angle``, or a disk's or sphere's ``angle``
-    (None), ``center`` and ``radius``. Returns the bounding box that must fit in the grid."""
+    """Into ``out``: a box's ``min``, ``max`` and ``angle``, a disk's or sphere's ``angle``
+    (None), ``center`` and ``radius``, or another shape's keys (:func:`parmpm.scene.parts.check_part`)
+    and ``angle`` (None). Returns the bounding box that must fit in the grid."""
     shape = out["shape"]
     if shape == "box":
         pts = f"{dim} numbers"
@@ -96,6 +108,11 @@ def _placement(c: Checker, key: str, t: dict, dim: int, out: dict) -> tuple[list
     if t.get("angle") is not None:
         c.fail(f"{key}.angle", f'expected only on shape "box" (a {shape} looks the same '
                                "at every angle), got shape " + show(shape))
+    if shape not in ("disk", "sphere"):  # a cylinder, polygon or CSG body: its own keys
+        geometry = check_part(c, key, t, dim, shape)
+        out.update(geometry)
+        out["angle"] = None
+        return csg_bounds(c, key, geometry, dim)
     out["angle"] = None
     center = c.vector(f"{key}.center", c.required(key, t, "center", f"{dim} numbers"),
                       dim, "float", False)

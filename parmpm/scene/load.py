@@ -45,7 +45,14 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   bar stretched at a rate from the start); ``angle`` (box only, 2D/3D, degrees counter-clockwise
   about the box centre in the x-y plane; default none): turns the box, its particle lattice and
   its CPDI domains (GIMP domains stay axis-aligned). Every body's (turned) bounding box lies
-  inside the grid.
+  inside the grid. More shapes (:mod:`parmpm.scene.parts`, :mod:`parmpm.geometry.csg`):
+  "polygon" (2D): ``vertices`` (3 to 1000 points ``[x, y]``, a simple polygon, either
+  orientation); "cylinder" (3D): ``axis`` ("x" | "y" | "z"), ``center`` (its mid-point),
+  ``radius``, ``length`` (along the axis); "union" | "intersection" | "difference" (the first
+  part minus the others): ``parts``, a list of 1 to 100 inline tables, each a shape with its own
+  keys (box, disk, sphere, cylinder, polygon, a nested combination up to 8 deep, or "half_space":
+  ``point`` and outward ``normal``, only as a part that cuts a bounded one). Seeded on a disk's
+  lattice kept by the inside test; spin and velocity gradient about the bounding box's centre.
 * ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi" | "bspline" | "cpdi2",
   default "cpdi"), ``lcr``
   (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none", at most the largest

@@ -4,15 +4,15 @@ issue 28). Said once, on rank 0, before the first step, naming the bodies, the v
 twice and its mass.
 
 Why a warning and not an error: the scene runs as written (every particle is a valid particle),
-and a scene that means its bodies to overlap can still say what it means once bodies can be
-combined (union, difference: CSG bodies, issue 30, whose bodies "say so" when they overlap
-another); the warning gives the numbers to judge it by.
+and a scene that means its bodies to overlap says so by making them one body, their ``union``
+(:mod:`parmpm.scene.parts`), seeded once; the warning gives the numbers to judge it by.
 
 What is measured is what was seeded twice: for bodies ``i < j`` whose bounds meet, the particles
 of the later body ``j`` whose reference position lies inside body ``i`` (strictly: a particle on
 ``i``'s surface is not counted, so bodies that only touch are silent). Their count, times
 body ``j``'s particle volume and mass, is the overlap's volume (to the particle spacing: exact for
-boxes whose lattices align with the overlap, ``O(Δx)`` of its surface otherwise) and the extra
+boxes whose lattices align with the overlap, ``O(Δx)`` of its surface otherwise; a CSG body's
+inside test is :func:`parmpm.geometry.csg.inside`) and the extra
 mass. Each rank counts its own particles (``O(N/P)``: a body's particles are a range of global
 ids, and the test is elementwise) and the counts are summed over the ranks, integers, so the
 message is the same on any number of ranks.

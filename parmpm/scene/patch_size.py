@@ -30,8 +30,8 @@ a ghost layer of ``g`` cells costs little while ``P >= 4g`` (``g = 4``: 16 cells
 8 in 2D/3D; 4·ghost)``. Sixteen occupied patches spread over 2-6 ranks within 25 % of an even
 split (``⌈16/P⌉/(16/P) − 1``), where eight would leave 6 ranks 50 % apart. The bodies' patches
 are counted from their particle lattices (unturned boxes: exact, the same coordinates and patch
-formula as :mod:`parmpm.particles.seeding`) or their bounding boxes (disks, spheres, turned boxes: an upper
-bound), with no particle made; a halving that would index more than :data:`MAX_DENSE_PATCHES`
+formula as :mod:`parmpm.particles.seeding`) or their bounding boxes (disks, spheres, turned boxes,
+polygons, cylinders, CSG bodies: an upper bound), with no particle made; a halving that would index more than :data:`MAX_DENSE_PATCHES`
 patches of the bounding grid (a small body in a huge grid; every rank indexes them all) stops.
 """
 from __future__ import annotations

@@ -27,11 +27,14 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from parmpm.geometry import csg
 from parmpm.geometry.primitives import body_bounds, inside
 from parmpm.scene.check import lcr_length
 
 #: the interpolators that cap their domains at ``method.lcr`` (:mod:`parmpm.scene.schema`)
 LCR_INTERPOLATORS = ("cpdi", "cpdi2")
+#: the bodies :mod:`parmpm.geometry.primitives` places (seeded as before CSG came)
+PRIMITIVE_SHAPES = ("box", "disk", "sphere")
 
 Floats = tuple[float, ...]
 Ints = tuple[int, ...]
@@ -90,9 +93,39 @@ class Vibration:
 
 
 @dataclass(frozen=True, slots=True)
+class Part:
+    """One of a CSG body's ``parts`` (:mod:`parmpm.geometry.csg`): a primitive (its fields as
+    on :class:`Body`, plus a half-space's ``point`` and outward ``normal``) or a combination of
+    ``parts``; the fields of the other shapes are None."""
+
+    shape: str
+    min: Floats | None = None
+    max: Floats | None = None
+    angle: float | None = None
+    center: Floats | None = None
+    radius: float | None = None
+    axis: str | None = None
+    length: float | None = None
+    vertices: tuple[Floats, ...] | None = None
+    point: Floats | None = None
+    normal: Floats | None = None
+    parts: tuple[Part, ...] | None = None
+
+    def bounds(self, dim: int) -> tuple[list, list]:
+        """Axis-aligned bounds, ``±inf`` where unbounded (:func:`parmpm.geometry.csg.bounds`)."""
+        return csg.bounds(self, dim)
+
+    def inside(self, dim: int, x):
+        """Which points ``x`` (n, dim) lie strictly inside (:func:`parmpm.geometry.csg.inside`)."""
+        return csg.inside(self, dim, x)
+
+
+@dataclass(frozen=True, slots=True)
 class Body:
-    """One ``[[bodies]]`` table: a box (``min``, ``max``, ``angle``) or a disk / sphere
-    (``center``, ``radius``); the fields of the other shapes are None."""
+    """One ``[[bodies]]`` table: a box (``min``, ``max``, ``angle``), a disk / sphere
+    (``center``, ``radius``), a cylinder (``axis``, ``center``, ``radius``, ``length``), a
+    polygon (``vertices``) or a CSG combination (``parts``, :class:`Part`); the fields of the
+    other shapes are None."""
 
     shape: str
     material: str
@@ -106,15 +139,25 @@ class Body:
     max: Floats | None = None
     center: Floats | None = None
     radius: float | None = None
+    axis: str | None = None
+    length: float | None = None
+    vertices: tuple[Floats, ...] | None = None
+    parts: tuple[Part, ...] | None = None
 
     def bounds(self) -> tuple[list, list]:
         """Axis-aligned bounds: a box's corners (a turned box's bounding box), a disk's or
-        sphere's centre ± radius (:func:`parmpm.geometry.primitives.body_bounds`)."""
-        return body_bounds(self)
+        sphere's centre ± radius (:func:`parmpm.geometry.primitives.body_bounds`), another
+        shape's :func:`parmpm.geometry.csg.bounds` (finite: the schema checks it)."""
+        if self.shape in PRIMITIVE_SHAPES:
+            return body_bounds(self)
+        return csg.bounds(self, len(self.ppc))
 
     def inside(self, dim: int, x):
-        """Which points ``x`` (n, dim) lie strictly inside (:func:`parmpm.geometry.primitives.inside`)."""
-        return inside(self, dim, x)
+        """Which points ``x`` (n, dim) lie strictly inside (:func:`parmpm.geometry.primitives.inside`,
+        :func:`parmpm.geometry.csg.inside`)."""
+        if self.shape in PRIMITIVE_SHAPES:
+            return inside(self, dim, x)
+        return csg.inside(self, dim, x)
 
 
 @dataclass(frozen=True, slots=True)
@@ -338,6 +381,10 @@ def _convert(hint, value):
         return None
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin in (typing.Union, types.UnionType):
+        many = next((a for a in args if typing.get_origin(a) is tuple and typing.get_args(a)
+                     and dataclasses.is_dataclass(typing.get_args(a)[0])), None)
+        if many is not None and isinstance(value, list):  # ``tuple[Part, ...] | None``
+            return _convert(many, value)
         record = next((a for a in args if dataclasses.is_dataclass(a)), None)
         return build(record, value) if record and isinstance(value, dict) else _frozen(value)
     if dataclasses.is_dataclass(hint):
@@ -358,6 +405,6 @@ def _frozen(value):
     return value
 
 
-__all__ = ["SceneSpec", "Grid", "Material", "Damage", "Body", "Vibration", "Method", "Gravity",
+__all__ = ["SceneSpec", "Grid", "Material", "Damage", "Body", "Part", "Vibration", "Method", "Gravity",
            "Damping", "Manufactured", "Box", "SlipRegion", "Boundary", "Time", "Probe", "History",
            "Output", "Metrics", "Decomposition", "Checkpoint", "build"]

@@ -26,6 +26,7 @@ from parmpm.core.errors import SceneError
 from parmpm.output.metrics import register_metrics
 from parmpm.output.metrics.common import History, as_points, glb_max, to_plain
 from parmpm.output.metrics.trace import first_max, first_min
+from parmpm.particles.seeding.velocity import body_centre
 
 
 @register_metrics("rotation")
@@ -44,8 +45,7 @@ class RotationMetrics(History):
             raise SceneError('metrics.kind = "rotation" needs a nonzero bodies.0.angular_velocity'
                              f' (got {body.angular_velocity!r}; or set metrics.kind = "none")')
         self.omega = float(body.angular_velocity)
-        self.centre = (np.asarray(body.center, float) if body.shape != "box" else
-                       0.5 * (np.asarray(body.min, float) + np.asarray(body.max, float)))
+        self.centre = body_centre(body)  # what the body spins about
         x0, _, _ = self._own(x0, mass, comm, gid)
         rho = spec.materials[body.material].density
         # the largest distance of a particle from the centre, over every rank (exact)

@@ -14,21 +14,25 @@ so :meth:`Seeds.patch_counts` never makes a point. A turned box is its lattice t
 box centre, block by block; its blocks start at multiples of :data:`ALIGN` and a last one shorter
 than that joins the one before, so each point comes out of the same BLAS call position as when
 the whole body was turned at once (the same bits). A disk or sphere is its bounding box's
-lattice masked by the ball, block by block (elementwise: the same bits on any block).
+lattice masked by the ball, block by block (elementwise: the same bits on any block); a
+cylinder, polygon or CSG body (:class:`_Masked`) the same lattice filtered by its inside test
+(:func:`parmpm.geometry.csg.inside`), its particle volume the spacing's product as a disk's.
+
+The initial velocity field a body's particles start with is
+:mod:`parmpm.particles.seeding.velocity`.
 """
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
 from decomposition.boxes import patch_of_coordinate
-from parmpm.geometry.primitives import turn as rotation
 from parmpm.core.errors import SceneError, SimulationError
+from parmpm.geometry.primitives import turn as rotation
 from parmpm.particles.locate import locate_patches
+from parmpm.particles.seeding.velocity import _initial_affine, _initial_velocity
 from parmpm.particles.store import Particles
-from parmpm.transfer.reach import fmt_vec
 from parmpm.shapes.cpdi2 import affine_corners
+from parmpm.transfer.reach import fmt_vec
 
 #: lattice points per block (a multiple of ALIGN)
 BLOCK = 1 << 16
@@ -137,6 +141,27 @@ class _Ball:
         return _points_by_block(self, ids)
 
 
+class _Masked:
+    """Any other shape (a cylinder, a polygon, a CSG body): the points of its bounding box's
+    lattice that ``inside`` keeps, in lattice order, as :class:`_Ball` keeps a disk's."""
+
+    def __init__(self, lattice: _Lattice, inside):
+        self.lattice, self.inside = lattice, inside
+        kept = [self.block(j).shape[0] for j in range(lattice.firsts.size - 1)]
+        self.firsts = np.concatenate([[0], np.cumsum(kept)]).astype(np.int64)
+        self.n = int(self.firsts[-1])
+
+    def __len__(self) -> int:
+        return self.n
+
+    def block(self, j: int) -> np.ndarray:
+        pts = self.lattice.block(j)
+        return pts[self.inside(pts)]
+
+    def points(self, ids) -> np.ndarray:
+        return _points_by_block(self, ids)
+
+
 def _points_by_block(src, ids) -> np.ndarray:
     """Points ``ids`` (increasing) of a body made block by block: only the blocks holding some."""
     ids = np.asarray(ids, np.int64)
@@ -161,54 +186,6 @@ def _lattice(lo, hi, spacing):
             for k, n in enumerate(np.round((np.asarray(hi) - lo) / spacing).astype(int))]
     mesh = np.meshgrid(*axes[::-1], indexing="ij")
     return np.stack([m.ravel() for m in mesh[::-1]], axis=1)
-
-
-def _initial_velocity(d: int, body, pts: np.ndarray) -> np.ndarray:
-    """A body's initial velocity at ``pts``: uniform + affine + spin + vibration mode."""
-    vel = np.tile(np.asarray(body.velocity, float), (len(pts), 1))
-    centre = (np.asarray(body.center, float) if body.shape != "box" else
-              0.5 * (np.asarray(body.min, float) + np.asarray(body.max, float)))
-    if body.velocity_gradient is not None:  # affine: v += L·(x − c)
-        L = np.asarray(body.velocity_gradient, float)
-        for i in range(d):  # elementwise, not BLAS: the same bits for any subset of the points
-            for j in range(d):
-                vel[:, i] += L[i, j] * (pts[:, j] - centre[j])
-    omega = body.angular_velocity
-    if omega is not None:  # rigid spin about the body's centre: v += ω × (x − c)
-        r = pts - centre
-        if d == 2:
-            vel += float(omega) * np.stack([-r[:, 1], r[:, 0]], axis=1)
-        else:
-            vel += np.cross(np.asarray(omega, float), r)
-    vib = body.vibration
-    if vib:
-        ax = vib.axis
-        length = body.max[ax] - body.min[ax]
-        beta = (2 * vib.mode - 1) * math.pi / (2 * length)
-        vel[:, ax] += vib.amplitude * np.sin(beta * (pts[:, ax] - body.min[ax]))
-    return vel
-
-
-def _initial_affine(d: int, body, pts: np.ndarray) -> np.ndarray:
-    """APIC's ``C_p`` at the start: the gradient of :func:`_initial_velocity` at ``pts``, so the
-    particles carry the whole initial field (a spinning body its spin: ``C = ω×``)."""
-    C = np.zeros((len(pts), d, d))
-    if body.velocity_gradient is not None:
-        C += np.asarray(body.velocity_gradient, float)
-    omega = body.angular_velocity
-    if omega is not None and d == 2:
-        C[:, 0, 1] -= float(omega)
-        C[:, 1, 0] += float(omega)
-    elif omega is not None:
-        w = np.asarray(omega, float)
-        C += np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    vib = body.vibration
-    if vib:
-        ax = vib.axis
-        length = body.max[ax] - body.min[ax]
-        beta = (2 * vib.mode - 1) * math.pi / (2 * length)
-        C[:, ax, ax] += vib.amplitude * beta * np.cos(beta * (pts[:, ax] - body.min[ax]))
-    return C
 
 
 class Seeds:
@@ -379,20 +356,37 @@ def seed_bodies(grid, bodies, material_rows: dict[str, int]) -> Seeds:
             if body.angle:  # the lattice turned about the box centre, domains with it
                 turn = rotation(d, body.angle)
                 pts = _Turned(pts, 0.5 * (lo + hi), turn)
-        else:  # disk / sphere on a grid-aligned lattice
+        elif body.shape in ("disk", "sphere"):  # on a grid-aligned lattice
             c, r = np.asarray(body.center, float), float(body.radius)
             spacing = h / ppc
-            lo = origin + np.floor((c - r - origin) / spacing) * spacing
-            n = np.ceil((c + r - lo) / spacing).astype(int)
-            # the bounding lattice's counts as _lattice computes them from its corners
-            count = np.round((lo + n * spacing - lo) / spacing).astype(int)
-            pts = _Ball(_Lattice(lo, spacing, count), c, r)
+            pts = _Ball(_grid_lattice(origin, spacing, c - r, c + r), c, r)
             if not len(pts):
                 raise SceneError(f"bodies.{k}: a {body.shape} of radius {r:g} m holds no point "
                                  f"of its particle lattice (spacing {fmt_spacing(spacing)} m); "
                                  "enlarge the radius or raise ppc")
+        else:  # cylinder, polygon, CSG: the same lattice, kept where the body is
+            spacing = h / ppc
+            bmin, bmax = (np.asarray(b, float) for b in body.bounds())
+            pts = _Masked(_grid_lattice(origin, spacing, bmin, bmax),
+                          lambda x, body=body: body.inside(d, x))
+            if not len(pts):
+                raise SceneError(f"bodies.{k}: the {body.shape} holds no point of its particle "
+                                 f"lattice (spacing {fmt_spacing(spacing)} m): its parts leave "
+                                 "nothing (a difference that removes all, an intersection of "
+                                 "parts that do not meet) or less than a spacing; check its "
+                                 "parts or raise ppc")
         chunks.append((pts, body, spacing, material_rows[body.material], turn))
     return Seeds(d, chunks)
+
+
+def _grid_lattice(origin: np.ndarray, spacing: np.ndarray, bmin, bmax) -> _Lattice:
+    """The lattice of spacing ``spacing`` anchored at the grid's ``origin`` (points at
+    ``origin + (i + ½)·spacing``) that covers the bounds ``bmin``-``bmax``."""
+    lo = origin + np.floor((bmin - origin) / spacing) * spacing
+    n = np.ceil((bmax - lo) / spacing).astype(int)
+    # the bounding lattice's counts as _lattice computes them from its corners
+    count = np.round((lo + n * spacing - lo) / spacing).astype(int)
+    return _Lattice(lo, spacing, count)
 
 
 def bodies_to_particles(grid, bodies, material_rows: dict[str, int],
