@@ -13,7 +13,7 @@ from parmpm.materials import material_table
 from parmpm.particles.locate import locate_patches
 from parmpm.particles import seeding
 from parmpm.geometry.primitives import turn as _turn
-from parmpm.particles.seeding import _Ball, _Lattice, _lattice, _Turned, seed_bodies
+from parmpm.particles.seeding import _ball, _Lattice, _lattice, _Turned, seed_bodies
 
 
 def test_lattice_points_are_the_meshgrid_points():
@@ -88,7 +88,7 @@ def test_ball_is_its_box_lattice_masked(block, monkeypatch):
         c, r = np.array([0.02, -0.01, 0.03])[:d], 0.55
         lat = _Lattice(lo, h, n)
         full = _lattice(lo, lo + np.array(n) * h, h)
-        ball = _Ball(lat, c, r)
+        ball = _ball(lat, c, r)
         expect = full[np.sum((full - c) ** 2, axis=1) <= r * r]
         assert len(ball) == expect.shape[0]
         assert np.array_equal(ball.points(np.arange(len(ball))), expect)

@@ -3,7 +3,7 @@ needs them.
 
 Every rank seeds the same particles (global ids = seeding order, body by body, axis 0 fastest)
 but never holds them all: a body is a description (:class:`_Lattice`, :class:`_Turned`,
-:class:`_Ball`) whose points are made one block of :data:`BLOCK` lattice points at a time.
+:func:`_ball`) whose points are made one block of :data:`BLOCK` lattice points at a time.
 Set-up (:mod:`parmpm.driver.set_up`) makes two passes over the blocks — the particles per patch
 (:meth:`Seeds.patch_counts`), then, once the patches are dealt out, the global ids in this
 rank's patches (:meth:`Seeds.members`) — and builds a full :class:`parmpm.particles.store.Particles`
@@ -120,30 +120,9 @@ class _Turned:
         return _points_by_block(self, ids)
 
 
-class _Ball:
-    """A disk or sphere: the points of its bounding box's lattice within ``radius`` of
-    ``centre``, in lattice order; one counting pass keeps the first id of every block."""
-
-    def __init__(self, lattice: _Lattice, centre: np.ndarray, radius: float):
-        self.lattice, self.centre, self.radius = lattice, centre, radius
-        kept = [self.block(j).shape[0] for j in range(lattice.firsts.size - 1)]
-        self.firsts = np.concatenate([[0], np.cumsum(kept)]).astype(np.int64)
-        self.n = int(self.firsts[-1])
-
-    def __len__(self) -> int:
-        return self.n
-
-    def block(self, j: int) -> np.ndarray:
-        pts = self.lattice.block(j)
-        return pts[np.sum((pts - self.centre) ** 2, axis=1) <= self.radius * self.radius]
-
-    def points(self, ids) -> np.ndarray:
-        return _points_by_block(self, ids)
-
-
 class _Masked:
-    """Any other shape (a cylinder, a polygon, a CSG body): the points of its bounding box's
-    lattice that ``inside`` keeps, in lattice order, as :class:`_Ball` keeps a disk's."""
+    """A shape that is not a box: the points of its bounding box's lattice that ``inside`` keeps,
+    in lattice order; one counting pass keeps the first id of every block."""
 
     def __init__(self, lattice: _Lattice, inside):
         self.lattice, self.inside = lattice, inside
@@ -160,6 +139,13 @@ class _Masked:
 
     def points(self, ids) -> np.ndarray:
         return _points_by_block(self, ids)
+
+
+def _ball(lattice: _Lattice, centre: np.ndarray, radius: float) -> _Masked:
+    """A disk or sphere: the points of its bounding box's lattice within ``radius`` of ``centre``
+    (the surface included), in lattice order."""
+    r2 = radius * radius
+    return _Masked(lattice, lambda pts: np.sum((pts - centre) ** 2, axis=1) <= r2)
 
 
 def _points_by_block(src, ids) -> np.ndarray:
@@ -200,7 +186,7 @@ class Seeds:
 
     def __init__(self, dim: int, chunks: list):
         self.dim = dim
-        # (points: _Lattice | _Turned | _Ball, body, spacing, material row, turn or None)
+        # (points: _Lattice | _Turned | _Masked, body, spacing, material row, turn or None)
         self.chunks = chunks
         self.n = sum(len(c[0]) for c in chunks)
         self.motion = None
@@ -359,7 +345,7 @@ def seed_bodies(grid, bodies, material_rows: dict[str, int]) -> Seeds:
         elif body.shape in ("disk", "sphere"):  # on a grid-aligned lattice
             c, r = np.asarray(body.center, float), float(body.radius)
             spacing = h / ppc
-            pts = _Ball(_grid_lattice(origin, spacing, c - r, c + r), c, r)
+            pts = _ball(_grid_lattice(origin, spacing, c - r, c + r), c, r)
             if not len(pts):
                 raise SceneError(f"bodies.{k}: a {body.shape} of radius {r:g} m holds no point "
                                  f"of its particle lattice (spacing {fmt_spacing(spacing)} m); "
