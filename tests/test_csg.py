@@ -57,6 +57,10 @@ DISK = part(shape="disk", center=[1.0, 0.5], radius=0.25)
      [[0.5, 1.2], [1.0, 0.9]], [[1.0, 1.2]]),
     (part(shape="half_space", point=[1.0, 1.0], normal=[1.0, 1.0]), 2, [[0.9, 1.0], [-5, -5]],
      [[1.1, 1.0], [0.0, 2.1]]),
+    (part(shape="half_space", point=[1.0, 1.0], normal=[1e308, 1e308]), 2,  # no overflow
+     [[0.9, 1.0], [-5, -5], [0.5, 1.4]], [[1.1, 1.0], [0.0, 2.1], [1.4, 0.7]]),
+    (part(shape="half_space", point=[1.0, 1.0], normal=[1e-320, 0.0]), 2,  # nor underflow
+     [[0.9, 1.0], [-5, 5]], [[1.1, 1.0]]),
     (part(shape="difference", parts=[BOX, DISK]), 2, [[0.1, 0.1], [1.3, 0.5]], [[1.0, 0.5]]),
     (part(shape="union", parts=[DISK, part(shape="disk", center=[1.4, 0.5], radius=0.25)]), 2,
      [[0.8, 0.5], [1.6, 0.5], [1.2, 0.5]], [[0.5, 0.5], [1.2, 0.75]]),
@@ -259,6 +263,8 @@ B = '{shape = "box", min = [0.5, 0.5], max = [1.5, 1.5]}'
     (_parts(B, "3"), 2, "bodies.0.parts.1: expected a table"),
     ('shape = "union"\nparts = []', 2, "bodies.0.parts: expected a list of 1 to 100 tables"),
     ('shape = "union"', 2, "bodies.0.parts: required key is missing"),
+    ('shape = "polygon"\nvertices = [[0.1, 0.1], [1.0, 0.1], [1.0, 1.0]]\nangle = 30.0', 2,
+     'bodies.0.angle: expected only on shape "box" (a polygon is placed by its own coordinates'),
     ('shape = "union"\nparts = [' + "{shape = \"union\", parts = [" * 9 + B + "]}" * 9 + "]", 2,
      "combinations nest at most 8 deep"),
     ('shape = "half_space"\npoint = [1.0, 1.0]\nnormal = [0.0, 1.0]', 2,

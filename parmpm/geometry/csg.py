@@ -54,6 +54,13 @@ def bounds(node, dim: int) -> tuple[list, list]:
     return lo.max(axis=0).tolist(), hi.min(axis=0).tolist()
 
 
+def unit_scale(v) -> np.ndarray:
+    """``v`` divided by its largest component's size: the same direction, and a dot product with
+    it neither overflows (a normal of 1e308) nor underflows (1e-320) to a wrong sign or zero."""
+    v = np.asarray(v, float)
+    return v / np.abs(v).max()
+
+
 def _half_space_bounds(node, dim: int) -> tuple[list, list]:
     """Unbounded, except along a normal parallel to an axis: ``x_k < p_k`` (or ``> p_k``)."""
     lo, hi = [-np.inf] * dim, [np.inf] * dim
@@ -79,7 +86,7 @@ def inside(node, dim: int, x: np.ndarray) -> np.ndarray:
     if shape == "polygon":
         return in_polygon(np.asarray(node.vertices, float), x)
     if shape == "half_space":
-        return (x - np.asarray(node.point, float)) @ np.asarray(node.normal, float) < 0.0
+        return (x - np.asarray(node.point, float)) @ unit_scale(node.normal) < 0.0
     first, *rest = node.parts
     out = inside(first, dim, x)
     for part in rest:

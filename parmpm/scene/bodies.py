@@ -106,8 +106,10 @@ def _placement(c: Checker, key: str, t: dict, dim: int, out: dict) -> tuple[list
             return rotated_box_bounds(bmin, bmax, out["angle"])
         return bmin, bmax
     if t.get("angle") is not None:
-        c.fail(f"{key}.angle", f'expected only on shape "box" (a {shape} looks the same '
-                               "at every angle), got shape " + show(shape))
+        why = ("looks the same at every angle" if shape in ("disk", "sphere") else
+               "is placed by its own coordinates: turn those")
+        c.fail(f"{key}.angle", f'expected only on shape "box" (a {shape} {why}), got shape '
+                               + show(shape))
     if shape not in ("disk", "sphere"):  # a cylinder, polygon or CSG body: its own keys
         geometry = check_part(c, key, t, dim, shape)
         out.update(geometry)
