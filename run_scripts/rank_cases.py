@@ -36,8 +36,10 @@ def _cases() -> dict:
     cases["2d_cpdi2"] = ["hanging_bar", OFF + ["method.interpolator=cpdi2", "grid.patch_size=4",
                                                "time.steps=40"]]
     # the quadratic B-spline (generic kernels): one 2D case
+    # (held at the grid's top face: B-splines refuse held node regions)
     cases["2d_bspline"] = ["hanging_bar", OFF + ["method.interpolator=bspline", "grid.patch_size=4",
-                                                 "time.steps=40"]]
+                                                 "time.steps=40", "boundary.slip_regions=[]",
+                                                 "grid.cells=[20, 30]", "boundary.y_max=symmetry"]]
     for m in ("cpdi", "mpm", "ugimp"):
         cases[f"crossing_{m}"] = [CROSSING, [f"method.interpolator={m}"]]
     # per-particle body force and mirror faces folded patch by patch (manufactured solution;
@@ -100,3 +102,22 @@ def renovation_cases() -> dict:
     out["3d_cpdi_unscaled"] = ["hanging_bar_3d", OFF + ["method.lcr=none"] + bar3]
     out["vibrating_bar"] = ["vibrating_bar", OFF + ["time.steps=100"]]
     return out
+
+
+# bodies read from files (issue 30): a mesh's quadrature points (two rings from Gmsh groups,
+# each particle its own volume) and a particle file (two materials, velocities and F from the file)
+CASES["2d_mesh_rings"] = [str(ROOT / "docs" / "examples" / "rings_from_mesh.toml"),
+                          OFF + ["time.steps=40", "output.history.enabled=false"]]
+CASES["2d_particle_file_blob"] = [str(ROOT / "tests" / "data" / "spinning_blob.toml"),
+                                  OFF + ["output.history.enabled=false"]]
+
+# walls and loads (issue 30): a block sliding on a 30-degree plane with friction, a block
+# pressed by a moving plate onto a held base (the walls' marks summed over the ghost layers), the
+# Kirsch plate pulled by a traction on surface faces gathered from every rank
+EXAMPLES = ROOT / "docs" / "examples"
+CASES["2d_wall_friction"] = [str(EXAMPLES / "sliding_block.toml"),
+                             OFF + ["grid.patch_size=6", "time.steps=60"]]
+CASES["2d_wall_plate"] = [str(EXAMPLES / "pressed_block.toml"),
+                          OFF + ["grid.patch_size=4", "time.steps=60"]]
+CASES["2d_traction_kirsch"] = [str(EXAMPLES / "kirsch_plate.toml"),
+                               OFF + ["grid.patch_size=8", "time.steps=40"]]

@@ -203,11 +203,28 @@ class Case:
                 f"bodies.0.ppc={self.ppc}", f"grid.cell_size={self.cell}",
                 f"grid.cells=[{', '.join(map(str, cells))}]", f"time.end={self.end}",
                 "metrics.stop_on_separation=true", f"output.every={FRAME_EVERY}"]
+        if self.method.interpolator == "bspline":  # held at the grid's face (module doc)
+            return over + self._face_support(base, cells)
         if self.support == "clamped":  # the same nodes, both components held
             b = parmpm.load_scene(SCENES[self.dim]).data["boundary"]["slip_regions"][0]
             lo, hi = ", ".join(map(repr, b["min"])), ", ".join(map(repr, b["max"]))
             over += ["boundary.slip_regions=[]", f"boundary.fixed_regions=[{{min=[{lo}], max=[{hi}]}}]"]
         return over
+
+    def _face_support(self, base: dict, cells: list) -> list[str]:
+        """B-splines refuse held node regions (a spline leans on held nodes past the region's
+        edge): the grid ends at the bar's top instead, whose face is a mirror, a roller
+        ("symmetry") or clamped, as B-splines treat exactly."""
+        import parmpm
+
+        b = parmpm.load_scene(SCENES[self.dim]).data["boundary"]
+        region = (b["slip_regions"] or b["fixed_regions"])[0]
+        axis = 0 if self.dim == 1 else 1
+        cells = list(cells)
+        cells[axis] = round((region["min"][axis] - base["origin"][axis]) / self.cell)
+        face = "clamped" if self.support == "clamped" or self.dim == 1 else "symmetry"
+        return ["boundary.slip_regions=[]", "boundary.fixed_regions=[]",
+                f"grid.cells=[{', '.join(map(str, cells))}]", f"boundary.{'xyz'[axis]}_max={face}"]
 
 
 def full_cases() -> list[Case]:

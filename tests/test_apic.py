@@ -12,8 +12,8 @@ from parmpm.core.errors import SceneError
 from parmpm.scene.load import load_scene
 
 QUIET = ["-q", "--set", "output.snapshots=false", "--set", "output.figure=false"]
-APIC = ["--set", "method.interpolator=bspline", "--set", "method.transfer=apic"]
-MLS = ["--set", "method.interpolator=bspline", "--set", "method.transfer=mls"]
+APIC = ["--set", "method.interpolator=bspline", "--set", "boundary.regions_with_splines=true", "--set", "method.transfer=apic"]
+MLS = ["--set", "method.interpolator=bspline", "--set", "boundary.regions_with_splines=true", "--set", "method.transfer=mls"]
 TIMEOUT = 600
 
 
@@ -37,7 +37,7 @@ def disks(tmp_path_factory):
     common = ["run", "spinning_disk", "--set", "time.steps=100", "--set",
               "output.history.every_steps=10"]
     return {"apic": _run(tmp, "apic", *common, *APIC), "mls": _run(tmp, "mls", *common, *MLS),
-            "flip": _run(tmp, "flip", *common, "--set", "method.interpolator=bspline")}
+            "flip": _run(tmp, "flip", *common, "--set", "method.interpolator=bspline", "--set", "boundary.regions_with_splines=true")}
 
 
 def test_apic_keeps_the_angular_momentum_of_a_spinning_disk(disks):
@@ -76,7 +76,7 @@ def test_the_initial_affine_field_is_the_spin(tmp_path):
     from decomposition import world
     from parmpm.driver.set_up import set_up
 
-    scene = load_scene("spinning_disk", overrides=["method.interpolator=bspline",
+    scene = load_scene("spinning_disk", overrides=["method.interpolator=bspline", "boundary.regions_with_splines=true",
                                                    "method.transfer=apic"])
     s = set_up(scene, world())
     P = s.particles
@@ -85,7 +85,7 @@ def test_the_initial_affine_field_is_the_spin(tmp_path):
     np.testing.assert_array_equal(P.affine[:, 0, 1], -w)
     np.testing.assert_array_equal(P.affine[:, 1, 0], w)
     assert not np.any(P.affine[:, 0, 0]) and not np.any(P.affine[:, 1, 1])
-    flip = set_up(load_scene("spinning_disk", overrides=["method.interpolator=bspline"]), world())
+    flip = set_up(load_scene("spinning_disk", overrides=["method.interpolator=bspline", "boundary.regions_with_splines=true"]), world())
     assert flip.particles.affine.shape == (0, 2, 2)  # FLIP runs carry no affine field
 
 
@@ -139,10 +139,10 @@ def test_a_rotation_metric_without_spin_is_one_line():
 
 @pytest.mark.parametrize("overrides, message", [
     (["method.transfer=apic"], 'method.transfer: "apic" needs interpolator "bspline"'),
-    (["method.interpolator=bspline", "method.transfer=apic", "method.flip=0.9"],
+    (["method.interpolator=bspline", "boundary.regions_with_splines=true", "method.transfer=apic", "method.flip=0.9"],
      "method.flip: 0.9 has no meaning with method.transfer = \"apic\""),
     (["method.transfer=mls"], 'method.transfer: "mls" needs interpolator "bspline"'),
-    (["method.interpolator=bspline", "method.transfer=mls", "method.flip=1"],
+    (["method.interpolator=bspline", "boundary.regions_with_splines=true", "method.transfer=mls", "method.flip=1"],
      "method.flip: 1 has no meaning with method.transfer = \"mls\""),
     (["method.transfer=pic"], "method.transfer"),
 ])
@@ -156,7 +156,7 @@ def test_the_resolved_apic_scene_reads_back():
     """``show`` of an APIC scene has no flip key (the blend does not apply) and loads again."""
     from parmpm.scene.load import scene_from_toml
 
-    scene = load_scene("hanging_bar", overrides=["method.interpolator=bspline",
+    scene = load_scene("hanging_bar", overrides=["method.interpolator=bspline", "boundary.regions_with_splines=true",
                                                  "method.transfer=apic"])
     assert "flip" not in scene.data["method"]
     assert scene_from_toml(scene.to_toml()) == scene

@@ -56,6 +56,18 @@ QUIET = ["--quiet", "--set", "time.steps=2", "--set", "output.figure=false"]
      "bodies.0.parts.1.radius: expected a number > 0, got nan"),
     ("spinning_disk", "bodies.0={shape='polygon', material='disk', vertices=[[0, 0], [0.2, 0.2], "
      "[0.2, 0], [0, 0.1]]}", "bodies.0.vertices: expected a simple polygon"),
+    # issue 30: walls, loads, bodies from files (every key's cases: tests/test_walls.py,
+    # tests/test_body_files.py)
+    ("hanging_bar", "walls=[{point=[0, 0], normal=[0, 1], friction=-1}]",
+     "walls.0.friction: expected a number >= 0"),
+    ("hanging_bar", "walls=[{point=[0, 0], normal=[0, nan]}]", "walls.0.normal"),
+    ("hanging_bar", "loads=[{kind='traction', body=0, value=[1, 0], "
+     "region={min=[5, 5], max=[6, 6]}}]", "loads.0: the traction finds no face"),
+    ("hanging_bar", "loads=[{kind='point', at=[0, 0], value=[1, 0], time={function='table', "
+     "points=[[1, 0], [0.5, 1]]}}]", "loads.0.time.points.1"),
+    ("hanging_bar", "bodies.0={shape='mesh', file='missing.msh', material='bar'}", "missing.msh"),
+    ("hanging_bar", "bodies.0={shape='particles', file='missing.csv', material='bar'}",
+     "missing.csv"),
 ])
 def test_bad_input_is_one_line(tmp_path, scene, override, fragment):
     proc = cli("run", scene, *QUIET, "--set", override, "-o", str(tmp_path / "o"), cwd=tmp_path)

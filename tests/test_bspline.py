@@ -96,14 +96,14 @@ def test_partition_of_unity_and_linear_reproduction(d, jit):
 
 @pytest.mark.parametrize("scene", ["hanging_bar_1d", "hanging_bar", "hanging_bar_3d"])
 def test_hanging_bar_runs(scene):
-    r = parmpm.run(scene, QUIET + ["method.interpolator=bspline", "time.steps=4"])
+    r = parmpm.run(scene, QUIET + ["method.interpolator=bspline", "boundary.regions_with_splines=true", "time.steps=4"])
     assert r["steps"] == 4 and r["particles"] > 0
     assert r["metrics"]["tip_displacement"] < 0  # it falls
 
 
 def test_rigid_translation_conserves_mass_and_momentum():
     sim = parmpm.Simulation(parmpm.load_scene("hanging_bar", QUIET + [
-        "method.interpolator=bspline", "gravity.g=[0.0, 0.0]", "boundary.fixed_regions=[]",
+        "method.interpolator=bspline", "boundary.regions_with_splines=true", "gravity.g=[0.0, 0.0]", "boundary.fixed_regions=[]",
         "boundary.slip_regions=[]", "bodies.0.velocity=[3.0, -2.0]", "time.steps=30",
         'metrics.kind="none"']), quiet=True)
     P = sim.particles
@@ -125,7 +125,8 @@ def _vibrating_bar(refine: int, method: str = "bspline", clamp: str = "face") ->
     if clamp == "region":
         o = -2 * h
         over += [f"grid.cells={22 * refine}", f"grid.origin={o}", 'boundary.x_min="free"',
-                 f"boundary.fixed_regions=[{{min=[{o}], max=[0.0]}}]"]
+                 f"boundary.fixed_regions=[{{min=[{o}], max=[0.0]}}]",
+                 "boundary.regions_with_splines=true"]
     else:
         over += [f"grid.cells={20 * refine}"]
     r = parmpm.run("vibrating_bar", QUIET + over)
@@ -157,7 +158,7 @@ def test_a_clamped_face_makes_the_bspline_bar_second_order():
 def test_snapshots_and_figure_draw_the_nominal_domains(tmp_path, monkeypatch):
     """Snapshots and the figure treat bspline like mpm (a nominal box per particle)."""
     monkeypatch.chdir(tmp_path)
-    r = parmpm.run("hanging_bar", ["method.interpolator=bspline", "time.steps=4"])
+    r = parmpm.run("hanging_bar", ["method.interpolator=bspline", "boundary.regions_with_splines=true", "time.steps=4"])
     assert r["steps"] == 4
     assert list(tmp_path.rglob("*.h5")) and list(tmp_path.rglob("hanging_bar.png"))
 

@@ -85,11 +85,11 @@ def _last(tmp_path, name, *overrides):
 #: disk (docs/energy.md): B-spline (MUSL) FLIP 0.25, PIC 0.075, APIC 0.31, MLS 0.30; B-spline
 #: FLIP under USL 0.70, CPDI FLIP 0.72 (the slow ones: the grid-scale increments)
 TRANSFERS = {
-    "bspline-flip": (("method.interpolator=bspline",), 0.4),
-    "bspline-usl-flip": (("method.interpolator=bspline", "method.update=usl"), 0.85),
-    "bspline-pic": (("method.interpolator=bspline", "method.flip=0"), 0.4),
-    "bspline-apic": (("method.interpolator=bspline", "method.transfer=apic"), 0.5),
-    "bspline-mls": (("method.interpolator=bspline", "method.transfer=mls"), 0.5),
+    "bspline-flip": (("method.interpolator=bspline", "boundary.regions_with_splines=true",), 0.4),
+    "bspline-usl-flip": (("method.interpolator=bspline", "boundary.regions_with_splines=true", "method.update=usl"), 0.85),
+    "bspline-pic": (("method.interpolator=bspline", "boundary.regions_with_splines=true", "method.flip=0"), 0.4),
+    "bspline-apic": (("method.interpolator=bspline", "boundary.regions_with_splines=true", "method.transfer=apic"), 0.5),
+    "bspline-mls": (("method.interpolator=bspline", "boundary.regions_with_splines=true", "method.transfer=mls"), 0.5),
     "cpdi-flip": (("method.interpolator=cpdi",), 0.85),
 }
 
@@ -111,11 +111,11 @@ def test_a_residual_far_from_its_estimate_is_reported(tmp_path, caplog):
     estimate stays near zero (and the transfer dissipation nearly cancels it): one warning.
     The APIC disk, whose R is a hundredth of that, runs without one."""
     with caplog.at_level(logging.WARNING, logger="parmpm"):
-        _last(tmp_path, "flip", "method.interpolator=bspline", "time.cfl=0.4")
+        _last(tmp_path, "flip", "method.interpolator=bspline", "boundary.regions_with_splines=true", "time.cfl=0.4")
     lines = [r.getMessage() for r in caplog.records if "energy residual" in r.getMessage()]
     assert len(lines) == 1 and "smooth-loading estimate" in lines[0]
     caplog.clear()
     with caplog.at_level(logging.WARNING, logger="parmpm"):
-        _last(tmp_path, "apic", "method.interpolator=bspline", "method.transfer=apic",
+        _last(tmp_path, "apic", "method.interpolator=bspline", "boundary.regions_with_splines=true", "method.transfer=apic",
               "time.cfl=0.4")
     assert not [r for r in caplog.records if "energy residual" in r.getMessage()]

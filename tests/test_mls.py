@@ -78,11 +78,11 @@ def test_one_particle_per_cell_under_mls_is_warned_about():
     from parmpm.driver.set_up import sparse_mls_warnings
     from parmpm.scene.load import load_scene
 
-    over = ["method.interpolator=bspline", "bodies.0.ppc=[1, 2]"]
+    over = ["method.interpolator=bspline", "boundary.regions_with_splines=true", "bodies.0.ppc=[1, 2]"]
     lines = sparse_mls_warnings(load_scene("hanging_bar", over + ["method.transfer=mls"]).spec)
     assert len(lines) == 1 and lines[0].startswith("bodies.0.ppc = [1, 2] with method.transfer")
     assert sparse_mls_warnings(load_scene("hanging_bar", over + ["method.transfer=apic"]).spec) == []
-    assert sparse_mls_warnings(load_scene("hanging_bar", ["method.interpolator=bspline",
+    assert sparse_mls_warnings(load_scene("hanging_bar", ["method.interpolator=bspline", "boundary.regions_with_splines=true",
                                                           "method.transfer=mls"]).spec) == []
 
 
@@ -93,7 +93,7 @@ def test_the_energy_ledger_does_not_change_an_mls_run(tmp_path):
     from parmpm.scene.load import load_scene
     from parmpm.driver.simulation import Simulation
 
-    over = ["method.interpolator=bspline", "method.transfer=mls", "time.steps=20",
+    over = ["method.interpolator=bspline", "boundary.regions_with_splines=true", "method.transfer=mls", "time.steps=20",
             "output.snapshots=false", "output.figure=false"]
     states = []
     for k, history in enumerate(("true", "false")):

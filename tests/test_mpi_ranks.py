@@ -23,7 +23,9 @@ RANKS = (1, 2, 3, 4)
 FIELDS = ("gid", "x", "v", "F", "stress", "damage")
 
 
-pytestmark = MPI_MARKS  # every test here launches mpirun
+# every test here launches mpirun; one worker runs them all, so the module's runs are made once
+# (under --dist worksteal each worker that stole one of these tests ran every case again)
+pytestmark = MPI_MARKS + [pytest.mark.xdist_group("mpi_ranks")]
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +38,7 @@ def runs(tmp_path_factory):
         folder = root / f"np{n}"
         folder.mkdir()
         proc = subprocess.run([mpirun(), "-n", str(n), sys.executable, str(ROOT / "run_scripts" / "save_final_states.py"),
-                               str(folder), str(spec)], capture_output=True, text=True, timeout=400)
+                               str(folder), str(spec)], capture_output=True, text=True, timeout=1200)
         assert proc.returncode == 0, f"{n} ranks failed:\n{proc.stderr[-3000:]}"
         out[n] = folder
     return out

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 import parmpm
-from parmpm.scene import load as scene_module
+from parmpm.scene import reference as scene_module
 from parmpm.core.errors import SceneError
 from parmpm.materials import MODELS
 from parmpm.output.metrics import (METRIC_KINDS, NO_METRICS, make_metrics, metric_names, register_metrics,
@@ -28,7 +28,7 @@ def test_reading_a_scene_loads_no_numba():
         "assert 'numba' not in sys.modules, 'import'\n"
         "for name in parmpm.scene.load.builtin_scenes():\n"
         "    for interp in parmpm.shapes.INTERPOLATORS:\n"
-        "        parmpm.scene.load.load_scene(name, [f'method.interpolator={interp}'])\n"
+        "        parmpm.scene.load.load_scene(name, [f'method.interpolator={interp}', 'boundary.regions_with_splines=true'])\n"
         "assert 'numba' not in sys.modules, 'load_scene'\n"
         "print('ok')\n"
     )
@@ -64,7 +64,8 @@ def test_ghost_widths(lcr, min_dx, cpdi):
 
 @pytest.mark.parametrize("name", list(INTERPOLATORS))
 def test_schema_accepts_every_registered_interpolator(name):
-    assert parmpm.load_scene("hanging_bar", [f"method.interpolator={name}"]).data["method"][
+    assert parmpm.load_scene("hanging_bar", [f"method.interpolator={name}",
+                                             "boundary.regions_with_splines=true"]).data["method"][
         "interpolator"] == name
 
 

@@ -20,7 +20,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 #: a 3D scene with the optional tables the built-in scenes leave out: a sphere spinning about a
 #: vector with a velocity gradient, a turned box, damage that never freezes, APIC (no
-#: method.flip), fixed and slip regions, every kind of probe, explicit schedules
+#: method.flip), walls and loads with time functions (held node regions are refused with B-splines:
+#: ``tests/test_walls.py``), every kind of probe, explicit schedules
 EVERYTHING = """
 name = "everything"
 dim = 3
@@ -72,8 +73,23 @@ coefficient = 0.5
 [boundary]
 z_min = "fixed"
 x_max = "slip"
-fixed_regions = [{min = [-0.5, -0.5, -0.5], max = [1.5, 1.5, -0.45]}]
-slip_regions = [{min = [-0.5, -0.5, -0.5], max = [-0.45, 1.5, 1.5], normal = "x"}]
+[[walls]]
+point = [0.0, 0.0, -0.45]
+normal = [0.0, 0.1, 1.0]
+friction = 0.3
+velocity = [0.0, 0.0, 0.01]
+time = {function = "table", points = [[0.0, 0.0], [0.05, 1.0]]}
+[[loads]]
+kind = "traction"
+body = 1
+region = {min = [-0.5, -0.5, -0.5], max = [1.5, 1.5, 1.5]}
+value = [0.0, 0.0, 100.0]
+time = {function = "smooth_step", duration = 0.02}
+[[loads]]
+name = "poke"
+kind = "point"
+at = [0.0, 0.0, 0.0]
+value = [1.0, 0.0, 0.0]
 [time]
 end = 0.1
 steps = 50

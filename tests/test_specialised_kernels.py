@@ -86,6 +86,8 @@ def deformed_stepper(dim, method, lcr, model="neo_hookean", seed=1, tmp=None):
                     f'materials.bar.model="{model}"']
     if method in ("cpdi", "cpdi2"):
         over.append(f"method.lcr={lcr}")
+    if method == "bspline":  # the bar's held region: kernels only, no physics judged
+        over.append("boundary.regions_with_splines=true")
     if lcr in ("apic", "mls"):
         over.append(f"method.transfer={lcr}")
     sim = Simulation(parmpm.load_scene(SCENE[dim], over), tmp, quiet=True)

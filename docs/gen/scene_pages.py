@@ -73,9 +73,13 @@ SECTIONS = (
     ("[metrics]", "metrics", "schema", "METRICS_KEYS"),
     ("[decomposition]", "decomposition", "schema", "DECOMPOSITION_KEYS"),
     ("[checkpoint]", "checkpoint", "schema", "CHECKPOINT_KEYS"),
+    ("[[walls]]", None, "loads", "WALL_KEYS"),
+    ("[[loads]]", None, "loads", "LOAD_KEYS"),
+    ("time function", None, "loads", "TIME_FUNCTION_KEYS"),
 )
 #: where a section's prose lives when it is part of another section's bullet
 PROSE_OF = {"[materials.NAME.damage]": "[materials.NAME]", "[bodies.vibration]": "[[bodies]]",
+            "time function": "[[loads]]",
             "[output.history]": "[output]", "[[output.history.probes]]": "[output]"}
 #: what the docstring does not say about a key, written here (keep it short; better: add it to
 #: the docstring, which the code's readers see too)
@@ -98,7 +102,7 @@ HAND_WRITTEN = {
 }
 #: boundary keys are made per axis, not listed in a tuple
 BOUNDARY_KEYS = ("x_min", "x_max", "y_min", "y_max", "z_min", "z_max", "fixed_regions",
-                 "slip_regions")
+                 "slip_regions", "regions_with_splines")
 
 
 def reference_docstring() -> tuple[str, str]:

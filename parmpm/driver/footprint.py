@@ -6,7 +6,8 @@ cells) used to grow until the kernel killed it, exhausting a shared machine on t
 estimate counts what dominates, from the resolved scene alone:
 
 * particles: counted per body from its lattice (a box exactly; a disk or sphere as the inscribed
-  fraction π/4 or π/6 of its bounding lattice), times the bytes of every particle field
+  fraction π/4 or π/6 of its bounding lattice; a mesh from its elements, a particle file its rows,
+  exactly: :func:`parmpm.scene.body_files.count`), times the bytes of every particle field
   (:data:`FIELD_BYTES`) times :data:`PEAK_FACTOR` (sorting, migration and seeding hold copies);
   with metrics, every rank also holds the whole scene's reference positions and masses;
 * the separation check of the bar metrics: up to ``max(4^dim, (2·ghost + 2)^dim)`` node ids per
@@ -32,6 +33,8 @@ import os
 
 from parmpm.core.errors import ParmpmError
 from parmpm.output.metrics import separation_kinds
+from parmpm.scene.bodies import LISTED_SHAPES
+from parmpm.scene.body_files import count
 from parmpm.scene.records import Body, SceneSpec
 
 #: measured peak over the bare fields (a 2D cpdi run at 1e6 particles: 360 B per particle over
@@ -54,11 +57,13 @@ def field_bytes(dim: int) -> int:
 
 
 def _body_particles(body: Body, h: tuple[float, ...], dim: int) -> float:
+    if body.shape in LISTED_SHAPES:  # listed: counted without making them
+        return float(count(body, dim))
     ppc = body.ppc
     if body.shape == "box":
         return math.prod(max(1.0, round((hi - lo) / hk * p))
                          for lo, hi, hk, p in zip(body.min, body.max, h, ppc))
-    if body.shape not in ("disk", "sphere"):  # polygon, cylinder, CSG: its bounding box's lattice
+    if body.shape not in ("disk", "sphere"):  # polygon, cylinder, CSG, surface: its box's lattice
         lo, hi = body.bounds()
         return math.prod((b - a) / hk * p + 1 for a, b, hk, p in zip(lo, hi, h, ppc))
     inscribed = {1: 1.0, 2: math.pi / 4, 3: math.pi / 6}[dim]

@@ -47,6 +47,8 @@ from parmpm.particles.seeding import seed_bodies
 from parmpm.shapes import CAPPED, CPDI2, INTERPOLATORS
 from parmpm.shapes.cpdi2 import affine_corners
 from parmpm.step.stepper import Stepper
+from parmpm.step.walls import WallPhase
+from parmpm.driver.external import external_loads
 from parmpm.materials.passes import max_speed
 
 logger = get_logger(__name__)
@@ -117,7 +119,7 @@ def sparse_mls_warnings(spec: SceneSpec) -> list[str]:
     return [f"bodies.{k}.ppc = {list(b.ppc)} with method.transfer = \"mls\": one particle per "
             "cell integrates the MLS force poorly (docs/mls.md: the manufactured solution "
             "diverged); use 2 or more"
-            for k, b in enumerate(spec.bodies) if min(b.ppc) < 2]
+            for k, b in enumerate(spec.bodies) if b.ppc is not None and min(b.ppc) < 2]
 
 
 def set_up(scene, comm, checkpoint=None) -> RankState:
@@ -148,8 +150,14 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
                       region_normal, m.transfer)
     if spec.manufactured:
         _manufactured(stepper, spec.dim, params, spec.manufactured.amplitude)
+    if spec.walls:
+        stepper.walls = WallPhase(spec.walls, spec.dim)
+    if spec.loads:
+        stepper.forcing = external_loads(spec, comm, P, rows, n_total)
+        stepper.load_work = True
     limit = spec.time.max_energy_growth
-    energy = EnergyWatch(None if stepper.forcing is not None or limit == "off" else limit)
+    driven = stepper.forcing is not None or (stepper.walls is not None and stepper.walls.moves)
+    energy = EnergyWatch(None if driven or limit == "off" else limit)
     # the run's identity: its folder's marker and its checkpoints carry it, so that pruning
     # touches only its own checkpoints (parmpm.io.run_folder); a restart is a run of its own
     run_id = comm.bcast(uuid.uuid4().hex if comm.Get_rank() == 0 else None, root=0)

@@ -78,9 +78,26 @@ def energy_totals(comm, patch_ids, P, params, g) -> np.ndarray:
 
 
 @kernel
+def load_work(d, start, order, mass, bforce, v_start, v, dt):
+    """Per patch slot: ``Δt Σ m_p b_p · (v_p + v_p')/2``, the work of the external loads' forces
+    ``m_p b_p`` (:mod:`parmpm.loads.external`) over the step, at the particles' mean velocity."""
+    out = np.zeros((start.size - 1, 1))
+    for p in range(start.size - 1):
+        acc = 0.0
+        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):
+            i = order[kk]
+            for a in range(d):
+                acc += mass[i] * bforce[i, a] * 0.5 * (v_start[i, a] + v[i, a])
+        out[p, 0] = dt * acc
+    return out
+
+
+@kernel
 def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fused):
     """Per patch slot: (work of internal and body forces, work of gravity, damping dissipation,
-    work of the boundary constraints) of one grid update, over the slot's owned nodes.
+    work of the boundary constraints, the increment work, and the impulse (3) the held faces and
+    regions gave the nodes: ``−m v⁺`` on each held component) of one grid update, over the
+    slot's owned nodes.
 
     :func:`parmpm.grid.update.grid_update` forms ``v = (mv)/m`` and the free update
     ``v⁺ = [v + Δt(f/m + g)]/(1 + cΔt)``, then zeroes the constrained components of both. This
@@ -95,7 +112,7 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fu
     equal to the grid's up to round-off, and every node with mass takes its force."""
     own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
     bc, regions, normal, ranges, origin, h = constraints
-    out = np.zeros((gsum.shape[0], 5))
+    out = np.zeros((gsum.shape[0], 8))
     L0, L1 = nloc[0], nloc[1]
     free = np.ones(3)
     gidx = np.zeros(3, np.int64)
@@ -129,11 +146,12 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fu
                     for a in range(d):
                         vold = ((G[1 + a, node] - dt * G[1 + d + a, node]) / m if fused
                                 else G[1 + a, node] / m)
-                        if free[a] == 0.0:
-                            wbc -= 0.5 * m * vold * vold
-                            continue
                         fm = G[1 + d + a, node] / m if heavy else 0.0
                         vnew = (vold + dt * (fm + gvec[a])) / (1.0 + damping * dt)
+                        if free[a] == 0.0:
+                            wbc -= 0.5 * m * vold * vold
+                            out[p, 5 + a] -= m * vnew  # the support's impulse: v⁺ held at 0
+                            continue
                         vbar = 0.5 * (vold + vnew)
                         if heavy:
                             wf += dt * G[1 + d + a, node] * vbar
@@ -152,10 +170,18 @@ class EnergyLedger:
     is the same on any number of ranks. The stepper calls :meth:`add` after its force update
     when a history is written."""
 
-    FIELDS = ("forces", "gravity", "damping", "boundary", "increment")
+    FIELDS = ("forces", "gravity", "damping", "boundary", "increment", "walls", "loads")
 
     def __init__(self):
         self.totals = np.zeros(len(self.FIELDS))
+        #: per wall: the impulse it gave the bodies since the start (3), its work; and the last
+        #: step's impulse (3) and length
+        self.walls = np.zeros((0, 4))
+        self.wall_step = np.zeros((0, 4))
+        self.last_dt = 0.0
+        #: the impulse the held faces and regions gave the bodies (3): since the start, last step
+        self.support = np.zeros(3)
+        self.support_step = np.zeros(3)
         self.baseline = None   # (K₀, Ψ₀, step) where the ledger started
         self.steps = 0
         self.power = None      # the last step's internal power −W_f/Δt
@@ -168,7 +194,25 @@ class EnergyLedger:
         per_patch = grid_work(stepper.disc.dim, nodes, constraints, dt, gravity, phase.damping,
                               phase.mass_eps, grid.gsum_block, grid.gnew_block,
                               stepper.mls)
-        step = ordered_sum(stepper.comm, stepper.patches.local_ids, per_patch)
+        both = ordered_sum(stepper.comm, stepper.patches.local_ids, per_patch)
+        step, self.support_step = both[:5], both[5:]
+        self.support = self.support + self.support_step
+        walls = stepper.walls
+        if walls is not None:
+            n = len(walls.names)
+            sums = walls.sums.reshape(walls.sums.shape[0], 6 * n)
+            both = ordered_sum(stepper.comm, stepper.patches.local_ids, sums).reshape(n, 6)
+            self.wall_step = both[:, :4]
+            if self.walls.shape[0] != n:
+                self.walls = np.zeros((n, 4))
+            self.walls += self.wall_step
+            step = step.copy()
+            step[0] += both[:, 4].sum()  # the forces' and gravity's work at the walls' nodes
+            step[1] += both[:, 5].sum()
+            step = np.concatenate([step, [self.wall_step[:, 3].sum(), 0.0]])
+        else:
+            step = np.concatenate([step, [0.0, 0.0]])
+        self.last_dt = dt
         self.totals += step
         power = -float(step[0]) / dt  # power stored by the internal forces in this step
         if self.power is not None:
@@ -176,12 +220,24 @@ class EnergyLedger:
         self.power = power
         self.steps += 1
 
+    def add_loads(self, stepper, dt: float, bforce: np.ndarray, v_start: np.ndarray) -> None:
+        """Add the external loads' work over one step (collective), from the step's start
+        velocities ``v_start`` and the particles' velocities now (rows as they lie)."""
+        P = stepper.P
+        per_patch = load_work(P.dim, P.start, P.order(), P.rows.mass, bforce, v_start,
+                              P.rows.v, dt)
+        step = ordered_sum(stepper.comm, stepper.patches.local_ids, per_patch)
+        self.totals[self.FIELDS.index("loads")] += float(step[0])
+
     def work(self) -> dict:
         return dict(zip(self.FIELDS, (float(v) for v in self.totals)))
 
     def state(self) -> dict:
         return {"totals": [float(v) for v in self.totals], "baseline": self.baseline,
-                "steps": self.steps, "power": self.power, "estimate": self.estimate}
+                "steps": self.steps, "power": self.power, "estimate": self.estimate,
+                "walls": self.walls.tolist(), "wall_step": self.wall_step.tolist(),
+                "last_dt": self.last_dt, "support": self.support.tolist(),
+                "support_step": self.support_step.tolist()}
 
     def restore(self, state: dict | None) -> None:
         if state:
@@ -191,6 +247,11 @@ class EnergyLedger:
             self.baseline = state["baseline"]
             self.steps = int(state["steps"])
             self.power, self.estimate = state["power"], float(state["estimate"])
+            self.walls = np.array(state.get("walls", []), float).reshape(-1, 4)
+            self.wall_step = np.array(state.get("wall_step", []), float).reshape(-1, 4)
+            self.last_dt = float(state.get("last_dt", 0.0))
+            self.support = np.array(state.get("support", [0.0] * 3), float)
+            self.support_step = np.array(state.get("support_step", [0.0] * 3), float)
 
 
 class EnergyWatch:

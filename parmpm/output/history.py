@@ -18,6 +18,10 @@ Columns (SI units; ``docs/energy.md`` derives the energy balance):
                                       deformation update's own error (docs/energy.md)      J
     momentum_x.., angular_momentum..  Σ m v, Σ m x × v (about the origin; z only in 2D)
     mass, damaged, frozen             Σ m, particles with D > 0, frozen CPDI domains
+    support.force_x.., .impulse_x..   with held faces or regions: their force on the bodies
+                                      over the last step, their impulse since the start   N, N s
+    work_walls, <wall>.force_x.., <wall>.impulse_x..   with [[walls]] (parmpm.grid.walls)
+    work_loads                        with [[loads]]: their work, estimated at the particles J
 
 and the scene's probes (``[[output.history.probes]]``): ``<name>.<field>`` for the particle
 nearest a point in the initial configuration (followed through the run), ``<name>.<field>.<stat>`` for the
@@ -40,6 +44,7 @@ from parmpm.core.jit import kernel
 from parmpm.core.log import get_logger
 from parmpm.output.energy import particle_energy
 from parmpm.output.metrics.sums import patch_sums
+from parmpm.output.reactions import held, support_columns, support_row, wall_columns, wall_row
 
 log = get_logger(__name__)
 
@@ -205,11 +210,17 @@ def history_sums(d, start, order, mass, vol0, v, x, x0, F, mat, damage, rf, para
 class History:
     """The history's columns and rows; :meth:`sample` is collective and returns the new row."""
 
-    def __init__(self, dim: int, probes: list[Probe]):
+    def __init__(self, dim: int, probes: list[Probe], walls: tuple[str, ...] = (),
+                 loads: bool = False, supports: bool = False):
         self.dim = dim
         self.probes = probes
+        self.walls = walls
+        self.loads = loads
+        self.supports = supports
         self.columns = (["time", "step", "dt", *ENERGY_COLUMNS, *_vector_columns(dim), "mass",
-                         "damaged", "frozen"] + [c for p in probes for c in p.columns()])
+                         "damaged", "frozen"] + [c for p in probes for c in p.columns()]
+                        + wall_columns(dim, walls) + (["work_loads"] if loads else [])
+                        + (support_columns(dim) if supports else []))
 
     def sample(self, s, gravity: np.ndarray) -> list[float]:
         """One row of the run's state ``s`` (a :class:`parmpm.driver.set_up.RankState`)."""
@@ -226,14 +237,21 @@ class History:
             ledger.baseline = [float(k), float(psi), int(s.clock.nstep)]
         k0, psi0 = ledger.baseline[0], ledger.baseline[1]
         w = ledger.work()
-        residual = psi - psi0 + w["forces"]
-        transfer = (k0 - k + w["forces"] + w["gravity"] + w["boundary"] - w["damping"])
+        residual = psi - psi0 + w["forces"] - w["loads"]  # the loads' work is not stored
+        transfer = (k0 - k + w["forces"] + w["gravity"] + w["boundary"] + w["walls"]
+                    - w["damping"])
         row = [s.clock.t, s.clock.nstep, s.clock.last_dt, k, psi, -minus_ug, w["gravity"],
                w["forces"], w["boundary"], w["damping"], transfer, residual, ledger.estimate,
                w["increment"]]
         row += [float(v) for v in total[3:]]
         for probe in self.probes:
             row += probe.sample(s)
+        if self.walls:
+            row += wall_row(ledger, self.dim, len(self.walls))
+        if self.loads:
+            row.append(w["loads"])
+        if self.supports:
+            row += support_row(ledger, self.dim)
         return [float(v) for v in row]
 
 
@@ -257,7 +275,9 @@ class HistoryOutput:
         probes = spec.output.history.probes
         bodies = (body_ranges(spec.grid, spec.bodies, rows)
                   if any(p.body is not None for p in probes) else [])
-        self.history = History(sim.dim, [Probe(p, bodies, rows) for p in probes])
+        self.history = History(sim.dim, [Probe(p, bodies, rows) for p in probes],
+                               tuple(w.name for w in spec.walls), bool(spec.loads),
+                               held(spec.boundary))
         self.file = None
         self.last_step = -1
         self.last = None
@@ -292,10 +312,12 @@ class HistoryOutput:
         :mod:`parmpm.output.energy`, stops the run at ``time.max_energy_growth``)."""
         r = self.last
         k0, psi0 = sim.state.energy.ledger.baseline[:2]
-        self.scale = max(self.scale, k0 + psi0 + r["work_gravity"], k0 + psi0)
+        # moving walls and loads give energy
+        pushed = max(r.get("work_walls", 0.0), 0.0) + r.get("work_loads", 0.0)
+        self.scale = max(self.scale, k0 + psi0 + r["work_gravity"] + pushed, k0 + psi0)
         # rigid walls and supports do no work (their nodes do not move): W_bc is not energy
         # given to the body (with FLIP the particles keep much of what it removes from the grid)
-        gained = (r["kinetic"] + r["elastic"] - k0 - psi0 - r["work_gravity"]
+        gained = (r["kinetic"] + r["elastic"] - k0 - psi0 - r["work_gravity"] - pushed
                   + r["damping_dissipation"])
         sim.state.energy.balance = {
             "gained": gained, "scale": self.scale,

@@ -1,6 +1,7 @@
 """Scene schema, bodies: ``[[bodies]]`` tables — shape, placement (turned boxes), material,
 particles per cell and the initial velocity field (uniform, affine, spin, vibration mode).
-Cylinders, polygons and CSG bodies (``parts``) are checked by :mod:`parmpm.scene.parts`.
+Cylinders, polygons and CSG bodies (``parts``) are checked by :mod:`parmpm.scene.parts`, bodies
+read from a file (``mesh``, ``surface``, ``particles``) by :mod:`parmpm.scene.body_files`.
 
 Split from :mod:`parmpm.scene.schema` (which calls :func:`check_bodies`); the same conventions: every
 problem is a one-line ``SceneError`` naming the key, the value and what was expected.
@@ -8,22 +9,29 @@ problem is a one-line ``SceneError`` naming the key, the value and what was expe
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 from typing import Any
 
 from parmpm.geometry.primitives import rotated_box_bounds
+from parmpm.scene.body_files import FILE_DIMS, FILE_KEYS, check_file_body, listed
 from parmpm.scene.check import AXIS_NAMES, Checker, show
 from parmpm.scene.parts import PART_DIMS, PART_KEYS, check_part, csg_bounds
 
 SHAPE_DIMS = {"box": (1, 2, 3), "disk": (2,), "sphere": (3,),
-              **{s: d for s, d in PART_DIMS.items() if s != "half_space"}}
+              **{s: d for s, d in PART_DIMS.items() if s != "half_space"}, **FILE_DIMS}
 BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration",
              "angular_velocity", "angle", "velocity_gradient", "axis", "length", "vertices",
-             "parts")
+             "parts", "file", "groups", "split", "step")
 SHAPE_KEYS = {"box": ("min", "max"), "disk": ("center", "radius"), "sphere": ("center", "radius"),
-              **{s: k for s, k in PART_KEYS.items() if s not in ("box", "half_space")}}
-_SHAPE_ONLY_KEYS = ("min", "max", "center", "radius", "axis", "length", "vertices", "parts")
+              **{s: k for s, k in PART_KEYS.items() if s not in ("box", "half_space")},
+              **FILE_KEYS}
+_SHAPE_ONLY_KEYS = ("min", "max", "center", "radius", "axis", "length", "vertices", "parts",
+                    "file", "groups", "split", "step")
 #: the key a body outside the grid is blamed on, by shape
-_PLACED_BY = {"disk": "center", "sphere": "center", "cylinder": "center", "polygon": "vertices"}
+_PLACED_BY = {"disk": "center", "sphere": "center", "cylinder": "center", "polygon": "vertices",
+              "mesh": "file", "surface": "file", "particles": "file"}
+#: bodies whose particles are listed (one per quadrature point or file row), not a lattice
+LISTED_SHAPES = ("mesh", "particles")
 VIBRATION_KEYS = ("amplitude", "mode", "axis")
 
 
@@ -51,12 +59,11 @@ def _body(c: Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: di
                                '"intersection" or "difference" (e.g. to notch a box)')
     t = c.table(key, raw, BODY_KEYS)
     shape = _shape(c, key, t, dim)
-    material = c.string(f"{key}.material", c.required(key, t, "material", "a material name"))
-    if material not in materials:
-        c.fail(f"{key}.material", f"unknown material {show(material)} (defined: "
-                                  + ", ".join(show(m) for m in materials) + ")")
     out: dict[str, Any] = {"shape": shape}
-    bmin, bmax = _placement(c, key, t, dim, out)
+    # the material first (as always), unless a particle file may name its own
+    material = None if shape == "particles" else _material(c, key, t, out, dim, materials)
+    bmin, bmax = _placement(c, key, t, dim, out, materials)
+    out["material"] = _material(c, key, t, out, dim, materials) if shape == "particles" else material
     for axis in range(dim):
         tol = 1e-9 * grid["cell_size"][axis]
         below, above = bmin[axis] < lo[axis] - tol, bmax[axis] > hi[axis] + tol
@@ -66,13 +73,45 @@ def _body(c: Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: di
             c.fail(f"{key}.{side}", f"body {key.split('.')[1]} spans [{bmin[axis]!r}, {bmax[axis]!r}] on "
                         f"axis {axis} ({AXIS_NAMES[axis]}), expected it inside the grid "
                         f"[{lo[axis]!r}, {hi[axis]!r}]")
-    out["material"] = material
-    out["ppc"] = c.vector(f"{key}.ppc", t.get("ppc", 2), dim, "int>0")
-    if max(out["ppc"]) > MAX_PPC:
-        c.expected(f"{key}.ppc", f"integers from 1 to {MAX_PPC} (particles per cell per axis)",
-                   t.get("ppc"))
+    out["ppc"] = _ppc(c, key, t, dim, shape)
     _motion(c, key, t, dim, out)
     return out
+
+
+def _material(c: Checker, key: str, t: dict, out: dict, dim: int, materials: dict) -> str | None:
+    """The body's material: required, except for a particle file that names its particles'
+    (then None: each particle's is the file's, checked by :mod:`parmpm.scene.body_files`)."""
+    names = None
+    if out["shape"] == "particles":
+        names = listed(SimpleNamespace(shape="particles", file=out["file"], step=out["step"]),
+                       dim).material
+    if names is not None:
+        if t.get("material") is not None:
+            c.fail(f"{key}.material", f"the particle file '{out['file']}' names each particle's "
+                                      f"material, so {show(t['material'])} would be ignored; "
+                                      "expected no material key (or a file without materials)")
+        return None
+    material = c.string(f"{key}.material", c.required(key, t, "material", "a material name"))
+    if material not in materials:
+        c.fail(f"{key}.material", f"unknown material {show(material)} (defined: "
+                                  + ", ".join(show(m) for m in materials) + ")")
+    return material
+
+
+def _ppc(c: Checker, key: str, t: dict, dim: int, shape: str) -> list | None:
+    """Particles per cell per axis; None for a mesh or particle body (its points are listed)."""
+    if shape in LISTED_SHAPES:
+        if t.get("ppc") is not None:
+            why = ("one per quadrature point of each element: use split to refine"
+                   if shape == "mesh" else "one per row of the file")
+            c.fail(f"{key}.ppc", f'not used by shape "{shape}" (its particles are {why}); '
+                                 "expected no ppc key")
+        return None
+    ppc = c.vector(f"{key}.ppc", t.get("ppc", 2), dim, "int>0")
+    if max(ppc) > MAX_PPC:
+        c.expected(f"{key}.ppc", f"integers from 1 to {MAX_PPC} (particles per cell per axis)",
+                   t.get("ppc"))
+    return ppc
 
 
 def _shape(c: Checker, key: str, t: dict, dim: int) -> str:
@@ -89,7 +128,8 @@ def _shape(c: Checker, key: str, t: dict, dim: int) -> str:
     return shape
 
 
-def _placement(c: Checker, key: str, t: dict, dim: int, out: dict) -> tuple[list, list]:
+def _placement(c: Checker, key: str, t: dict, dim: int, out: dict,
+               materials: dict) -> tuple[list, list]:
     """Into ``out``: a box's ``min``, ``max`` and ``angle``, a disk's or sphere's ``angle``
     (None), ``center`` and ``radius``, or another shape's keys (:func:`parmpm.scene.parts.check_part`)
     and ``angle`` (None). Returns the bounding box that must fit in the grid."""
@@ -110,6 +150,11 @@ def _placement(c: Checker, key: str, t: dict, dim: int, out: dict) -> tuple[list
                "is placed by its own coordinates: turn those")
         c.fail(f"{key}.angle", f'expected only on shape "box" (a {shape} {why}), got shape '
                                + show(shape))
+    if shape in FILE_DIMS:  # read from a file: its path and keys
+        geometry, lo, hi = check_file_body(c, key, t, dim, shape, materials)
+        out.update(geometry)
+        out["angle"] = None
+        return lo, hi
     if shape not in ("disk", "sphere"):  # a cylinder, polygon or CSG body: its own keys
         geometry = check_part(c, key, t, dim, shape)
         out.update(geometry)

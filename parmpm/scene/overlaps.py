@@ -13,7 +13,8 @@ of the later body ``j`` whose reference position lies inside body ``i`` (strictl
 body ``j``'s particle volume and mass, is the overlap's volume (to the particle spacing: exact for
 boxes whose lattices align with the overlap, ``O(Δx)`` of its surface otherwise; a CSG body's
 inside test is :func:`parmpm.geometry.csg.inside`) and the extra
-mass. Each rank counts its own particles (``O(N/P)``: a body's particles are a range of global
+mass (a mesh or particle body ``j``: the sum of those particles' own volumes and masses; a mesh or
+particle body has no inside test, so as body ``i`` it is not checked). Each rank counts its own particles (``O(N/P)``: a body's particles are a range of global
 ids, and the test is elementwise) and the counts are summed over the ranks, integers, so the
 message is the same on any number of ranks.
 """
@@ -28,17 +29,19 @@ log = get_logger(__name__)
 
 #: volume units by dimension
 UNITS = {1: "m", 2: "m²", 3: "m³"}
-
-
+#: bodies listed point by point: no inside test, each particle its own volume
+LISTED = ("mesh", "particles")
 
 
 def candidate_pairs(bodies, dim: int) -> list[tuple[int, int]]:
     """Pairs ``(i, j)``, ``i < j``, whose bounds overlap with positive volume (``bodies``:
-    their records, :class:`parmpm.scene.records.Body`)."""
+    their records, :class:`parmpm.scene.records.Body`); body ``i`` has an inside test."""
     bounds = [tuple(np.asarray(v, float) for v in b.bounds()) for b in bodies]
     pairs = []
     for j in range(len(bodies)):
         for i in range(j):
+            if bodies[i].shape in LISTED:
+                continue
             lo = np.maximum(bounds[i][0], bounds[j][0])
             hi = np.minimum(bounds[i][1], bounds[j][1])
             if np.all(hi > lo):
@@ -76,15 +79,40 @@ def seeded_twice(comm, spec, seeds, gid: np.ndarray, x0: np.ndarray) -> list[dic
         order = np.argsort(gid, kind="stable")
         gid, x0 = gid[order], x0[order]
     counts = local_counts(bodies, dim, pairs, first, gid, x0)
+    sums = _listed_sums(spec, pairs, first, gid, x0)
     if is_parallel(comm):
         counts = np.sum(comm.allgather(counts), axis=0)
+        sums = np.sum(comm.allgather(sums), axis=0)
     out = []
-    for (i, j), n in zip(pairs, counts):
-        if n > 0:
+    for k, ((i, j), n) in enumerate(zip(pairs, counts)):
+        if n > 0 and bodies[j].shape in LISTED:
+            out.append({"bodies": (i, j), "particles": int(n), "volume": float(sums[k, 0]),
+                        "mass": float(sums[k, 1])})
+        elif n > 0:
             volume = float(n) * float(np.prod(seeds.chunks[j][2]))
             density = float(spec.materials[bodies[j].material].density)
             out.append({"bodies": (i, j), "particles": int(n), "volume": volume,
                         "mass": density * volume})
+    return out
+
+
+def _listed_sums(spec, pairs, first: np.ndarray, gid: np.ndarray, x0: np.ndarray) -> np.ndarray:
+    """Per pair whose body ``j`` is listed, the volume and mass of its particles inside body
+    ``i`` (these particles' share)."""
+    dim, bodies = spec.dim, spec.bodies
+    out = np.zeros((len(pairs), 2))
+    for k, (i, j) in enumerate(pairs):
+        if bodies[j].shape not in LISTED:
+            continue
+        a, b = np.searchsorted(gid, [first[j], first[j + 1]])
+        ids = gid[a:b] - first[j]
+        data = bodies[j].listed(dim)
+        inside = np.asarray(bodies[i].inside(dim, x0[a:b]), bool)
+        vol = data.vol[ids][inside]
+        names = (data.material[ids][inside] if data.material is not None
+                 else np.full(len(vol), bodies[j].material))
+        rho = np.array([spec.materials[str(m)].density for m in names], float)
+        out[k] = vol.sum(), (rho * vol).sum()
     return out
 
 

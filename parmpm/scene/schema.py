@@ -8,7 +8,7 @@ a float. Every problem is a ``SceneError`` with a one-line message of the form
     scene 'foo.toml': grid.cells: expected 2 positive integers, got [10, -1]
 
 naming the scene, the dotted key, the bad value and what was expected. The schema itself (keys,
-defaults, allowed values) is documented in ``parmpm.scene.load``; the tuples below are its vocabulary,
+defaults, allowed values) is documented in ``parmpm.scene.reference``; the tuples below are its vocabulary,
 and the names of interpolators, material models and metrics come from their registries
 (:mod:`parmpm.shapes`, :mod:`parmpm.materials`, :mod:`parmpm.output.metrics`). No MPI, no numba: reading
 and checking a scene compiles nothing.
@@ -30,6 +30,7 @@ from parmpm.scene.bodies import (  # noqa: F401
 )
 from parmpm.scene.check import AXIS_NAMES, LCR_INTERPOLATORS, Checker, lcr_length, show
 from parmpm.scene.history import history
+from parmpm.scene.loads import check_loads, check_walls
 from parmpm.scene.materials import DAMAGE_KEYS, MATERIAL_KEYS, check_materials  # noqa: F401
 from parmpm.scene.records import Body, Material, build
 from parmpm.scene.speed import check_speeds
@@ -43,7 +44,7 @@ BOUNDARY_KINDS = ("fixed", "slip", "symmetry", "clamped", "free")
 
 TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method", "gravity",
             "damping", "boundary", "time", "output", "metrics", "decomposition", "checkpoint",
-            "manufactured")
+            "manufactured", "walls", "loads")
 GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost", "exterior")
 #: the widest grid.exterior layer: a support reaches at most the ghost width past a face
 MAX_EXTERIOR = 64
@@ -103,13 +104,41 @@ def resolve(raw: dict, where: str, default_name: str,
                                               damping.get("coefficient", 0.0),
                                               "a number >= 0 (1/s)", lambda x: x >= 0)}
     out["boundary"] = _boundary(c, raw.get("boundary", {}), dim)
+    _regions_and_splines(c, out["method"]["interpolator"], out["boundary"])
     out["manufactured"] = _manufactured(c, raw.get("manufactured"), out["materials"])
+    names: set = set()  # walls and loads name history columns: one namespace
+    for section, check in (("walls", lambda r: check_walls(c, r, dim, names)),
+                           ("loads", lambda r: check_loads(c, r, dim, out["bodies"], names))):
+        if raw.get(section):  # absent when empty: older scenes resolve as they did
+            out[section] = check(raw[section])
+        elif section in raw and not isinstance(raw[section], list):
+            c.expected(section, f"an array of tables [[{section}]]", raw[section])
+    if out.get("loads") and out["manufactured"]:
+        c.fail("loads", "expected no [[loads]] with [manufactured] (its body force is the load)")
     out["time"] = _time(c, raw.get("time", {}))
     out["output"] = _output(c, raw.get("output", {}), out)
     out["metrics"] = _metrics(c, raw.get("metrics", {}), dim, out["bodies"])
     out["decomposition"] = _decomposition(c, raw.get("decomposition", {}))
     out["checkpoint"] = _checkpoint(c, raw.get("checkpoint", {}))
     return out
+
+
+def _regions_and_splines(c: Checker, interpolator: str, boundary: dict) -> None:
+    """Held node regions inside the grid and quadratic B-splines do not mix: a B-spline reaches
+    1.5 cells, so particles a cell away from the region still lean on its held nodes (a bar held
+    by a region vibrates as if held about 0.35 cells further out). A grid face mirrors the
+    splines exactly (:mod:`parmpm.grid.symmetry`): the fix the message names. A study that
+    measures the error (``tests/test_bspline.py``) says ``boundary.regions_with_splines``."""
+    if interpolator != "bspline" or boundary.get("regions_with_splines"):
+        return
+    for kind in ("fixed_regions", "slip_regions"):
+        if boundary[kind]:
+            c.fail(f"boundary.{kind}", "held node regions give B-spline runs wrong answers (a "
+                   "spline reaches 1.5 cells, past the region's edge: a bar held by a region "
+                   "vibrates as if held about 0.35 cells further out); hold the body at a grid "
+                   'face instead (boundary.<x|y|z>_<min|max> = "clamped", or "symmetry" for a '
+                   "roller, which B-splines mirror exactly), or use another interpolator "
+                   "(boundary.regions_with_splines = true keeps the regions, for a comparison)")
 
 
 def _decomposition(c: Checker, raw: Any) -> dict:
@@ -246,8 +275,12 @@ def _manufactured(c: Checker, raw: Any, materials: dict) -> dict | None:
 
 def _boundary(c: Checker, raw: Any, dim: int) -> dict:
     every = tuple(f"{a}_{side}" for a in AXIS_NAMES for side in ("min", "max"))
-    t = c.table("boundary", raw, every + ("fixed_regions", "slip_regions"))
+    t = c.table("boundary", raw, every + ("fixed_regions", "slip_regions",
+                                          "regions_with_splines"))
     out = {}
+    if t.get("regions_with_splines") is not None:  # absent unless given: older scenes unchanged
+        out["regions_with_splines"] = c.boolean("boundary.regions_with_splines",
+                                                t["regions_with_splines"])
     for kind, extra in (("fixed_regions", ()), ("slip_regions", ("normal",))):
         regions = t.get(kind, [])
         what = "{min, max}" if not extra else "{min, max, normal}"

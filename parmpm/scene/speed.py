@@ -5,12 +5,15 @@ infinity in the first kinetic energy, and the run then stopped at step 0 blaming
 (the energy watch's hint for a blow-up), a key the user never set. The resolved scene is checked
 instead: a bound of each body's speed (its velocity, plus the spin and the velocity gradient
 across the body, plus a vibration's amplitude) must give a kinetic energy
-``½·ρ·s²·V`` (``V``: the body's bounding box) below :data:`MAX_KINETIC_ENERGY`; otherwise one
-line names the body key that contributes most. Pure Python, as :mod:`parmpm.scene.schema`.
+``½·ρ·s²·V`` (``V``: the body's bounding box; a particle file's: its fastest particle and its
+densest material) below :data:`MAX_KINETIC_ENERGY`; otherwise one
+line names the body key that contributes most. Pure Python, as :mod:`parmpm.scene.schema` (numpy for a particle file's velocities).
 """
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from parmpm.scene.check import Checker, show
 
@@ -44,15 +47,28 @@ def check_speeds(c: Checker, bodies: list, materials: dict) -> None:
             terms["velocity_gradient"] = _norm(body.velocity_gradient) * reach
         if body.vibration is not None:
             terms["vibration.amplitude"] = abs(body.vibration.amplitude)
+        rho = _file_terms(body, terms, materials)
         speed = sum(terms.values())
-        rho = materials[body.material].density
         energy = 0.5 * rho * speed * speed * volume if math.isfinite(speed) else math.inf
         if math.isfinite(energy) and energy <= MAX_KINETIC_ENERGY:
             continue
         name = max(terms, key=lambda t: terms[t])
         key = f"bodies.{k}.{name}"
-        value = body.vibration.amplitude if name == "vibration.amplitude" else getattr(body, name)
+        value = (body.vibration.amplitude if name == "vibration.amplitude" else
+                 f"velocities up to {terms['file']:g} m/s" if name == "file" else getattr(body, name))
         c.fail(key, f"{show(value)} gives body {k} (density {rho:g}) a speed of up to "
                     f"{speed:g} m/s and a kinetic energy of {energy:g} J, more than double "
                     f"precision can sum over a run (at most {MAX_KINETIC_ENERGY:g} J); expected "
                     "a speed of a physical size")
+
+
+def _file_terms(body, terms: dict, materials: dict) -> float:
+    """The density to bound the energy with; a particle file's velocities into ``terms``."""
+    if body.shape != "particles":
+        return materials[body.material].density
+    data = body.listed(len(body.velocity))
+    if data.velocity is not None:
+        top = float(np.max(np.abs(data.velocity))) if data.velocity.size else 0.0
+        terms["file"] = top * math.sqrt(data.velocity.shape[1]) if math.isfinite(top) else top
+    names = [body.material] if body.material is not None else np.unique(data.material).tolist()
+    return max(materials[str(n)].density for n in names)

@@ -68,6 +68,9 @@ class Stepper:
         self.frozen = 0
         self.forcing = None                 # f(t, particles, out): per-particle body force
         self.ledger = None                  # an EnergyLedger fed after each force update
+        self.walls = None                   # a WallPhase (parmpm.step.walls) when the scene has walls
+        self.load_work = False              # the ledger counts the forcing's work (scene loads)
+        self._v_start = np.zeros((0, particles.dim))
         self._bforce = np.zeros((0, particles.dim))
         self.grid: GridBuffers | None = None
         self.patches_changed()
@@ -161,9 +164,11 @@ class Stepper:
         self.forcing(time_now, P.rows, self._bforce)
         return self._bforce
 
-    def _grid(self, dt: float, gravity: np.ndarray, t: float, momentum_only: bool) -> float:
-        """Fold, accumulate over the ghost layers, update the nodes and fill the ghosts: the grid
-        between P2G and G2P; returns the lap clock."""
+    def _grid(self, dt: float, gravity: np.ndarray, t: float, momentum_only: bool,
+              t_end: float = 0.0) -> float:
+        """Fold, accumulate over the ghost layers, update the nodes (then the walls, as they are
+        at the step's end ``t_end``) and fill the ghosts: the grid between P2G and G2P; returns
+        the lap clock."""
         grid, plan = self.grid, self.plan
         rows = self._sum_rows()
         self.grid_phase.fold(grid, rows, momentum_only)
@@ -171,6 +176,10 @@ class Stepper:
         accumulate(plan, grid.gmv if momentum_only else grid.gsum[:, :, :rows])
         t = self._lap("accumulate", t)
         self.grid_phase.update(grid, dt, gravity, momentum_only)
+        if self.walls is not None:
+            heavy = -1.0 if self.mls else self.grid_phase.mass_eps
+            self.walls.apply(self.disc, self.grid_phase.records()[0], grid, dt, gravity, heavy,
+                             t_end, momentum_only)
         if self.ledger is not None and not momentum_only:
             self.ledger.add(self, dt, gravity)
         t = self._lap("grid", t)
@@ -182,8 +191,17 @@ class Stepper:
         """Advance this rank's particles from ``time_now`` by ``dt`` (collective: every rank
         calls it); returns the largest ``c + |v|`` over all ranks for the next CFL step."""
         t = time.perf_counter()
-        self.p2g(self._body_force(time_now), dt)
-        t = self._grid(dt, gravity, t, momentum_only=False)
+        if self.walls is not None:
+            self.walls.mark(self.disc, self.P, self.grid, self.plan, time_now)
+        # scene loads at the step's midpoint (exact for a ramp), the manufactured forcing at its start
+        bforce = self._body_force(time_now + 0.5 * dt if self.load_work else time_now)
+        counted = self.load_work and self.ledger is not None
+        if counted:
+            if self._v_start.shape != self.P.rows.v.shape:
+                self._v_start = np.zeros_like(self.P.rows.v)
+            np.copyto(self._v_start, self.P.rows.v)
+        self.p2g(bforce, dt)
+        t = self._grid(dt, gravity, t, False, time_now + dt)
         if self.update == "usl":
             vmax = self.g2p(G2P_USL, dt)
         else:
@@ -191,9 +209,11 @@ class Stepper:
             self._check("g2p")
             t = self._lap("g2p", t)
             self.p2g_momentum()
-            t = self._grid(dt, gravity, t, momentum_only=True)
+            t = self._grid(dt, gravity, t, True, time_now + dt)
             vmax = self.g2p(G2P_MUSL_DEFORM, dt)
         self._check("g2p")
+        if counted:
+            self.ledger.add_loads(self, dt, bforce, self._v_start)
         if self.freezing:
             R = self.P.rows
             self.frozen = freeze_domains(self.P.dim, R.F, R.r0, R.rf, R.damage, R.mat,

@@ -16,7 +16,9 @@ than that joins the one before, so each point comes out of the same BLAS call po
 the whole body was turned at once (the same bits). A disk or sphere is its bounding box's
 lattice masked by the ball, block by block (elementwise: the same bits on any block); a
 cylinder, polygon or CSG body (:class:`_Masked`) the same lattice filtered by its inside test
-(:func:`parmpm.geometry.csg.inside`), its particle volume the spacing's product as a disk's.
+(:func:`parmpm.geometry.csg.inside`; a surface body the winding number's), its particle volume
+the spacing's product as a disk's. A mesh or particle-file body is listed point by point, each
+with its own volume (:mod:`parmpm.particles.seeding.listed`).
 
 The initial velocity field a body's particles start with is
 :mod:`parmpm.particles.seeding.velocity`.
@@ -29,6 +31,7 @@ from decomposition.boxes import patch_of_coordinate
 from parmpm.core.errors import SceneError, SimulationError
 from parmpm.geometry.primitives import turn as rotation
 from parmpm.particles.locate import locate_patches
+from parmpm.particles.seeding.listed import Listed, fill, listed_seeds
 from parmpm.particles.seeding.velocity import _initial_affine, _initial_velocity
 from parmpm.particles.store import Particles
 from parmpm.shapes.cpdi2 import affine_corners
@@ -186,7 +189,8 @@ class Seeds:
 
     def __init__(self, dim: int, chunks: list):
         self.dim = dim
-        # (points: _Lattice | _Turned | _Masked, body, spacing, material row, turn or None)
+        # (points: _Lattice | _Turned | _Masked | Listed, body, spacing (None: listed),
+        #  material row (-1: per particle, the file's), turn or None)
         self.chunks = chunks
         self.n = sum(len(c[0]) for c in chunks)
         self.motion = None
@@ -286,8 +290,10 @@ class Seeds:
     def mass(self, params: np.ndarray) -> np.ndarray:
         """Every particle's mass (a one-rank convenience)."""
         WATCH.note(self.n)
-        return np.concatenate([np.full(len(c[0]), params[c[3], 1] * np.prod(c[2]))
-                               for c in self.chunks])
+        return np.concatenate([
+            params[c[0].material_rows(np.arange(len(c[0])), c[3]), 1] * c[0].vol
+            if isinstance(c[0], Listed) else np.full(len(c[0]), params[c[3], 1] * np.prod(c[2]))
+            for c in self.chunks])
 
     def particles(self, params: np.ndarray, keep: np.ndarray | None = None,
                   optional: tuple[str, ...] = ()) -> Particles:
@@ -301,6 +307,12 @@ class Seeds:
         for src, body, spacing, row, turn in self.chunks:
             lo, hi = np.searchsorted(keep, [first, first + len(src)])
             s, ids = slice(lo, hi), keep[lo:hi] - first
+            if isinstance(src, Listed):  # its own volumes, materials, velocities, F
+                fill(P, s, src, ids, body, row, params, P.optional)
+                if "corners" in P.optional:
+                    P.corners[s] = affine_corners(P.F[s], P.r0[s])
+                first += len(src)
+                continue
             pts = src.points(ids)
             P.x[s] = pts
             P.x0[s] = pts
@@ -332,7 +344,7 @@ def seed_bodies(grid, bodies, material_rows: dict[str, int]) -> Seeds:
     origin = np.asarray(grid.origin, float)
     chunks = []
     for k, body in enumerate(bodies):
-        ppc = np.asarray(body.ppc, float)
+        ppc = None if body.ppc is None else np.asarray(body.ppc, float)
         turn = None
         if body.shape == "box":
             lo, hi = np.asarray(body.min, float), np.asarray(body.max, float)
@@ -350,18 +362,24 @@ def seed_bodies(grid, bodies, material_rows: dict[str, int]) -> Seeds:
                 raise SceneError(f"bodies.{k}: a {body.shape} of radius {r:g} m holds no point "
                                  f"of its particle lattice (spacing {fmt_spacing(spacing)} m); "
                                  "enlarge the radius or raise ppc")
-        else:  # cylinder, polygon, CSG: the same lattice, kept where the body is
+        elif body.shape in ("mesh", "particles"):  # listed, each point its own volume
+            spacing = None
+            pts = listed_seeds(body, d, material_rows, _block_edges)
+        else:  # cylinder, polygon, CSG, surface: the same lattice, kept where the body is
             spacing = h / ppc
             bmin, bmax = (np.asarray(b, float) for b in body.bounds())
             pts = _Masked(_grid_lattice(origin, spacing, bmin, bmax),
                           lambda x, body=body: body.inside(d, x))
             if not len(pts):
+                why = ("it is thinner than a spacing; raise ppc or refine the grid"
+                       if body.shape == "surface" else
+                       "its parts leave nothing (a difference that removes all, an intersection "
+                       "of parts that do not meet) or less than a spacing; check its parts or "
+                       "raise ppc")
                 raise SceneError(f"bodies.{k}: the {body.shape} holds no point of its particle "
-                                 f"lattice (spacing {fmt_spacing(spacing)} m): its parts leave "
-                                 "nothing (a difference that removes all, an intersection of "
-                                 "parts that do not meet) or less than a spacing; check its "
-                                 "parts or raise ppc")
-        chunks.append((pts, body, spacing, material_rows[body.material], turn))
+                                 f"lattice (spacing {fmt_spacing(spacing)} m): {why}")
+        row = -1 if body.material is None else material_rows[body.material]
+        chunks.append((pts, body, spacing, row, turn))
     return Seeds(d, chunks)
 
 

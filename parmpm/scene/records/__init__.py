@@ -19,22 +19,22 @@ The modules below :mod:`parmpm.scene` (output, particles, transfer, ...) may not
 """
 from __future__ import annotations
 
-import dataclasses
-import functools
-import types
-import typing
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 from parmpm.geometry import csg
 from parmpm.geometry.primitives import body_bounds, inside
+from parmpm.scene import body_files
 from parmpm.scene.check import lcr_length
+from parmpm.scene.loads import Load, Wall
+from parmpm.scene.records.build import FrozenMap, build
 
 #: the interpolators that cap their domains at ``method.lcr`` (:mod:`parmpm.scene.schema`)
 LCR_INTERPOLATORS = ("cpdi", "cpdi2")
 #: the bodies :mod:`parmpm.geometry.primitives` places (seeded as before CSG came)
 PRIMITIVE_SHAPES = ("box", "disk", "sphere")
+#: the bodies read from a file (:mod:`parmpm.scene.body_files`)
+FILE_SHAPES = ("mesh", "surface", "particles")
 
 Floats = tuple[float, ...]
 Ints = tuple[int, ...]
@@ -124,12 +124,14 @@ class Part:
 class Body:
     """One ``[[bodies]]`` table: a box (``min``, ``max``, ``angle``), a disk / sphere
     (``center``, ``radius``), a cylinder (``axis``, ``center``, ``radius``, ``length``), a
-    polygon (``vertices``) or a CSG combination (``parts``, :class:`Part`); the fields of the
-    other shapes are None."""
+    polygon (``vertices``), a CSG combination (``parts``, :class:`Part`) or a body read from a
+    ``file`` (a mesh's ``groups`` and ``split``, a particle file's ``step``:
+    :mod:`parmpm.scene.body_files`); the fields of the other shapes are None. A mesh or particle
+    body has no ``ppc`` (None), a particle body whose file names materials no ``material``."""
 
     shape: str
-    material: str
-    ppc: Ints
+    material: str | None
+    ppc: Ints | None
     velocity: Floats
     angle: float | None
     angular_velocity: float | Floats | None    # 2D: a number, 3D: a vector
@@ -143,21 +145,38 @@ class Body:
     length: float | None = None
     vertices: tuple[Floats, ...] | None = None
     parts: tuple[Part, ...] | None = None
+    file: str | None = None
+    groups: tuple[str | int, ...] | None = None
+    split: int | None = None
+    step: int | None = None
+
+    @property
+    def dim(self) -> int:
+        return len(self.velocity)
 
     def bounds(self) -> tuple[list, list]:
         """Axis-aligned bounds: a box's corners (a turned box's bounding box), a disk's or
-        sphere's centre ± radius (:func:`parmpm.geometry.primitives.body_bounds`), another
-        shape's :func:`parmpm.geometry.csg.bounds` (finite: the schema checks it)."""
+        sphere's centre ± radius (:func:`parmpm.geometry.primitives.body_bounds`), a file body's
+        (:func:`parmpm.scene.body_files.bounds`), another shape's
+        :func:`parmpm.geometry.csg.bounds` (finite: the schema checks it)."""
         if self.shape in PRIMITIVE_SHAPES:
             return body_bounds(self)
-        return csg.bounds(self, len(self.ppc))
+        if self.shape in FILE_SHAPES:
+            return body_files.bounds(self, self.dim)
+        return csg.bounds(self, self.dim)
 
     def inside(self, dim: int, x):
         """Which points ``x`` (n, dim) lie strictly inside (:func:`parmpm.geometry.primitives.inside`,
-        :func:`parmpm.geometry.csg.inside`)."""
+        :func:`parmpm.geometry.csg.inside`, :func:`parmpm.scene.body_files.inside`)."""
         if self.shape in PRIMITIVE_SHAPES:
             return inside(self, dim, x)
+        if self.shape in FILE_SHAPES:
+            return body_files.inside(self, dim, x)
         return csg.inside(self, dim, x)
+
+    def listed(self, dim: int):
+        """A mesh's or particle file's points (:class:`parmpm.scene.body_files.Listed`)."""
+        return body_files.listed(self, dim)
 
 
 @dataclass(frozen=True, slots=True)
@@ -213,6 +232,7 @@ class Boundary:
 
     fixed_regions: tuple[Box, ...]
     slip_regions: tuple[SlipRegion, ...]
+    regions_with_splines: bool | None = None   # held regions kept under B-splines (a study)
     x_min: str | None = None
     x_max: str | None = None
     y_min: str | None = None
@@ -315,6 +335,8 @@ class SceneSpec:
     metrics: Metrics
     decomposition: Decomposition
     checkpoint: Checkpoint
+    walls: tuple[Wall, ...] = ()
+    loads: tuple[Load, ...] = ()
 
     @classmethod
     def from_resolved(cls, data: dict) -> SceneSpec:
@@ -333,78 +355,7 @@ class SceneSpec:
         return lcr_length(self.method.lcr, self.min_dx)
 
 
-# ---------------------------------------------------------------- building
-
-
-class FrozenMap(Mapping):
-    """A read-only mapping (``materials``): unlike ``types.MappingProxyType`` it pickles and
-    copies, as the records do."""
-
-    __slots__ = ("_items",)
-
-    def __init__(self, items: dict):
-        self._items = dict(items)
-
-    def __getitem__(self, key):
-        return self._items[key]
-
-    def __iter__(self):
-        return iter(self._items)
-
-    def __len__(self) -> int:
-        return len(self._items)
-
-    def __repr__(self) -> str:
-        return repr(self._items)
-
-
-
-@functools.cache
-def _field_types(cls) -> dict[str, Any]:
-    hints = typing.get_type_hints(cls)
-    return {f.name: hints[f.name] for f in dataclasses.fields(cls)}
-
-
-def build(cls, table: dict):
-    """The record ``cls`` of a resolved table (module doc: the rule)."""
-    types_ = _field_types(cls)
-    extra = [k for k in table if k not in types_]
-    if extra:
-        raise TypeError(f"{cls.__name__} has no field for key(s) {', '.join(map(str, extra))} "
-                        "of the resolved scene (parmpm.scene.records)")
-    return cls(**{k: _convert(types_[k], v) for k, v in table.items()})
-
-
-def _convert(hint, value):
-    """``value`` as the field annotated ``hint`` holds it."""
-    if value is None:
-        return None
-    origin, args = typing.get_origin(hint), typing.get_args(hint)
-    if origin in (typing.Union, types.UnionType):
-        many = next((a for a in args if typing.get_origin(a) is tuple and typing.get_args(a)
-                     and dataclasses.is_dataclass(typing.get_args(a)[0])), None)
-        if many is not None and isinstance(value, list):  # ``tuple[Part, ...] | None``
-            return _convert(many, value)
-        record = next((a for a in args if dataclasses.is_dataclass(a)), None)
-        return build(record, value) if record and isinstance(value, dict) else _frozen(value)
-    if dataclasses.is_dataclass(hint):
-        return build(hint, value)
-    if origin is tuple and args and dataclasses.is_dataclass(args[0]):
-        return tuple(build(args[0], v) for v in value)
-    if origin is Mapping:
-        return FrozenMap({k: build(args[1], v) for k, v in value.items()})
-    return _frozen(value)
-
-
-def _frozen(value):
-    """Lists as tuples, all the way down."""
-    if isinstance(value, list):
-        return tuple(_frozen(v) for v in value)
-    if isinstance(value, dict):
-        raise TypeError(f"a table where the records expect a value: {value!r}")
-    return value
-
-
 __all__ = ["SceneSpec", "Grid", "Material", "Damage", "Body", "Part", "Vibration", "Method", "Gravity",
            "Damping", "Manufactured", "Box", "SlipRegion", "Boundary", "Time", "Probe", "History",
-           "Output", "Metrics", "Decomposition", "Checkpoint", "build"]
+           "Output", "Metrics", "Decomposition", "Checkpoint", "Wall", "Load", "FrozenMap",
+           "build"]

@@ -1,0 +1,152 @@
+"""External loads on particles: body forces, point loads, tractions and pressure on body faces.
+
+Each load becomes, every step, an acceleration ``f_p / m_p`` per particle, added to the force
+P2G maps to the grid (the ``bforce`` rows the manufactured forcing uses too):
+
+* ``body_force``: ``b f(t)`` (m/s²) on every particle of a body (all bodies without ``body``);
+* ``point``: ``F f(t)`` (N) on the one particle nearest ``at`` at the start;
+* ``traction``: ``t f(t) A₀`` (nominal traction, Pa, on the reference area of the particle's
+  faces that lie on the body's surface: the direction and the area stay as they were);
+* ``pressure``: ``−p f(t) J F⁻ᵀ N A₀`` (a follower load: Nanson's formula turns the reference
+  face ``N A₀`` into the current one, so the pressure stays normal to the deforming surface).
+
+The surface faces are found once, from the seeding: a particle's domain is the box
+``x₀ ± r₀`` (columns of ``r₀``), and its face ``±r₀ⱼ`` is on the surface when the lattice point
+across it, ``x₀ ± 2 r₀ⱼ``, is not inside the body. So the faces of a body tile its surface the
+way its particles tile its volume (a staircase on a curved boundary, whose total ``Σ N A₀``
+equals the smooth surface's). ``docs/concepts/loads.md`` derives the forms.
+
+A particle keeps its global id as it moves between patches and ranks, so each load holds the
+sorted global ids it acts on (gathered from every rank at set-up; a surface is small) and every
+step finds them among the rank's rows by binary search.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from parmpm.core.jit import helper_kernel, kernel
+
+BODY_FORCE, POINT, TRACTION, PRESSURE = 0, 1, 2, 3
+KIND_CODES = {"body_force": BODY_FORCE, "point": POINT, "traction": TRACTION,
+              "pressure": PRESSURE}
+
+
+def surface_faces(dim: int, x0: np.ndarray, r0: np.ndarray, inside, region=None):
+    """Per particle (rows of ``x0`` (n, d), ``r0`` (n, d, d)): the sum of its surface faces'
+    reference area vectors ``Σ N A₀`` (n, d) and areas ``Σ A₀`` (n,). ``inside(points)`` is the
+    body's strict inside test; ``region`` ``(lo, hi)``: only faces whose centre lies in it."""
+    n = x0.shape[0]
+    area_vec = np.zeros((n, dim))
+    area = np.zeros(n)
+    for j in range(dim):
+        half = r0[:, :, j]                          # (n, d): the half-domain vector along j
+        length = np.linalg.norm(half, axis=1)
+        # the face's area: the product of the other full domain lengths (orthogonal vectors)
+        others = [np.linalg.norm(r0[:, :, k], axis=1) * 2.0 for k in range(dim) if k != j]
+        face = np.prod(others, axis=0) if others else np.ones(n)
+        unit = half / np.where(length > 0, length, 1.0)[:, None]
+        for sign in (1.0, -1.0):
+            across = x0 + sign * 2.0 * half
+            on = ~inside(across)
+            if region is not None:
+                centre = x0 + sign * half
+                lo, hi = (np.asarray(b, float) for b in region)
+                on &= np.all((centre >= lo) & (centre <= hi), axis=1)
+            area_vec[on] += sign * unit[on] * face[on, None]
+            area[on] += face[on]
+    return area_vec, area
+
+
+class LoadSet:
+    """The scene's loads as arrays: per load its kind code, time function, vector (or pressure),
+    and the sorted global ids with (for tractions, pressure) each one's ``Σ N A₀`` and ``Σ A₀``."""
+
+    def __init__(self, dim: int):
+        self.dim = dim
+        self.items = []  # (code, time function, value (3,), gids, area_vec (n, 3), area (n,))
+
+    def add(self, code: int, time, value, gids, area_vec=None, area=None) -> None:
+        gids = np.asarray(gids, np.int64)
+        order = np.argsort(gids, kind="stable")
+        av = np.zeros((gids.size, 3))
+        ar = np.zeros(gids.size)
+        if area_vec is not None:
+            av[:, :self.dim] = np.asarray(area_vec)[order]
+            ar[:] = np.asarray(area)[order]
+        v = np.zeros(3)
+        v[:np.size(value)] = value
+        self.items.append((code, time, v, gids[order], av, ar))
+
+    def __bool__(self) -> bool:
+        return bool(self.items)
+
+    def __call__(self, t: float, rows, out: np.ndarray) -> None:
+        """``out[i]``: the loads' acceleration of physical row ``i`` of ``rows`` at ``t``."""
+        out[:] = 0.0
+        for code, time, value, gids, av, ar in self.items:
+            scale = time.value(t)
+            if scale == 0.0 or gids.size == 0:
+                continue
+            add_load(self.dim, code, scale * value, gids, av, ar, rows.gid, rows.mass, rows.F,
+                     out)
+
+
+@kernel
+def add_load(d, code, value, gids, area_vec, area, gid, mass, F, out):
+    """Add one load's acceleration to ``out`` for every row whose global id is in ``gids``
+    (sorted), or for a body force in ``[gids[0], gids[1])`` (a body's id range)."""
+    ng = gids.size
+    Finv = np.zeros((3, 3))
+    for i in range(gid.size):
+        g = gid[i]
+        if code == BODY_FORCE:
+            if g < gids[0] or g >= gids[1]:
+                continue
+            for a in range(d):
+                out[i, a] += value[a]
+            continue
+        j = np.searchsorted(gids, g)
+        if j >= ng or gids[j] != g:
+            continue
+        m = mass[i]
+        if code == POINT:
+            for a in range(d):
+                out[i, a] += value[a] / m
+        elif code == TRACTION:
+            for a in range(d):
+                out[i, a] += value[a] * area[j] / m
+        else:  # pressure: −p J F⁻ᵀ (N A₀), value[0] = p
+            J = _inverse(d, F[i], Finv)
+            for a in range(d):
+                acc = 0.0
+                for b in range(d):
+                    acc += Finv[b, a] * area_vec[j, b]
+                out[i, a] -= value[0] * J * acc / m
+
+
+@helper_kernel
+def _inverse(d, F, out):
+    """``out = F⁻¹`` (leading d×d block); returns ``det F``."""
+    if d == 1:
+        J = F[0, 0]
+        out[0, 0] = 1.0 / J
+        return J
+    if d == 2:
+        J = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
+        out[0, 0], out[0, 1] = F[1, 1] / J, -F[0, 1] / J
+        out[1, 0], out[1, 1] = -F[1, 0] / J, F[0, 0] / J
+        return J
+    c00 = F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1]
+    c01 = F[1, 2] * F[2, 0] - F[1, 0] * F[2, 2]
+    c02 = F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]
+    J = F[0, 0] * c00 + F[0, 1] * c01 + F[0, 2] * c02
+    out[0, 0] = c00 / J
+    out[1, 0] = c01 / J
+    out[2, 0] = c02 / J
+    out[0, 1] = (F[0, 2] * F[2, 1] - F[0, 1] * F[2, 2]) / J
+    out[1, 1] = (F[0, 0] * F[2, 2] - F[0, 2] * F[2, 0]) / J
+    out[2, 1] = (F[0, 1] * F[2, 0] - F[0, 0] * F[2, 1]) / J
+    out[0, 2] = (F[0, 1] * F[1, 2] - F[0, 2] * F[1, 1]) / J
+    out[1, 2] = (F[0, 2] * F[1, 0] - F[0, 0] * F[1, 2]) / J
+    out[2, 2] = (F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]) / J
+    return J

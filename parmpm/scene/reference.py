@@ -1,0 +1,129 @@
+"""The scene reference: every key a scene may hold, in its resolved form. ``docs/gen`` builds the
+manual's key pages from this text and the schema's key tuples, and fails the strict build when
+the schema accepts a key this text never names.
+
+Scene reference (resolved form; "(default X)" marks optional keys; per-axis quantities take a
+scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors (``min``,
+``max``, ``center``, ``velocity``, ``g``) take a list of ``dim`` numbers, or a scalar in 1D):
+
+* top level: ``name`` (default: file stem / built-in name; 1 to 100 letters, digits, spaces,
+  ``_ - . +``, starting with a letter or digit: it names the output files), ``description``
+  (default ""), ``dim`` (1, 2 or 3; required), the arrays of tables ``walls`` and ``loads``
+  (below; absent from the resolved scene when empty). A scene file is a regular file of at most 1 MiB,
+  UTF-8 (a byte order mark is allowed); an integer has at most 4300 digits (Python's limit).
+* ``[grid]``: ``origin`` (default 0), ``cell_size`` (> 0, required), ``cells`` (ints > 0,
+  required), ``patch_size`` ("auto" or ints > 0, default "auto": chosen from the scene
+  alone, :mod:`parmpm.scene.patch_size`; clipped to ``cells``),
+  ``ghost`` ("auto" or int from 1 to the largest cell count, default "auto"); every node
+  coordinate must resolve a cell (``|origin|`` and the extent below 1e12 cells), ``exterior`` ("auto" or int 0..64, default
+  "auto": cells kept outside the faces, the face conditions staying on the faces; "auto" gives the
+  ghost width on each face a body starts within one cell of, :func:`parmpm.transfer.discretisation.exterior_cells`).
+* ``[materials.NAME]`` (at least one): ``model`` ("linear_elastic" | "neo_hookean"),
+  ``density`` (> 0), ``youngs_modulus`` (> 0), ``poisson_ratio`` (-1 < nu < 0.5); all required,
+  and together they must give a positive, finite wave speed (no subnormal moduli).
+  Optional ``[materials.NAME.damage]``: ``onset`` (stretch >= 1, required), ``fracture``
+  (> onset, required), ``softening`` ("linear" | "exponential", default linear), ``criterion``
+  ("max_principal_stretch", the only one), ``freeze`` (0 < D <= 1 or "never", default 1: the damage at which a CPDI
+  domain freezes, :mod:`parmpm.shapes.freeze`).
+* ``[[bodies]]`` (at least one): ``shape`` ("box", "disk" in 2D, "sphere" in 3D; default "box");
+  box: ``min``, ``max``; disk/sphere: ``center``, ``radius``; ``material`` (required);
+  ``ppc`` (particles per cell per axis, 1 to 1000, default 2; a disk or sphere must hold at
+  least one point of its lattice); ``velocity`` (default 0); optional
+  ``[bodies.vibration]`` (box only): ``amplitude`` (required), ``mode`` (default 1), ``axis``
+  (default 0): initial velocity along ``axis`` is ``amplitude·sin(β_n (X − min[axis]))`` with
+  ``β_n = (2n − 1)π / (2L)``, ``L`` the box length along ``axis`` (the first mode of a bar fixed
+  at ``min[axis]`` and free at ``max[axis]``; Sulsky et al. 1995, Bardenhagen 2002);
+  ``angular_velocity`` (2D: a number, rad/s counter-clockwise; 3D: a vector; default none): adds
+  the rigid spin ``ω × (x − centre)`` about the body's centre; ``velocity_gradient`` (a
+  ``dim``×``dim`` list of rows, 1/s; default none): adds the affine field ``L·(x − centre)`` (a
+  bar stretched at a rate from the start); ``angle`` (box only, 2D/3D, degrees counter-clockwise
+  about the box centre in the x-y plane; default none): turns the box, its particle lattice and
+  its CPDI domains (GIMP domains stay axis-aligned). Every body's (turned) bounding box lies
+  inside the grid. More shapes (:mod:`parmpm.scene.parts`, :mod:`parmpm.geometry.csg`):
+  "polygon" (2D): ``vertices`` (3 to 1000 points ``[x, y]``, a simple polygon, either
+  orientation); "cylinder" (3D): ``axis`` ("x" | "y" | "z"), ``center`` (its mid-point),
+  ``radius``, ``length`` (along the axis); "union" | "intersection" | "difference" (the first
+  part minus the others): ``parts``, a list of 1 to 100 inline tables, each a shape with its own
+  keys (box, disk, sphere, cylinder, polygon, a nested combination up to 8 deep, or "half_space":
+  ``point`` and outward ``normal``, only as a part that cuts a bounded one). Seeded on a disk's
+  lattice kept by the inside test; spin and velocity gradient about the bounding box's centre.
+  Bodies from files (:mod:`parmpm.scene.body_files`, docs/concepts/geometry_files.md): "mesh"
+  (2D/3D; one particle per quadrature point, no ``ppc``): ``file`` (a volume mesh meshio reads;
+  a relative path is relative to the scene file's folder, resolved to an absolute one),
+  ``groups`` (optional list of Gmsh physical groups or cell sets, names or ids), ``split``
+  (1 to 16, default 1: each element cut into split^dim before the rule); "surface" (3D):
+  ``file`` (STL, OBJ or PLY), seeded as a CSG body on the lattice the winding number keeps;
+  "particles": ``file`` (.csv, .npz, .h5 or a parmpm snapshot or checkpoint), ``step``
+  (optional: which step of a snapshot series), no ``ppc``; ``material`` may be left out when
+  the file names each particle's material.
+* ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi" | "bspline" | "cpdi2",
+  default "cpdi"), ``lcr``
+  (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none", at most the largest
+  cell count or 64 cells, whichever is more; default "2dx" for cpdi and cpdi2,
+  "none" otherwise, and any other value is an error with another interpolator), ``update``
+  ("auto" | "usl" | "musl", default "auto": USL for cpdi and cpdi2, whose domains then keep tiling the body exactly, MUSL for the others, which USL destabilises through nearly empty nodes — docs/concepts/update-orders.md), ``flip`` (0..1, default 1.0;
+  not with APIC or MLS), ``transfer`` ("flip" | "apic" | "mls", default "flip"; "apic" and
+  "mls" need "bspline": :mod:`parmpm.transfer.affine`).
+* ``[gravity]``: ``g`` (default 0), ``ramp_time`` (>= 0 s, default 0: applied suddenly).
+* ``[damping]``: ``coefficient`` (>= 0 1/s, default 0).
+* ``[boundary]``: ``x_min`` ... ``z_max`` for the scene's axes only: "fixed" | "slip" |
+  "symmetry" (a mirror) | "clamped" (held, with the odd mirror beyond: :mod:`parmpm.grid.symmetry`)
+  | "free" (default "free"); the resolved table has all ``2·dim`` keys. ``fixed_regions`` (list of
+  ``{min, max}``: every node inside has ``v = 0``, e.g. a grip) and ``slip_regions`` (list of
+  ``{min, max, normal}`` with ``normal`` "x" | "y" | "z": every node inside has zero velocity
+  along ``normal``, a symmetry plane inside the grid); both default to none. Under
+  interpolator "bspline" both are refused (a spline leans on held nodes past the region's edge:
+  hold the body at a grid face) unless ``regions_with_splines`` (bool, default absent) is true,
+  for a study of that error.
+* ``[[walls]]`` (optional, at most 64): rigid planes (:mod:`parmpm.scene.loads`,
+  :mod:`parmpm.grid.walls`): ``point`` (required), ``normal`` (required, nonzero, out of the
+  wall; normalised), ``friction`` (Coulomb's μ >= 0 or "stick", default 0), ``velocity``
+  (default zero: a fixed wall; m/s, |v| <= 1e6), ``time`` (a time function scaling the
+  velocity), ``name`` (default "wall<i>"; letters, digits, ``_ -``: names its history columns).
+* ``[[loads]]`` (optional, at most 256; :mod:`parmpm.loads.external`): ``kind``
+  "body_force" | "point" | "traction" | "pressure" (required); ``body`` (index in [[bodies]];
+  required for traction and pressure, every body when a body_force leaves it out); ``value``
+  (``dim`` numbers: m/s² for body_force, N for point, Pa for traction); ``pressure`` (Pa, > 0
+  pushes in; pressure only); ``at`` (point only: the particle nearest it at the start);
+  ``region`` (``{min, max}``: traction and pressure act only on the faces inside it); ``time``;
+  ``name`` (default "load<i>"). A time function (``time`` of a wall or load) is a table
+  ``function`` "constant" (default) | "ramp" | "smooth_step" (both with ``duration`` > 0 s) |
+  "table" (with ``points``, up to 10,000 pairs ``[t, f]``, times increasing from >= 0)
+  (:mod:`parmpm.loads.time_functions`).
+* ``[manufactured]`` (optional): ``amplitude`` (> 0 m, required): drive the scene with the
+  axis-aligned manufactured solution (``parmpm.loads.manufactured``; one neo-Hookean material; particles
+  start on the exact field and get its body force every step).
+* ``[time]``: ``end`` (> 0 s) and/or ``steps`` (int > 0), at least one; the run stops at
+  whichever comes first (a missing one resolves to None). ``cfl`` (0 < cfl < 1, default 0.4),
+  ``dt_max`` (> 0 s, default None), ``max_energy_growth`` (> 0 or "off", default 1.0: the run
+  stops when the body holds more energy than it started with plus the work of gravity by more
+  than this fraction of that; :mod:`parmpm.output.energy`).
+* ``[output]``: ``every`` (simulated seconds) and/or ``every_steps``; a snapshot is due whenever
+  either schedule fires. If neither is given: ``every_steps = max(1, steps // 20)`` when
+  ``time.steps`` is set, else ``every = end / 20``. ``snapshots``, ``figure`` (bools, default true).
+  ``domains`` (bool, default true): the particle domains as cells in the snapshots.
+  ``[output.history]`` (or ``output.history = false``): ``every`` / ``every_steps`` (default
+  about 200 rows per run), ``probes`` (an array of tables: ``name``, one of ``point`` /
+  ``region = {min, max}`` / ``body`` / ``material``, ``field`` or ``fields``, ``stats``); see
+  :mod:`parmpm.scene.history` and :mod:`parmpm.output.history` for the columns.
+* ``[metrics]``: ``kind`` ("hanging_bar" | "vibrating_bar" | "tension_bar" | "manufactured" |
+  "rotation" | "none", default "none"; see ``parmpm.output.metrics``), ``stop_on_separation`` (bool,
+  default false; hanging_bar and tension_bar only: stop the run once the material is in more
+  than one piece), ``grip`` (tension_bar only, default "grip": the material of the two box
+  bodies that pull the bar; every other body is the bar),
+  ``every_steps`` (default 1), ``axis`` (default: the first vibration axis for vibrating_bar,
+  else ``dim − 1``, the axis along which a hanging bar's gravity acts).
+* ``[decomposition]``: ``rebalance_threshold`` (>= 0, default 0.1: re-partition the patches when
+  the busiest rank holds more than 1.1 × the mean particle count), ``rebalance_cooldown``
+  (int >= 1, default 50: imbalance checks skipped after a re-partition that would not help).
+* ``[checkpoint]``: ``every_steps`` (int >= 1), ``every`` (simulated s), ``wall_minutes``
+  (wall-clock minutes) — a checkpoint is written whenever any set schedule fires (default: none);
+  ``keep`` (int >= 1, default 3: older ones are deleted), ``at_end`` (bool, default false),
+  ``ranks_per_file`` (``"auto"``, default: one part file per rank up to 256 ranks, then groups of
+  ⌈ranks/256⌉ consecutive ranks; or an integer >= 1: each group's lowest rank writes the group's
+  particles; as many as the ranks: one file; snapshots are written in the same groups). A SIGTERM or SIGINT always writes a final
+  checkpoint before the run stops.
+
+Absent optional values (``time.end``, ``time.dt_max``, ``output.every``, ``bodies.N.vibration``,
+...) are ``None`` in ``Scene.data`` and omitted from ``Scene.to_toml()``.
+"""
