@@ -63,7 +63,7 @@ run: $(STAMP)
 	$(BIN)/mpirun -n $(NP) $(BIN)/python -m parmpm $(RUN_ARGS)
 
 test: lint
-	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadgroup $(PYTEST_ARGS)
+	$(BIN)/python -m pytest -q -n $(PYTEST_WORKERS) --dist loadfile $(PYTEST_ARGS)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

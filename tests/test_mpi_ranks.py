@@ -23,9 +23,10 @@ RANKS = (1, 2, 3, 4)
 FIELDS = ("gid", "x", "v", "F", "stress", "damage")
 
 
-# every test here launches mpirun; one worker runs them all, so the module's runs are made once
-# (under --dist worksteal each worker that stole one of these tests ran every case again)
-pytestmark = MPI_MARKS + [pytest.mark.xdist_group("mpi_ranks")]
+# every test here launches mpirun; `make test` hands each file to one xdist worker (--dist
+# loadfile), so the module's runs are made once (under worksteal every worker that took one of
+# these tests ran every case again: 3 x 2-3 min)
+pytestmark = MPI_MARKS
 
 
 @pytest.fixture(scope="module")
