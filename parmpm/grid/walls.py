@@ -37,6 +37,8 @@ def touching(d, start, order, x, F, r0, point, normal, origin, h, base, nloc, to
     the domain's axis extent plus 1.5 cells of the particle (every interpolator's support)."""
     nw = point.shape[0]
     r = np.zeros((3, 3))
+    lo = np.zeros(3, np.int64)  # the marked node box (axes beyond d: 0..0)
+    hi = np.zeros(3, np.int64)
     for p in range(start.size - 1):
         for kk in range(start[p], start[p + 1]):
             i = order[kk]
@@ -58,8 +60,6 @@ def touching(d, start, order, x, F, r0, point, normal, origin, h, base, nloc, to
                     e += abs(rn)
                 if s - e > 0.0:
                     continue
-                lo = np.zeros(3, np.int64)
-                hi = np.zeros(3, np.int64)
                 for a in range(d):
                     ext = 1.0 * h[a]
                     for j in range(d):

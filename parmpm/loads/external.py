@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from parmpm.core.jit import helper_kernel, kernel
+from parmpm.core.jit import kernel
+from parmpm.shapes.cpdi import cofactor
 
 BODY_FORCE, POINT, TRACTION, PRESSURE = 0, 1, 2, 3
 KIND_CODES = {"body_force": BODY_FORCE, "point": POINT, "traction": TRACTION,
@@ -96,7 +97,7 @@ def add_load(d, code, value, gids, area_vec, area, gid, mass, F, out):
     """Add one load's acceleration to ``out`` for every row whose global id is in ``gids``
     (sorted), or for a body force in ``[gids[0], gids[1])`` (a body's id range)."""
     ng = gids.size
-    Finv = np.zeros((3, 3))
+    cof = np.zeros((3, 3))
     for i in range(gid.size):
         g = gid[i]
         if code == BODY_FORCE:
@@ -115,38 +116,10 @@ def add_load(d, code, value, gids, area_vec, area, gid, mass, F, out):
         elif code == TRACTION:
             for a in range(d):
                 out[i, a] += value[a] * area[j] / m
-        else:  # pressure: −p J F⁻ᵀ (N A₀), value[0] = p
-            J = _inverse(d, F[i], Finv)
+        else:  # pressure: −p J F⁻ᵀ (N A₀) = −p cof(F) (N A₀), value[0] = p
+            cofactor(d, F[i], cof)
             for a in range(d):
                 acc = 0.0
                 for b in range(d):
-                    acc += Finv[b, a] * area_vec[j, b]
-                out[i, a] -= value[0] * J * acc / m
-
-
-@helper_kernel
-def _inverse(d, F, out):
-    """``out = F⁻¹`` (leading d×d block); returns ``det F``."""
-    if d == 1:
-        J = F[0, 0]
-        out[0, 0] = 1.0 / J
-        return J
-    if d == 2:
-        J = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
-        out[0, 0], out[0, 1] = F[1, 1] / J, -F[0, 1] / J
-        out[1, 0], out[1, 1] = -F[1, 0] / J, F[0, 0] / J
-        return J
-    c00 = F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1]
-    c01 = F[1, 2] * F[2, 0] - F[1, 0] * F[2, 2]
-    c02 = F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]
-    J = F[0, 0] * c00 + F[0, 1] * c01 + F[0, 2] * c02
-    out[0, 0] = c00 / J
-    out[1, 0] = c01 / J
-    out[2, 0] = c02 / J
-    out[0, 1] = (F[0, 2] * F[2, 1] - F[0, 1] * F[2, 2]) / J
-    out[1, 1] = (F[0, 0] * F[2, 2] - F[0, 2] * F[2, 0]) / J
-    out[2, 1] = (F[0, 1] * F[2, 0] - F[0, 0] * F[2, 1]) / J
-    out[0, 2] = (F[0, 1] * F[1, 2] - F[0, 2] * F[1, 1]) / J
-    out[1, 2] = (F[0, 2] * F[1, 0] - F[0, 0] * F[1, 2]) / J
-    out[2, 2] = (F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]) / J
-    return J
+                    acc += cof[a, b] * area_vec[j, b]
+                out[i, a] -= value[0] * acc / m
