@@ -3,13 +3,14 @@
 A wall is the plane through ``p`` with unit normal ``n`` pointing out of the wall (towards the
 bodies), moving at ``v_w``. A node's mass comes from particles up to a support away, so a node
 behind the plane has mass long before the body reaches it (a rolling disk's nodes ahead of its
-contact would be stopped, and the disk lifted and braked). So first the nodes near particles
-whose domain touches or crosses the plane are marked (:func:`touching`, summed over the ghost
-layers like the mass); after the grid update, every marked owned node with mass that lies on or
-behind the plane, ``(x_i − p)·n ≤ 0``, is checked: if its velocity relative to the wall
-approaches it, ``v_n = (v_i − v_w)·n < 0``, the wall takes the normal part (the node stops
-entering it) and friction acts on the tangential part ``v_t`` with the normal velocity jump
-``Δ = −v_n`` (Bardenhagen et al. 2000, with the wall as a second body of infinite mass):
+contact would be stopped, and the disk pushed and braked ahead of its contact). So first the
+nodes under the points where a particle's domain touches or crosses the plane are marked
+(:func:`touching`, summed over the ghost layers like the mass); after the grid update, every
+marked owned node with mass that lies on or behind the plane, ``(x_i − p)·n ≤ 0``, is
+checked: if its velocity relative to the wall approaches it, ``v_n = (v_i − v_w)·n < 0``,
+the wall takes the normal part (the node stops entering it) and friction acts on the tangential
+part ``v_t`` with the normal velocity jump ``Δ = −v_n`` (Bardenhagen et al. 2000, with the wall
+as a second body of infinite mass):
 
     stick  if |v_t| ≤ μ Δ:  v_i ← v_w
     slip   otherwise:        v_i ← v_w + v_t (1 − μ Δ / |v_t|)
@@ -31,12 +32,21 @@ from parmpm.core.jit import kernel
 
 @kernel
 def touching(d, start, order, x, F, r0, point, normal, origin, h, base, nloc, touch):
-    """Mark in ``touch`` (slots, nodes: zeroed by the caller) the nodes near a particle whose
-    domain touches or crosses a wall: its signed distance to the plane less its domain's
-    half-extent along the normal (the domain is ``F r0``) is ≤ 0. Marked are the nodes within
-    the domain's axis extent plus 1.5 cells of the particle (every interpolator's support)."""
+    """Mark in ``touch`` (slots, nodes: zeroed by the caller) the nodes where a particle's domain
+    touches or crosses a wall: its signed distance to the plane less its domain's half-extent
+    along the normal (the domain is ``F r0``) is ≤ 0. Marked are the nodes of the touching point's
+    column: within the domain's axis extent plus a cell of the particle, and at most ``c h`` from
+    the domain's point nearest the plane measured along the plane (``c`` = ½ in 2D, ½√2 in 3D:
+    half a cell's face diagonal, so the nearest column of an axis-aligned wall is always in). A
+    node ahead of a rolling body, whose mass comes from particles a cell away, stays free until
+    the body's surface above it reaches the wall (docs/concepts/boundaries.md)."""
     nw = point.shape[0]
+    hmin = h[0]
+    for a in range(1, d):
+        hmin = min(hmin, h[a])
+    column2 = 0.25 * (d - 1) * hmin * hmin  # (c h)²
     r = np.zeros((3, 3))
+    c = np.zeros(3)
     lo = np.zeros(3, np.int64)  # the marked node box (axes beyond d: 0..0)
     hi = np.zeros(3, np.int64)
     for p in range(start.size - 1):
@@ -67,10 +77,28 @@ def touching(d, start, order, x, F, r0, point, normal, origin, h, base, nloc, to
                     lo[a] = max(int(np.ceil((x[i, a] - ext - origin[a]) / h[a])) - base[p, a], 0)
                     hi[a] = min(int(np.floor((x[i, a] + ext - origin[a]) / h[a])) - base[p, a],
                                 nloc[a] - 1)
+                for a in range(d):  # the domain's point nearest the plane
+                    c[a] = x[i, a]
+                    for j in range(d):
+                        rn = 0.0
+                        for b in range(d):
+                            rn += r[b, j] * normal[w, b]
+                        if rn > 0.0:
+                            c[a] -= r[a, j]
+                        elif rn < 0.0:
+                            c[a] += r[a, j]
                 for i2 in range(lo[2], hi[2] + 1):
                     for i1 in range(lo[1], hi[1] + 1):
                         for i0 in range(lo[0], hi[0] + 1):
-                            touch[p, i0 + nloc[0] * (i1 + nloc[1] * i2)] = 1.0
+                            qn = 0.0
+                            qq = 0.0
+                            for a in range(d):
+                                ia = i0 if a == 0 else (i1 if a == 1 else i2)
+                                q = origin[a] + (base[p, a] + ia) * h[a] - c[a]
+                                qn += q * normal[w, a]
+                                qq += q * q
+                            if qq - qn * qn <= column2:
+                                touch[p, i0 + nloc[0] * (i1 + nloc[1] * i2)] = 1.0
                 break  # one wall touched is enough to mark
 
 
