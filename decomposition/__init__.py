@@ -12,12 +12,13 @@ arithmetic (owned box, ghost base, cell or point → patch), written once;
 """
 from decomposition.comm import (SerialComm, allreduce_max, is_parallel, ordered_sum,
                                 ranks_on_this_node, world)
-from decomposition.halo import HaloPlan, accumulate, fill, halo_pairs
+from decomposition.halo import HaloPlan, accumulate, accumulate_max, fill, halo_pairs
 from decomposition.layout import PatchLayout
 from decomposition.migrate import exchange, migrate
 from decomposition.partition import active_patches, assign, imbalance, morton_order
 from decomposition.patchset import PatchSet
 
-__all__ = ["PatchLayout", "PatchSet", "HaloPlan", "accumulate", "fill", "halo_pairs", "migrate", "exchange",
+__all__ = ["PatchLayout", "PatchSet", "HaloPlan", "accumulate", "accumulate_max", "fill", "halo_pairs",
+           "migrate", "exchange",
            "active_patches", "assign", "imbalance", "morton_order", "SerialComm", "world",
            "is_parallel", "allreduce_max", "ordered_sum", "ranks_on_this_node"]

@@ -129,10 +129,10 @@ class HaloPlan:
 
 # --- kernels ---------------------------------------------------------------------------------
 @njit(cache=True)
-def _owner_rows(field, rows, L, buf, base, seg_nodes, kbefore, add):
-    """Owner rows in global order. ``add``: sum the other patch's ghost copy (local, or from
-    ``buf``) into the owned box (accumulate); else copy the owned box to it (fill; a remote
-    ghost copy is packed into ``buf``)."""
+def _owner_rows(field, rows, L, buf, base, seg_nodes, kbefore, mode):
+    """Owner rows in global order. ``mode`` 1: sum the other patch's ghost copy (local, or from
+    ``buf``) into the owned box (accumulate); 2: keep the larger of the two (accumulate_max);
+    0: copy the owned box to it (fill; a remote ghost copy is packed into ``buf``)."""
     k = field.shape[2]
     for r in range(rows.shape[0]):
         p, q = rows[r, 0], rows[r, 1]
@@ -147,13 +147,18 @@ def _owner_rows(field, rows, L, buf, base, seg_nodes, kbefore, add):
                 for k0 in range(rows[r, 8]):
                     for c in range(k):
                         if q >= 0:
-                            if add:
+                            if mode == 1:
                                 field[p, np0 + k0, c] += field[q, nq0 + k0, c]
+                            elif mode == 2:
+                                field[p, np0 + k0, c] = max(field[p, np0 + k0, c],
+                                                            field[q, nq0 + k0, c])
                             else:
                                 field[q, nq0 + k0, c] = field[p, np0 + k0, c]
                         else:
-                            if add:
+                            if mode == 1:
                                 field[p, np0 + k0, c] += buf[pos]
+                            elif mode == 2:
+                                field[p, np0 + k0, c] = max(field[p, np0 + k0, c], buf[pos])
                             else:
                                 buf[pos] = field[p, np0 + k0, c]
                             pos += 1
@@ -202,6 +207,17 @@ def _waitall(reqs) -> None:
 
 def accumulate(plan: HaloPlan, *fields: np.ndarray) -> None:
     """Add every ghost copy's partial sum into the owning node; fields are (slots, nodes, k)."""
+    _gather(plan, fields, 1)
+
+
+def accumulate_max(plan: HaloPlan, *fields: np.ndarray) -> None:
+    """Keep at every owning node the largest of its ghost copies' values (a per-node maximum
+    over the particles of every patch: the same on any number of ranks, whatever the order)."""
+    _gather(plan, fields, 2)
+
+
+def _gather(plan: HaloPlan, fields, mode: int) -> None:
+    """Bring every ghost copy to its owner and combine (``mode`` of :func:`_owner_rows`)."""
     k_total = sum(f.shape[2] for f in fields)
     ob, obuf, gb, gbuf = plan._buffers(k_total)
     L = plan.local_nodes3
@@ -214,7 +230,7 @@ def accumulate(plan: HaloPlan, *fields: np.ndarray) -> None:
     _waitall(rreq)
     kb = 0
     for f in fields:
-        _owner_rows(f, plan.own_rows, L, obuf, ob, plan.own_seg_nodes, kb, True)
+        _owner_rows(f, plan.own_rows, L, obuf, ob, plan.own_seg_nodes, kb, mode)
         kb += f.shape[2]
     _waitall(sreq)
 
@@ -226,7 +242,7 @@ def fill(plan: HaloPlan, *fields: np.ndarray) -> None:
     L = plan.local_nodes3
     kb = 0
     for f in fields:  # local copies, and pack what other ranks hold as ghosts
-        _owner_rows(f, plan.own_rows, L, obuf, ob, plan.own_seg_nodes, kb, False)
+        _owner_rows(f, plan.own_rows, L, obuf, ob, plan.own_seg_nodes, kb, 0)
         kb += f.shape[2]
     rreq, sreq = _exchange(plan, obuf, ob, plan.own_seg_nodes, gbuf, gb, plan.ghost_seg_nodes,
                            TAG_FILL)

@@ -121,3 +121,14 @@ CASES["2d_wall_plate"] = [str(EXAMPLES / "pressed_block.toml"),
                           OFF + ["grid.patch_size=4", "time.steps=60"]]
 CASES["2d_traction_kirsch"] = [str(EXAMPLES / "kirsch_plate.toml"),
                                OFF + ["grid.patch_size=8", "time.steps=40"]]
+
+# contact between velocity fields (issue 31): two rings colliding (frictionless, from a mesh)
+# and a block sliding on a held block with friction (USL cpdi and MUSL ugimp): each field's sums,
+# first moments and per-node extremes over the ghost layers
+CASES["2d_contact_rings"] = [str(EXAMPLES / "rings_contact.toml"),
+                             OFF + ["time.steps=400", "output.history.every_steps=50"]]
+CASES["2d_contact_slide"] = [str(EXAMPLES / "block_on_block.toml"),
+                             OFF + ["grid.patch_size=5", "time.steps=150"]]
+CASES["2d_contact_slide_ugimp"] = [str(EXAMPLES / "block_on_block.toml"),
+                                   OFF + ["grid.patch_size=5", "time.steps=150",
+                                          "method.interpolator=ugimp"]]

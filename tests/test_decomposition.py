@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from shape_harness import entries_in_patch
 
-from decomposition import HaloPlan, PatchLayout, accumulate, fill
+from decomposition import HaloPlan, PatchLayout, accumulate, accumulate_max, fill
 from decomposition import halo as _halo
 from parmpm.shapes import CPDI, INTERPOLATORS, MPM, UGIMP
 
@@ -27,18 +27,19 @@ LAYOUTS = [
 LAYOUT_IDS = [f"c{'x'.join(map(str, c))}-p{'x'.join(map(str, p))}-g{g}" for c, p, g in LAYOUTS]
 
 # STYLE item 4: the halo kernels compiled and through their pure-Python bodies
-def _py_owner(add):
-    """One-rank accumulate (``add``) or fill through the kernel's pure-Python body."""
+def _py_owner(mode):
+    """One-rank accumulate (``mode`` 1), its maximum (2) or fill (0) through the kernel's
+    pure-Python body."""
     def run(plan, f):
         ob, obuf, _, _ = plan._buffers(f.shape[2])
         _halo._owner_rows.py_func(f, plan.own_rows, plan.local_nodes3, obuf, ob,
-                                  plan.own_seg_nodes, 0, add)
+                                  plan.own_seg_nodes, 0, mode)
     return run
 
 
 KERNELS = {
     "jit": (lambda plan, f: accumulate(plan, f), lambda plan, f: fill(plan, f)),
-    "py": (_py_owner(True), _py_owner(False)),
+    "py": (_py_owner(1), _py_owner(0)),
 }
 
 
@@ -114,6 +115,28 @@ def test_accumulate_fill_gives_global_sum_on_every_copy(case, kernels):
     np.testing.assert_array_equal(got, first[gidx[inside]])
     # and every global node has a copy
     assert np.all(np.isin(np.arange(n_glob), gidx[inside]))
+
+
+@pytest.mark.parametrize("kernels", ["jit", "py"])
+@pytest.mark.parametrize("case", LAYOUTS, ids=LAYOUT_IDS)
+def test_accumulate_max_gives_every_owner_the_largest_copy(case, kernels):
+    """accumulate_max (contact's per-node extremes, :mod:`parmpm.grid.contact`): every owned
+    node ends with the largest value any local copy of it held, computed here by numpy's
+    scatter-maximum over the global node index."""
+    lay = _layout(case)
+    rng = np.random.default_rng([4, LAYOUTS.index(case)])
+    f = _partials(lay, rng)
+    gidx, inside = _global_index(lay)
+    n_glob = int(np.prod(lay.global_nodes3))
+    expected = np.full((n_glob, f.shape[2]), -np.inf)
+    np.maximum.at(expected, gidx[inside], f[inside])
+    plan = HaloPlan(lay)
+    if kernels == "jit":
+        accumulate_max(plan, f)
+    else:
+        _py_owner(2)(plan, f)
+    fill(plan, f)
+    np.testing.assert_array_equal(f[inside], expected[gidx[inside]])
 
 
 def _reference_accumulate(lay, f):

@@ -76,6 +76,7 @@ SECTIONS = (
     ("[[walls]]", None, "loads", "WALL_KEYS"),
     ("[[loads]]", None, "loads", "LOAD_KEYS"),
     ("time function", None, "loads", "TIME_FUNCTION_KEYS"),
+    ("[contact]", None, "contact", "CONTACT_KEYS"),
 )
 #: where a section's prose lives when it is part of another section's bullet
 PROSE_OF = {"[materials.NAME.damage]": "[materials.NAME]", "[bodies.vibration]": "[[bodies]]",

@@ -26,6 +26,7 @@ from parmpm.scene.overlaps import check_overlaps
 from parmpm.core.collective import agree
 from parmpm.transfer.discretisation import Discretisation, exterior_cells
 from parmpm.output.energy import EnergyWatch
+from parmpm.output.history import body_ranges
 from parmpm.core.errors import ParmpmError, SceneError, SimulationError
 from parmpm.exact.bars import manufactured_motion
 from parmpm.driver.footprint import check_memory
@@ -47,6 +48,7 @@ from parmpm.particles.seeding import seed_bodies
 from parmpm.shapes import CAPPED, CPDI2, INTERPOLATORS
 from parmpm.shapes.cpdi2 import affine_corners
 from parmpm.step.stepper import Stepper
+from parmpm.step.contact import ContactPhase
 from parmpm.step.walls import WallPhase
 from parmpm.driver.external import external_loads
 from parmpm.materials.passes import max_speed
@@ -152,6 +154,8 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
         _manufactured(stepper, spec.dim, params, spec.manufactured.amplitude)
     if spec.walls:
         stepper.walls = WallPhase(spec.walls, spec.dim)
+    if spec.contact:
+        stepper.use_contact(_contact(spec, rows))
     if spec.loads:
         stepper.forcing = external_loads(spec, comm, P, rows, n_total)
         stepper.load_work = True
@@ -166,6 +170,15 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     return RankState(scene, comm, interp, lcr, update, D, params, rows, patches, P, stepper,
                      n_total, metrics, energy, clock, run_id, checkpoint is not None, continues,
                      next_output)
+
+
+def _contact(spec: SceneSpec, rows: dict) -> ContactPhase:
+    """The contact phase of ``[contact]``: every body's field and first global id."""
+    ranges = body_ranges(spec.grid, spec.bodies, rows)
+    body_start = [first for first, _ in ranges] + [ranges[-1][1]]
+    reach = 1.5 if spec.method.interpolator == "bspline" else 1.0  # support past the domain
+    c = spec.contact
+    return ContactPhase(c.field_of_body(len(spec.bodies)), body_start, c.mu, reach, spec.dim)
 
 
 def _discretisation(comm, spec: SceneSpec, interp, lcr: float | None) -> Discretisation:

@@ -28,6 +28,7 @@ impulse as well. ``docs/concepts/loads.md`` has the derivation.
 import numpy as np
 
 from parmpm.core.jit import kernel
+from parmpm.grid.near import domain_vectors, node_box
 
 
 @kernel
@@ -52,12 +53,7 @@ def touching(d, start, order, x, F, r0, point, normal, origin, h, base, nloc, to
     for p in range(start.size - 1):
         for kk in range(start[p], start[p + 1]):
             i = order[kk]
-            for a in range(d):
-                for j in range(d):
-                    acc = 0.0
-                    for b in range(d):
-                        acc += F[i, a, b] * r0[i, b, j]
-                    r[a, j] = acc
+            domain_vectors(d, F, r0, i, r)
             for w in range(nw):
                 s = 0.0
                 e = 0.0
@@ -70,13 +66,7 @@ def touching(d, start, order, x, F, r0, point, normal, origin, h, base, nloc, to
                     e += abs(rn)
                 if s - e > 0.0:
                     continue
-                for a in range(d):
-                    ext = 1.0 * h[a]
-                    for j in range(d):
-                        ext += abs(r[a, j])
-                    lo[a] = max(int(np.ceil((x[i, a] - ext - origin[a]) / h[a])) - base[p, a], 0)
-                    hi[a] = min(int(np.floor((x[i, a] + ext - origin[a]) / h[a])) - base[p, a],
-                                nloc[a] - 1)
+                node_box(d, x, i, r, 1.0, origin, h, base[p], nloc, lo, hi)
                 for a in range(d):  # the domain's point nearest the plane
                     c[a] = x[i, a]
                     for j in range(d):

@@ -170,7 +170,8 @@ class EnergyLedger:
     is the same on any number of ranks. The stepper calls :meth:`add` after its force update
     when a history is written."""
 
-    FIELDS = ("forces", "gravity", "damping", "boundary", "increment", "walls", "loads")
+    FIELDS = ("forces", "gravity", "damping", "boundary", "increment", "walls", "loads",
+              "contact")
 
     def __init__(self):
         self.totals = np.zeros(len(self.FIELDS))
@@ -182,6 +183,10 @@ class EnergyLedger:
         #: the impulse the held faces and regions gave the bodies (3): since the start, last step
         self.support = np.zeros(3)
         self.support_step = np.zeros(3)
+        #: per contact field: the contact impulse on it since the start (3), its work; and the
+        #: last step's
+        self.contact = np.zeros((0, 4))
+        self.contact_step = np.zeros((0, 4))
         self.baseline = None   # (K₀, Ψ₀, step) where the ledger started
         self.steps = 0
         self.power = None      # the last step's internal power −W_f/Δt
@@ -189,11 +194,13 @@ class EnergyLedger:
 
     def add(self, stepper, dt: float, gravity: np.ndarray) -> None:
         """Add one grid update's work (collective: every rank calls it in the same step)."""
-        phase, grid = stepper.grid_phase, stepper.grid
+        phase = stepper.grid_phase
         nodes, constraints = phase.records()
-        per_patch = grid_work(stepper.disc.dim, nodes, constraints, dt, gravity, phase.damping,
-                              phase.mass_eps, grid.gsum_block, grid.gnew_block,
-                              stepper.mls)
+        per_patch = None
+        for grid in stepper.field_grids:  # one grid, or a contact field's each
+            work = grid_work(stepper.disc.dim, nodes, constraints, dt, gravity, phase.damping,
+                             phase.mass_eps, grid.gsum_block, grid.gnew_block, stepper.mls)
+            per_patch = work if per_patch is None else per_patch + work
         both = ordered_sum(stepper.comm, stepper.patches.local_ids, per_patch)
         step, self.support_step = both[:5], both[5:]
         self.support = self.support + self.support_step
@@ -212,6 +219,21 @@ class EnergyLedger:
             step = np.concatenate([step, [self.wall_step[:, 3].sum(), 0.0]])
         else:
             step = np.concatenate([step, [0.0, 0.0]])
+        contact = stepper.contact
+        if contact is not None:
+            n = contact.K
+            sums = contact.sums.reshape(contact.sums.shape[0], 6 * n)
+            both = ordered_sum(stepper.comm, stepper.patches.local_ids, sums).reshape(n, 6)
+            self.contact_step = both[:, :4]
+            if self.contact.shape[0] != n:
+                self.contact = np.zeros((n, 4))
+            self.contact += self.contact_step
+            step = step.copy()
+            step[0] += both[:, 4].sum()  # the forces' and gravity's work at the contact nodes
+            step[1] += both[:, 5].sum()
+            step = np.concatenate([step, [self.contact_step[:, 3].sum()]])
+        else:
+            step = np.concatenate([step, [0.0]])
         self.last_dt = dt
         self.totals += step
         power = -float(step[0]) / dt  # power stored by the internal forces in this step
@@ -237,7 +259,8 @@ class EnergyLedger:
                 "steps": self.steps, "power": self.power, "estimate": self.estimate,
                 "walls": self.walls.tolist(), "wall_step": self.wall_step.tolist(),
                 "last_dt": self.last_dt, "support": self.support.tolist(),
-                "support_step": self.support_step.tolist()}
+                "support_step": self.support_step.tolist(), "contact": self.contact.tolist(),
+                "contact_step": self.contact_step.tolist()}
 
     def restore(self, state: dict | None) -> None:
         if state:
@@ -252,6 +275,8 @@ class EnergyLedger:
             self.last_dt = float(state.get("last_dt", 0.0))
             self.support = np.array(state.get("support", [0.0] * 3), float)
             self.support_step = np.array(state.get("support_step", [0.0] * 3), float)
+            self.contact = np.array(state.get("contact", []), float).reshape(-1, 4)
+            self.contact_step = np.array(state.get("contact_step", []), float).reshape(-1, 4)
 
 
 class EnergyWatch:

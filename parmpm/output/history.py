@@ -22,6 +22,7 @@ Columns (SI units; ``docs/energy.md`` derives the energy balance):
                                       over the last step, their impulse since the start   N, N s
     work_walls, <wall>.force_x.., <wall>.impulse_x..   with [[walls]] (parmpm.grid.walls)
     work_loads                        with [[loads]]: their work, estimated at the particles J
+    work_contact, contact<k>.force_x.., contact<k>.impulse_x..   with [contact] (field k)
 
 and the scene's probes (``[[output.history.probes]]``): ``<name>.<field>`` for the particle
 nearest a point in the initial configuration (followed through the run), ``<name>.<field>.<stat>`` for the
@@ -44,7 +45,8 @@ from parmpm.core.jit import kernel
 from parmpm.core.log import get_logger
 from parmpm.output.energy import particle_energy
 from parmpm.output.metrics.sums import patch_sums
-from parmpm.output.reactions import held, support_columns, support_row, wall_columns, wall_row
+from parmpm.output.reactions import (contact_columns, contact_row, held, support_columns,
+                                     support_row, wall_columns, wall_row)
 
 log = get_logger(__name__)
 
@@ -211,16 +213,18 @@ class History:
     """The history's columns and rows; :meth:`sample` is collective and returns the new row."""
 
     def __init__(self, dim: int, probes: list[Probe], walls: tuple[str, ...] = (),
-                 loads: bool = False, supports: bool = False):
+                 loads: bool = False, supports: bool = False, contact: int = 0):
         self.dim = dim
         self.probes = probes
         self.walls = walls
         self.loads = loads
         self.supports = supports
+        self.contact = contact  # the contact fields (0: none)
         self.columns = (["time", "step", "dt", *ENERGY_COLUMNS, *_vector_columns(dim), "mass",
                          "damaged", "frozen"] + [c for p in probes for c in p.columns()]
                         + wall_columns(dim, walls) + (["work_loads"] if loads else [])
-                        + (support_columns(dim) if supports else []))
+                        + (support_columns(dim) if supports else [])
+                        + contact_columns(dim, contact))
 
     def sample(self, s, gravity: np.ndarray) -> list[float]:
         """One row of the run's state ``s`` (a :class:`parmpm.driver.set_up.RankState`)."""
@@ -240,6 +244,8 @@ class History:
         residual = psi - psi0 + w["forces"] - w["loads"]  # the loads' work is not stored
         transfer = (k0 - k + w["forces"] + w["gravity"] + w["boundary"] + w["walls"]
                     - w["damping"])
+        if self.contact:
+            transfer += w["contact"]
         row = [s.clock.t, s.clock.nstep, s.clock.last_dt, k, psi, -minus_ug, w["gravity"],
                w["forces"], w["boundary"], w["damping"], transfer, residual, ledger.estimate,
                w["increment"]]
@@ -252,6 +258,8 @@ class History:
             row.append(w["loads"])
         if self.supports:
             row += support_row(ledger, self.dim)
+        if self.contact:
+            row += contact_row(ledger, self.dim, self.contact)
         return [float(v) for v in row]
 
 
@@ -277,7 +285,8 @@ class HistoryOutput:
                   if any(p.body is not None for p in probes) else [])
         self.history = History(sim.dim, [Probe(p, bodies, rows) for p in probes],
                                tuple(w.name for w in spec.walls), bool(spec.loads),
-                               held(spec.boundary))
+                               held(spec.boundary),
+                               len(spec.contact.fields) if spec.contact else 0)
         self.file = None
         self.last_step = -1
         self.last = None

@@ -1,7 +1,10 @@
-"""The history's reaction columns: what the rigid walls (:mod:`parmpm.grid.walls`) and the held
-faces and node regions did to the bodies, read from the energy ledger's running sums
-(:class:`parmpm.output.energy.EnergyLedger`), and only in scenes that have them."""
+"""The history's reaction columns: what the rigid walls (:mod:`parmpm.grid.walls`), the held
+faces and node regions, and contact between fields (:mod:`parmpm.grid.contact`) did to the
+bodies, read from the energy ledger's running sums (:class:`parmpm.output.energy.EnergyLedger`),
+and only in scenes that have them."""
 from __future__ import annotations
+
+import numpy as np
 
 #: component letters of vector columns (as :mod:`parmpm.output.history`'s)
 AXES = "xyz"
@@ -31,12 +34,20 @@ def support_columns(dim: int) -> list[str]:
 
 def wall_row(ledger, dim: int, n: int) -> list[float]:
     """The wall columns (:func:`wall_columns`) of ``n`` walls: zeros before the first step."""
-    row = [ledger.work()["walls"]]
-    dt = ledger.last_dt
-    for w in range(n):
-        fresh = w >= ledger.walls.shape[0]
-        row += [0.0 if fresh or dt <= 0 else ledger.wall_step[w, a] / dt for a in range(dim)]
-        row += [0.0 if fresh else ledger.walls[w, a] for a in range(dim)]
+    return _force_impulse_row(ledger.work()["walls"], ledger.wall_step, ledger.walls,
+                              ledger.last_dt, dim, n)
+
+
+def _force_impulse_row(work: float, step: np.ndarray, total: np.ndarray, dt: float, dim: int,
+                       n: int) -> list[float]:
+    """``work``, then for each of ``n`` walls or fields the last step's force (its impulse
+    ``step[k]`` over ``dt``) and the impulse since the start ``total[k]``; zeros for one the
+    ledger has not met yet (before the first step)."""
+    row = [work]
+    for k in range(n):
+        fresh = k >= total.shape[0]
+        row += [0.0 if fresh or dt <= 0 else step[k, a] / dt for a in range(dim)]
+        row += [0.0 if fresh else total[k, a] for a in range(dim)]
     return row
 
 
@@ -45,3 +56,20 @@ def support_row(ledger, dim: int) -> list[float]:
     dt = ledger.last_dt
     return ([ledger.support_step[a] / dt if dt > 0 else 0.0 for a in range(dim)]
             + [ledger.support[a] for a in range(dim)])
+
+
+def contact_columns(dim: int, fields: int) -> list[str]:
+    """With contact between ``fields`` velocity fields: the contact's work (J, ≤ 0: friction
+    and impact losses), and per field the contact force on it over the last step (N) and the
+    impulse since the start (N s); the fields are numbered as in ``contact.fields``."""
+    if not fields:
+        return []
+    return ["work_contact"] + [f"contact{k}.{kind}_{AXES[a]}" for k in range(fields)
+                               for kind in ("force", "impulse") for a in range(dim)]
+
+
+def contact_row(ledger, dim: int, n: int) -> list[float]:
+    """The contact columns (:func:`contact_columns`) of ``n`` fields: zeros before the first
+    step."""
+    return _force_impulse_row(ledger.work()["contact"], ledger.contact_step, ledger.contact,
+                              ledger.last_dt, dim, n)

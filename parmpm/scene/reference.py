@@ -9,7 +9,8 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
 * top level: ``name`` (default: file stem / built-in name; 1 to 100 letters, digits, spaces,
   ``_ - . +``, starting with a letter or digit: it names the output files), ``description``
   (default ""), ``dim`` (1, 2 or 3; required), the arrays of tables ``walls`` and ``loads``
-  (below; absent from the resolved scene when empty). A scene file is a regular file of at most 1 MiB,
+  (below; absent from the resolved scene when empty), the table ``contact`` (below; absent
+  when not given). A scene file is a regular file of at most 1 MiB,
   UTF-8 (a byte order mark is allowed); an integer has at most 4300 digits (Python's limit).
 * ``[grid]``: ``origin`` (default 0), ``cell_size`` (> 0, required), ``cells`` (ints > 0,
   required), ``patch_size`` ("auto" or ints > 0, default "auto": chosen from the scene
@@ -90,6 +91,13 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   ``function`` "constant" (default) | "ramp" | "smooth_step" (both with ``duration`` > 0 s) |
   "table" (with ``points``, up to 10,000 pairs ``[t, f]``, times increasing from >= 0)
   (:mod:`parmpm.loads.time_functions`).
+* ``[contact]`` (optional; :mod:`parmpm.scene.contact`, :mod:`parmpm.grid.contact`): the bodies
+  become separate velocity fields that meet through frictional contact instead of sharing one
+  grid velocity. ``friction`` (Coulomb's μ >= 0 between fields, or "stick"; default 0),
+  ``fields`` (a list of lists of body indices, every body in exactly one, at least two fields,
+  at most 16; default: every body its own field), ``normal`` ("centroids", the one method:
+  the better separating of the heavy field's moment normal and the centre-to-centre line).
+  Absent: one field, as before.
 * ``[manufactured]`` (optional): ``amplitude`` (> 0 m, required): drive the scene with the
   axis-aligned manufactured solution (``parmpm.loads.manufactured``; one neo-Hookean material; particles
   start on the exact field and get its body force every step).

@@ -30,6 +30,7 @@ from parmpm.scene.bodies import (  # noqa: F401
 )
 from parmpm.scene.check import AXIS_NAMES, LCR_INTERPOLATORS, Checker, lcr_length, show
 from parmpm.scene.history import history
+from parmpm.scene.contact import check_contact
 from parmpm.scene.loads import check_loads, check_walls
 from parmpm.scene.materials import DAMAGE_KEYS, MATERIAL_KEYS, check_materials  # noqa: F401
 from parmpm.scene.records import Body, Material, build
@@ -44,7 +45,7 @@ BOUNDARY_KINDS = ("fixed", "slip", "symmetry", "clamped", "free")
 
 TOP_KEYS = ("name", "description", "dim", "grid", "materials", "bodies", "method", "gravity",
             "damping", "boundary", "time", "output", "metrics", "decomposition", "checkpoint",
-            "manufactured", "walls", "loads")
+            "manufactured", "walls", "loads", "contact")
 GRID_KEYS = ("origin", "cell_size", "cells", "patch_size", "ghost", "exterior")
 #: the widest grid.exterior layer: a support reaches at most the ghost width past a face
 MAX_EXTERIOR = 64
@@ -113,6 +114,8 @@ def resolve(raw: dict, where: str, default_name: str,
             out[section] = check(raw[section])
         elif section in raw and not isinstance(raw[section], list):
             c.expected(section, f"an array of tables [[{section}]]", raw[section])
+    if "contact" in raw:  # absent when not given: older scenes resolve as they did
+        out["contact"] = check_contact(c, raw["contact"], len(out["bodies"]))
     if out.get("loads") and out["manufactured"]:
         c.fail("loads", "expected no [[loads]] with [manufactured] (its body force is the load)")
     out["time"] = _time(c, raw.get("time", {}))

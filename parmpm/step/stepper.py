@@ -69,6 +69,7 @@ class Stepper:
         self.forcing = None                 # f(t, particles, out): per-particle body force
         self.ledger = None                  # an EnergyLedger fed after each force update
         self.walls = None                   # a WallPhase (parmpm.step.walls) when the scene has walls
+        self.contact = None                 # a ContactPhase (parmpm.step.contact): [contact]
         self.load_work = False              # the ledger counts the forcing's work (scene loads)
         self._v_start = np.zeros((0, particles.dim))
         self._bforce = np.zeros((0, particles.dim))
@@ -118,7 +119,19 @@ class Stepper:
         self.disc.set_patches(ps.local_ids)
         self.plan = ps.plan
         self.grid = GridBuffers(self.disc, ps.local_ids)
+        if self.contact is not None:
+            self.contact.rebuild(self.disc, self.grid)
         P.group_by_patch(P.rows.patch, ps.slot_of, ps.n_local, force=True)
+
+    def use_contact(self, contact) -> None:
+        """Separate velocity fields from now on (a :class:`~parmpm.step.contact.ContactPhase`)."""
+        self.contact = contact
+        contact.rebuild(self.disc, self.grid)
+
+    @property
+    def field_grids(self) -> list:
+        """The grids the transfers fill: the one grid, or every contact field's."""
+        return [self.grid] if self.contact is None else self.contact.grids
 
     # --- the phases -----------------------------------------------------------------------------
     def _check(self, phase: str) -> None:
@@ -136,22 +149,54 @@ class Stepper:
         return t
 
     def p2g(self, bforce: np.ndarray, dt: float) -> None:
-        """P2G of the step ``dt`` into the grid sums."""
-        self.transfers.p2g(self.grid, bforce, dt, self.faults.err, self.ledger is not None)
+        """P2G of the step ``dt`` into the grid sums (with contact: every field's, and their
+        first moments)."""
+        C, T, err = self.contact, self.transfers, self.faults.err
+        if C is None:
+            T.p2g(self.grid, bforce, dt, err, self.ledger is not None)
+        else:
+            C.split(self.P)
+            try:
+                for k in range(C.K):
+                    T.subset = C.boxes(k)
+                    T.p2g(C.grids[k], bforce, dt, err, self.ledger is not None)
+                    T.p2g_momentum(C.moments[k], err, positions=True)
+            finally:
+                T.subset = None
         self._check("p2g")
 
     def p2g_momentum(self) -> None:
-        """MUSL's momentum re-map into the grid sums."""
-        self.transfers.p2g_momentum(self.grid, self.faults.err)
+        """MUSL's momentum re-map into the grid sums (every field's)."""
+        C, T = self.contact, self.transfers
+        if C is None:
+            T.p2g_momentum(self.grid, self.faults.err)
+        else:
+            try:
+                for k in range(C.K):
+                    T.subset = C.boxes(k)
+                    T.p2g_momentum(C.grids[k], self.faults.err)
+            finally:
+                T.subset = None
         self._check("p2g")
 
     def g2p(self, mode: int, dt: float) -> float:
         """G2P in ``mode``; keeps the next patches the specialised kernels found (the final
         positions only: not after MUSL's motion pass, which the deformation pass follows)."""
         locate = self.moves.locate_record(self.grid.inside)
-        vmax, located = self.transfers.g2p(self.grid, mode, dt, self.faults.err, locate)
-        if located is not None and mode != G2P_MUSL_MOTION:
-            self.moves.located = located
+        C, T = self.contact, self.transfers
+        if C is None:
+            vmax, located = T.g2p(self.grid, mode, dt, self.faults.err, locate)
+            if located is not None and mode != G2P_MUSL_MOTION:
+                self.moves.located = located
+            return vmax
+        vmax = 0.0
+        try:  # each field's particles from its own grid; the migration finds the new patches
+            for k in range(C.K):
+                T.subset = C.boxes(k)
+                vmax = max(vmax, T.g2p(C.grids[k], mode, dt, self.faults.err, locate)[0])
+        finally:
+            T.subset = None
+        self.moves.located = None
         return vmax
 
     def _body_force(self, time_now: float) -> np.ndarray:
@@ -169,22 +214,33 @@ class Stepper:
         """Fold, accumulate over the ghost layers, update the nodes (then the walls, as they are
         at the step's end ``t_end``) and fill the ghosts: the grid between P2G and G2P; returns
         the lap clock."""
-        grid, plan = self.grid, self.plan
+        plan, phase, C = self.plan, self.grid_phase, self.contact
+        grids = self.field_grids
         rows = self._sum_rows()
-        self.grid_phase.fold(grid, rows, momentum_only)
+        for grid in grids:
+            phase.fold(grid, rows, momentum_only)
         t = self._lap("p2g", t)
-        accumulate(plan, grid.gmv if momentum_only else grid.gsum[:, :, :rows])
+        sums = [g.gmv if momentum_only else g.gsum[:, :, :rows] for g in grids]
+        if C is not None and not momentum_only:  # (a mirror face's images are not folded in)
+            sums += C.node_views("x")
+        accumulate(plan, *sums)
         t = self._lap("accumulate", t)
-        self.grid_phase.update(grid, dt, gravity, momentum_only)
-        if self.walls is not None:
-            heavy = -1.0 if self.mls else self.grid_phase.mass_eps
-            self.walls.apply(self.disc, self.grid_phase.records()[0], grid, dt, gravity, heavy,
-                             t_end, momentum_only)
+        nodes = phase.records()[0]
+        heavy = -1.0 if self.mls else phase.mass_eps
+        if C is not None and not momentum_only:  # MUSL's re-map keeps the step's contacts
+            C.detect(self.disc, self.P, nodes, plan, phase.mass_eps)
+        for k, grid in enumerate(grids):
+            phase.update(grid, dt, gravity, momentum_only)
+            if self.walls is not None:
+                self.walls.apply(self.disc, nodes, grid, dt, gravity, heavy, t_end,
+                                 momentum_only, add=k > 0)
+        if C is not None:
+            C.correct(self.disc, nodes, dt, gravity, heavy, phase.mass_eps, momentum_only)
         if self.ledger is not None and not momentum_only:
             self.ledger.add(self, dt, gravity)
         t = self._lap("grid", t)
         # APIC and MLS read no Δv, nor does MUSL's deformation pass
-        fill(plan, grid.gvel if (self.apic or momentum_only) else grid.gnew)
+        fill(plan, *[g.gvel if (self.apic or momentum_only) else g.gnew for g in grids])
         return self._lap("fill", t)
 
     def step(self, dt: float, gravity: np.ndarray, time_now: float = 0.0) -> float:

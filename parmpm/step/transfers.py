@@ -41,6 +41,8 @@ class Transfers:
         self.inertia = inertia_diagonal(disc.method, disc.h, self.apic)
         self.kernels: Kernels | None = None
         self.empty_boxes = False  # no slot, an index order: see Stepper.compile_lazy_order
+        #: (start, order) of the particles to visit instead of all (a contact field's), or None
+        self.subset: tuple[np.ndarray, np.ndarray] | None = None
         self.use("specialised")
 
     def use(self, kind: str) -> None:
@@ -67,7 +69,10 @@ class Transfers:
         # load) and for a lazy order; the generic ones, slower anyway, once (an index always):
         # every compile of a generic loop is seconds, and a fresh clone's tests pay each
         order = P.lazy_order() if self.kernels is not None else P.order()
-        boxes = Boxes(P.start, order, D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3,
+        start = P.start
+        if self.subset is not None:
+            start, order = self.subset
+        boxes = Boxes(start, order, D.base, D.jlo, D.jhi, D.nloc, D.nglob, D.origin3,
                       D.inv_h3)
         if self.empty_boxes:
             boxes = boxes._replace(start=np.zeros(1, np.int64), order=np.zeros(0, np.uint64))
@@ -87,13 +92,24 @@ class Transfers:
         else:
             p2g(how, boxes, fields, bforce, dt, (grid.gm, grid.gmv, grid.gf), err)
 
-    def p2g_momentum(self, grid, err: np.ndarray) -> None:
-        """MUSL's re-map: the momentum of the updated particle velocities alone."""
+    def p2g_momentum(self, grid, err: np.ndarray, positions: bool = False) -> None:
+        """MUSL's re-map: the momentum of the updated particle velocities alone; ``positions``:
+        the first moment ``Σ S m x`` instead (contact's normals: positions for velocities, no
+        affine part)."""
         how, boxes, fields = self.records()
+        if positions:
+            fields = fields._replace(v=fields.x, affine=self._no_affine(fields.affine))
         if self.kernels is not None:
             self.kernels.p2g_momentum(how.lcr, boxes, boxes.order, fields, grid.gsum_block, err)
         else:
             p2g_momentum(how, boxes, fields, grid.gmv, err)
+
+    def _no_affine(self, affine: np.ndarray) -> np.ndarray:
+        """Zero affine matrices shaped like ``affine`` (kept: a fresh one each step would be
+        garbage)."""
+        if getattr(self, "_zero_affine", None) is None or self._zero_affine.shape != affine.shape:
+            self._zero_affine = np.zeros_like(affine)
+        return self._zero_affine
 
     def g2p(self, grid, mode: int, dt: float, err: np.ndarray, locate: Locate | None):
         """G2P in ``mode`` (:mod:`parmpm.transfer.update_order`); returns (the largest wave

@@ -56,9 +56,10 @@ class WallPhase:
         return self.point0 + self.speed * Fs[:, None], self.speed * fs[:, None]
 
     def apply(self, disc, nodes, grid, dt: float, gravity: np.ndarray, heavy: float,
-              t_end: float, momentum_only: bool) -> None:
+              t_end: float, momentum_only: bool, add: bool = False) -> None:
         """Correct the grid velocities of ``grid`` (after the nodal update of the step ``dt``)
-        for every wall as it is at ``t_end``; ``heavy``: the lightest node whose force counts."""
+        for every wall as it is at ``t_end``; ``heavy``: the lightest node whose force counts;
+        ``add``: add to the sums of another field's grid this step (contact's fields)."""
         point, velocity = self.at(t_end)
         g = np.zeros(3)
         g[:disc.dim] = gravity[:disc.dim]
@@ -66,4 +67,4 @@ class WallPhase:
                            velocity, self.mu, dt, g, heavy, self.touch[:, :, 0],
                            grid.gsum_block, grid.gnew_block, momentum_only)
         if not momentum_only:
-            self.sums = sums
+            self.sums = sums if not add else self.sums + sums

@@ -26,6 +26,7 @@ from parmpm.geometry import csg
 from parmpm.geometry.primitives import body_bounds, inside
 from parmpm.scene import body_files
 from parmpm.scene.check import lcr_length
+from parmpm.scene.contact import Contact
 from parmpm.scene.loads import Load, Wall
 from parmpm.scene.records.build import FrozenMap, build
 
@@ -337,6 +338,7 @@ class SceneSpec:
     checkpoint: Checkpoint
     walls: tuple[Wall, ...] = ()
     loads: tuple[Load, ...] = ()
+    contact: Contact | None = None
 
     @classmethod
     def from_resolved(cls, data: dict) -> SceneSpec:
@@ -357,5 +359,5 @@ class SceneSpec:
 
 __all__ = ["SceneSpec", "Grid", "Material", "Damage", "Body", "Part", "Vibration", "Method", "Gravity",
            "Damping", "Manufactured", "Box", "SlipRegion", "Boundary", "Time", "Probe", "History",
-           "Output", "Metrics", "Decomposition", "Checkpoint", "Wall", "Load", "FrozenMap",
+           "Output", "Metrics", "Decomposition", "Checkpoint", "Wall", "Load", "Contact", "FrozenMap",
            "build"]
