@@ -122,13 +122,16 @@ CASES["2d_wall_plate"] = [str(EXAMPLES / "pressed_block.toml"),
 CASES["2d_traction_kirsch"] = [str(EXAMPLES / "kirsch_plate.toml"),
                                OFF + ["grid.patch_size=8", "time.steps=40"]]
 
-# contact between velocity fields (issue 31): two rings colliding (frictionless, from a mesh)
-# and a block sliding on a held block with friction (USL cpdi and MUSL ugimp): each field's sums,
-# first moments and per-node extremes over the ghost layers
+# contact between velocity fields (issue 31): two rings colliding (frictionless, from a mesh),
+# two spheres in an oblique collision with friction (3D) and a block sliding on a held block
+# with friction (USL cpdi and MUSL ugimp): each field's sums, first moments and per-node
+# extremes over the ghost layers
 CASES["2d_contact_rings"] = [str(EXAMPLES / "rings_contact.toml"),
                              OFF + ["time.steps=400", "output.history.every_steps=50"]]
 CASES["2d_contact_slide"] = [str(EXAMPLES / "block_on_block.toml"),
                              OFF + ["grid.patch_size=5", "time.steps=150"]]
+CASES["3d_contact_spheres"] = [str(EXAMPLES / "spheres_contact.toml"),
+                               OFF + ["grid.patch_size=4", "time.steps=120"]]
 CASES["2d_contact_slide_ugimp"] = [str(EXAMPLES / "block_on_block.toml"),
                                    OFF + ["grid.patch_size=5", "time.steps=150",
                                           "method.interpolator=ugimp"]]

@@ -75,6 +75,24 @@ def test_rings_example_bounces_apart(tmp_path):
     assert end["work_contact"] < 0.0
 
 
+def test_spheres_example_collide_and_part(tmp_path):
+    """docs/examples/spheres_contact.toml as written (3D, off-centre, μ = 0.2): in contact from
+    0.46 s to 1.14 s (measured), apart at the end, the first sphere turned back and pushed
+    sideways (−0.060, −0.035, 0) m/s, momentum at round-off."""
+    sc = load_scene(EXAMPLES / "spheres_contact.toml",
+                    overrides=["output.snapshots=false", "output.figure=false",
+                               "output.history.every_steps=1"])
+    Simulation(sc, tmp_path / "spheres", quiet=True).run()
+    with open(tmp_path / "spheres" / "history.csv") as f:
+        rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
+    touching = [r["time"] for r in rows if r["contact0.force_x"] != 0.0]
+    assert 0.4 < touching[0] < 0.55 and touching[-1] < rows[-1]["time"]
+    m = rows[-1]["mass"] / 2
+    v = [v0 + rows[-1][f"contact0.impulse_{a}"] / m for v0, a in zip((0.1, 0.0, 0.0), "xyz")]
+    assert v[0] < -0.03 and v[1] < -0.01
+    assert max(abs(r[f"momentum_{a}"]) for r in rows for a in "xyz") < 1e-12 * m * 0.1
+
+
 def test_block_on_block_example_stops_at_mu_g(tmp_path):
     """docs/examples/block_on_block.toml, quick (0.2 s): the upper block's speed falls at μ g
     (2 %)."""
