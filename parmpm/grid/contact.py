@@ -43,7 +43,7 @@ for velocities). At a node where two or more fields have mass:
 import numpy as np
 
 from parmpm.core.jit import kernel
-from parmpm.grid.near import domain_vectors, node_box
+from parmpm.grid.near import domain_vectors, half_extent, node_box
 
 
 @kernel
@@ -177,12 +177,7 @@ def contact_extents(d, start, order, field, x, F, r0, origin, h, reach, base, nl
                                     continue
                                 if qq - qn * qn > (column + size) * (column + size):
                                     continue  # not in the node's column across the plane
-                                e = 0.0
-                                for j in range(d):
-                                    rn = 0.0
-                                    for a in range(d):
-                                        rn += r[a, j] * normal[k, p, o + a, node]
-                                    e += abs(rn)
+                                e = half_extent(d, r, normal[k, p, o:o + d, node])
                                 if k == f:
                                     ext[k, p, 2 * cand, node] = max(ext[k, p, 2 * cand, node],
                                                                     s + e)

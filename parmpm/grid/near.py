@@ -1,6 +1,6 @@
 """What a particle's domain reaches on the grid: its half-vectors ``r = F r0`` and the box of
 nodes near it. Walls (:mod:`parmpm.grid.walls`) and contact (:mod:`parmpm.grid.contact`) both ask
-which nodes a particle's domain is near, in the same way."""
+which nodes a particle's domain is near, and how far it reaches along a normal, in the same way."""
 import numpy as np
 
 from parmpm.core.jit import helper_kernel
@@ -27,3 +27,15 @@ def node_box(d, x, i, r, cells, origin, h, base_p, nloc, lo, hi):
             span += abs(r[a, j])
         lo[a] = max(int(np.ceil((x[i, a] - span - origin[a]) / h[a])) - base_p[a], 0)
         hi[a] = min(int(np.floor((x[i, a] + span - origin[a]) / h[a])) - base_p[a], nloc[a] - 1)
+
+
+@helper_kernel
+def half_extent(d, r, n):
+    """The domain's half-extent along the unit vector ``n``: ``Σ_j |r_j·n|``."""
+    e = 0.0
+    for j in range(d):
+        rn = 0.0
+        for a in range(d):
+            rn += r[a, j] * n[a]
+        e += abs(rn)
+    return e

@@ -28,7 +28,7 @@ impulse as well. ``docs/concepts/loads.md`` has the derivation.
 import numpy as np
 
 from parmpm.core.jit import kernel
-from parmpm.grid.near import domain_vectors, node_box
+from parmpm.grid.near import domain_vectors, half_extent, node_box
 
 
 @kernel
@@ -56,15 +56,9 @@ def touching(d, start, order, x, F, r0, point, normal, origin, h, base, nloc, to
             domain_vectors(d, F, r0, i, r)
             for w in range(nw):
                 s = 0.0
-                e = 0.0
                 for a in range(d):
                     s += (x[i, a] - point[w, a]) * normal[w, a]
-                for j in range(d):
-                    rn = 0.0
-                    for a in range(d):
-                        rn += r[a, j] * normal[w, a]
-                    e += abs(rn)
-                if s - e > 0.0:
+                if s - half_extent(d, r, normal[w]) > 0.0:
                     continue
                 node_box(d, x, i, r, 1.0, origin, h, base[p], nloc, lo, hi)
                 for a in range(d):  # the domain's point nearest the plane

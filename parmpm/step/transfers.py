@@ -43,6 +43,7 @@ class Transfers:
         self.empty_boxes = False  # no slot, an index order: see Stepper.compile_lazy_order
         #: (start, order) of the particles to visit instead of all (a contact field's), or None
         self.subset: tuple[np.ndarray, np.ndarray] | None = None
+        self._zero_affine: np.ndarray | None = None  # see _no_affine
         self.use("specialised")
 
     def use(self, kind: str) -> None:
@@ -107,7 +108,7 @@ class Transfers:
     def _no_affine(self, affine: np.ndarray) -> np.ndarray:
         """Zero affine matrices shaped like ``affine`` (kept: a fresh one each step would be
         garbage)."""
-        if getattr(self, "_zero_affine", None) is None or self._zero_affine.shape != affine.shape:
+        if self._zero_affine is None or self._zero_affine.shape != affine.shape:
             self._zero_affine = np.zeros_like(affine)
         return self._zero_affine
 
