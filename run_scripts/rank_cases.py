@@ -135,3 +135,16 @@ CASES["3d_contact_spheres"] = [str(EXAMPLES / "spheres_contact.toml"),
 CASES["2d_contact_slide_ugimp"] = [str(EXAMPLES / "block_on_block.toml"),
                                    OFF + ["grid.patch_size=5", "time.steps=150",
                                           "method.interpolator=ugimp"]]
+
+# crack faces from the damage model (issue 31): the 1D bar that breaks and is pushed back
+# together, and the tension bar separating without the domain freeze (each node's crack normal
+# from sums and a maximum over the ghost layers, every particle's field chosen per node)
+CASES["1d_crack_broken_bar"] = [str(EXAMPLES / "broken_bar.toml"),
+                                OFF + ["grid.patch_size=10", "output.history.every_steps=20"]]
+CASES["2d_crack_tension_bar"] = ["tension_bar", OFF + ["grid.patch_size=8", "contact.cracks=true",
+                                                       "materials.band.damage.freeze=never",
+                                                       "materials.bar.damage.freeze=never"]]
+CASES["3d_crack_hanging_bar"] = ["hanging_bar_3d", OFF + [
+    "materials.bar.damage={onset=1.02, fracture=1.5, freeze=0.3}", "grid.patch_size=3",
+    "bodies.0.ppc=2", "time.steps=30", "metrics.stop_on_separation=false", "contact.cracks=true",
+    "contact.crack_damage=0.01"]]

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mpi_launch import needs_mpi
-from test_contact import BASE_SCENE, G, slid
+from test_contact import BASE_SCENE, G, slid, slide_scene
 
 from parmpm import Simulation
 from parmpm.core.errors import SceneError
@@ -36,6 +36,14 @@ EXAMPLES = Path(__file__).resolve().parents[1] / "docs" / "examples"
     ("friction = 0.3", "fields = [0, 1]", "contact.fields.0: expected a nonempty list"),
     ("friction = 0.3", "fields = [[0.5], [1]]", "contact.fields.0.0"),
     ("friction = 0.3", "bodies = [[0], [1]]", "unknown key 'contact.bodies'"),
+    ("friction = 0.3", 'names = ["a"]', "contact.names: expected a list of 2 names"),
+    ("friction = 0.3", 'names = "a"', "contact.names: expected a list of 2 names"),
+    ("friction = 0.3", 'names = ["a", "a"]', 'contact.names.1: "a" is used twice'),
+    ("friction = 0.3", 'names = ["a", "b c"]', "contact.names.1: expected 1 to 40 letters"),
+    ("friction = 0.3", 'names = ["a", ""]', "contact.names.1: expected 1 to 40 letters"),
+    ("friction = 0.3", 'names = ["a", 2]', "contact.names.1"),
+    ("friction = 0.3", 'names = ["wall0", "b"]\n[[walls]]\npoint = [0.0, 0.0]\nnormal = [0.0, 1.0]',
+     'contact.names.0: "wall0" is used twice'),
 ])
 def test_bad_contact_is_one_line(old, new, fragment):
     text = 'name = "bad"\n' + BASE.replace(old, new)
@@ -43,6 +51,51 @@ def test_bad_contact_is_one_line(old, new, fragment):
         scene_from_toml(text)
     message = str(err.value)
     assert fragment in message and "\n" not in message
+
+
+#: the base scene with a damageable material (what crack faces need)
+DAMAGED = BASE.replace('poisson_ratio = 0.3\n',
+                       'poisson_ratio = 0.3\ndamage = { onset = 1.1, fracture = 1.3 }\n', 1)
+
+
+@pytest.mark.parametrize("base, old, new, fragment", [
+    (DAMAGED, "friction = 0.3", "cracks = 1", "contact.cracks: expected true or false"),
+    (DAMAGED, "friction = 0.3", 'cracks = "yes"', "contact.cracks: expected true or false"),
+    (DAMAGED, "friction = 0.3", "crack_damage = 0.5",
+     "contact.crack_damage: used only with contact.cracks = true"),
+    (DAMAGED, "friction = 0.3", "cracks = true\ncrack_damage = 0", "contact.crack_damage"),
+    (DAMAGED, "friction = 0.3", "cracks = true\ncrack_damage = 1.5", "contact.crack_damage"),
+    (DAMAGED, "friction = 0.3", "cracks = true\ncrack_damage = nan", "contact.crack_damage"),
+    (DAMAGED, "friction = 0.3", 'cracks = true\ncrack_damage = "full"', "contact.crack_damage"),
+    (BASE, "friction = 0.3", "cracks = true", "contact.cracks: no material has a damage model"),
+    (DAMAGED.replace("fracture = 1.3", 'fracture = 1.3, softening = "exponential"'),
+     "friction = 0.3", "cracks = true", "contact.crack_damage: exponential softening never"),
+    (DAMAGED, "friction = 0.3", "cracks = true\nfields = [[0], [1], [0]]",
+     "contact.fields.2.0: body 0 is already in"),
+])
+def test_bad_crack_keys_are_one_line(base, old, new, fragment):
+    text = 'name = "bad"\n' + base.replace(old, new)
+    with pytest.raises(SceneError) as err:
+        scene_from_toml(text)
+    message = str(err.value)
+    assert fragment in message and "\n" not in message
+
+
+def test_crack_fields_default_to_one_field_of_every_body_and_read_back():
+    """With cracks one field is allowed (its far side is the second), and is the default; at
+    most 8 body fields (16 velocity fields in all); the resolved scene reads back."""
+    sc = scene_from_toml('name = "c"\n' + DAMAGED.replace("friction = 0.3", "cracks = true"))
+    c = sc.spec.contact
+    assert c.fields == ((0, 1),) and c.cracks and c.crack_damage == 1.0
+    assert c.velocity_fields == 2
+    again = scene_from_toml(sc.to_toml())
+    assert again.spec.contact == c
+    plain = scene_from_toml('name = "p"\n' + BASE)
+    assert "cracks" not in plain.data["contact"]  # older scenes resolve as they did
+    nine = DAMAGED.replace("friction = 0.3", "cracks = true\nfields = "
+                           + str([[0], [1]] + [[0]] * 7))
+    with pytest.raises(SceneError, match="contact.fields: expected a list of at most 8"):
+        scene_from_toml('name = "n"\n' + nine)
 
 
 def test_contact_must_be_a_table():
@@ -138,3 +191,53 @@ def test_contact_restart_is_bit_identical(tmp_path):
         with open(run_dir / "history.csv") as f:
             rows[run_dir] = [r for r in csv.DictReader(f)][-1]
     assert rows[a]["contact1.impulse_x"] == rows[b]["contact1.impulse_x"]
+
+
+@needs_mpi
+@pytest.mark.mpi
+def test_crack_restart_is_bit_identical(tmp_path):
+    """The broken bar checkpointed after its break on one rank and continued on three ends as
+    the run straight through: the sides are found afresh each step from what a checkpoint holds
+    (positions, damage), nothing else to carry."""
+    import subprocess
+    import sys
+
+    from mpi_launch import mpirun
+    from test_checkpoint import _same
+
+    def cli(n, *args):
+        cmd = [sys.executable, "-m", "parmpm", *args, "--quiet"]
+        cmd = [mpirun(), "-n", str(n)] + cmd if n > 1 else cmd
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+
+    a, b = tmp_path / "a", tmp_path / "b"
+    sets = ["--set", "output.snapshots=false", "--set", "output.figure=false", "--set",
+            "grid.patch_size=10", "--set", "time.steps=500", "--set", "checkpoint.every_steps=250"]
+    proc = cli(1, "run", str(EXAMPLES / "broken_bar.toml"), "-o", str(a), *sets)
+    assert proc.returncode == 0, proc.stderr
+    proc = cli(3, "restart", str(a / "checkpoint_00000250.h5"), "-o", str(b))
+    assert proc.returncode == 0, proc.stderr
+    _same(a / "checkpoint_00000500.h5", b / "checkpoint_00000500.h5")
+
+
+def test_named_fields_name_their_history_columns(tmp_path):
+    """``contact.names`` renames each field's columns, nothing else: the named run's
+    ``left.impulse_x`` is the unnamed run's ``contact0.impulse_x``; with cracks each field's far
+    side is ``<name>_far``."""
+    out = {}
+    block = slide_scene(0.3).replace("end = 0.2", "end = 0.02")
+    for tag, extra in (("plain", ""), ("named", '\nnames = ["left", "right"]')):
+        sc = scene_from_toml(f'name = "{tag}"\n' + block + extra,
+                             overrides=["output.snapshots=false", "output.figure=false"])
+        Simulation(sc, tmp_path / tag, quiet=True).run()
+        with open(tmp_path / tag / "history.csv") as f:
+            out[tag] = list(csv.DictReader(f))
+    plain, named = out["plain"][-1], out["named"][-1]
+    assert "left.impulse_x" in named and "contact0.impulse_x" not in named
+    assert float(plain["contact1.impulse_y"]) > 0.1  # the block presses on the table
+    for a, b in (("left", "contact0"), ("right", "contact1")):
+        for col in ("force_x", "impulse_x", "impulse_y"):
+            assert named[f"{a}.{col}"] == plain[f"{b}.{col}"]
+    cracked = scene_from_toml('name = "c"\n' + DAMAGED.replace(
+        "friction = 0.3", 'cracks = true\nfields = [[0], [1]]\nnames = ["a", "b"]'))
+    assert cracked.spec.contact.column_names() == ("a", "b", "a_far", "b_far")

@@ -178,7 +178,8 @@ def _contact(spec: SceneSpec, rows: dict) -> ContactPhase:
     body_start = [first for first, _ in ranges] + [ranges[-1][1]]
     reach = 1.5 if spec.method.interpolator == "bspline" else 1.0  # support past the domain
     c = spec.contact
-    return ContactPhase(c.field_of_body(len(spec.bodies)), body_start, c.mu, reach, spec.dim)
+    return ContactPhase(c.field_of_body(len(spec.bodies)), body_start, c.mu, reach, spec.dim,
+                        c.crack_damage if c.cracks else None)
 
 
 def _discretisation(comm, spec: SceneSpec, interp, lcr: float | None) -> Discretisation:

@@ -43,6 +43,7 @@ for velocities). At a node where two or more fields have mass:
 import numpy as np
 
 from parmpm.core.jit import kernel
+from parmpm.grid.crack import pair_field
 from parmpm.grid.near import domain_vectors, half_extent, node_box
 
 
@@ -120,14 +121,15 @@ def contact_normals(d, nodes, origin, h, sums, X, eps, normal, mask):
 
 @kernel
 def contact_extents(d, start, order, field, x, F, r0, origin, h, reach, base, nloc, normal,
-                    mask, active, ext):
+                    mask, active, ext, sides):
     """For every node near a particle (within its domain's axis extent plus ``reach`` cells)
     with contact normals, over the particles in the node's column (their distance from the node
     across ``n_k`` at most half a cell, 2D, or half a face diagonal, 3D, plus their domain's
     longest half-vector), for each candidate normal ``c`` (0, 1): ``ext[k, p, 2c, node]`` the
     largest ``x·n_k + e`` of field ``k``'s particles, ``ext[k, p, 2c + 1, node]`` the largest
     ``−(x·n_k − e)`` of the other fields' (the caller sets them to −inf first); ``field``: each
-    physical row's field. Only slots with a contact node (``active``) and the nodes marked in
+    physical row's field, or with crack ``sides`` (:data:`parmpm.core.records.Sides`) its
+    field at each node (:func:`parmpm.grid.crack.pair_field`). Only slots with a contact node (``active``) and the nodes marked in
     ``mask`` are visited: the rest of the grid costs one test per slot or node."""
     K = normal.shape[0]
     r = np.zeros((3, 3))
@@ -143,7 +145,6 @@ def contact_extents(d, start, order, field, x, F, r0, origin, h, reach, base, nl
             continue
         for kk in range(start[p], start[p + 1]):
             i = order[kk]
-            f = field[i]
             domain_vectors(d, F, r0, i, r)
             size = 0.0  # the domain's longest half-vector: how far it reaches across
             for j in range(d):
@@ -158,6 +159,7 @@ def contact_extents(d, start, order, field, x, F, r0, origin, h, reach, base, nl
                         node = i0 + nloc[0] * (i1 + nloc[1] * i2)
                         if mask[p, 0, node] == 0.0:
                             continue
+                        f = pair_field(sides, field, i, p, node)
                         qq = 0.0
                         for a in range(d):
                             ia = i0 if a == 0 else (i1 if a == 1 else i2)

@@ -103,12 +103,26 @@ def fold_sums(d, nloc, base, face_lo, face_hi, sym, signs, first, last, block):
         for side in range(2):
             if sym[k, side]:
                 f = face_lo[k] if side == 0 else face_hi[k]
-                _fold_axis(nloc, base, k, side, f, signs[k, side], first, last, block)
+                _fold_axis(nloc, base, k, side, f, signs[k, side], first, last, block, 0)
+
+
+@kernel
+def reflect_beyond(d, nloc, base, face_lo, face_hi, sym, signs, block):
+    """Every node beyond a mirror face takes the reflection (``signs``: per face, per row of
+    ``block``) of its twin on the body's side, and nothing else changes: after a correction that
+    is not the same at a node and its mirror (contact's, which sees real particles only), the
+    nodes beyond again hold what the images would have given them."""
+    for k in range(d):
+        for side in range(2):
+            if sym[k, side]:
+                f = face_lo[k] if side == 0 else face_hi[k]
+                _fold_axis(nloc, base, k, side, f, signs[k, side], 0, block.shape[1], block, 1)
 
 
 @helper_kernel
-def _fold_axis(nloc, base, k, side, f, sign, first, last, block):
-    """One face: node lines along axis ``k`` (``stride`` apart), the body's side first."""
+def _fold_axis(nloc, base, k, side, f, sign, first, last, block, skip):
+    """One face: node lines along axis ``k`` (``stride`` apart), the body's side first (``skip``
+    1: only the nodes beyond)."""
     stride = 1
     for a in range(k):
         stride *= nloc[a]
@@ -119,7 +133,7 @@ def _fold_axis(nloc, base, k, side, f, sign, first, last, block):
     for p in range(block.shape[0]):
         B = block[p]
         b = base[p, k]
-        for beyond in range(2):  # 0: the face and the body's side; 1: the nodes beyond
+        for beyond in range(skip, 2):  # 0: the face and the body's side; 1: the nodes beyond
             for ik in range(n_k):
                 dist = (b + ik - f) if side == 0 else (f - b - ik)  # > 0: the body's side
                 if (dist < 0) != (beyond == 1):
@@ -141,3 +155,57 @@ def _fold_axis(nloc, base, k, side, f, sign, first, last, block):
                         else:
                             for r in range(first, last):
                                 B[r, node] = sign[r] * B[r, mnode]
+
+
+@kernel
+def fold_moments(d, nloc, base, face_lo, face_hi, sym, origin, h, mass, X):
+    """Contact's first moments ``X`` (rows ``1..d``: ``Σ S m x``) with the images' added, as
+    :func:`fold_sums` adds their mass: an image's position is the reflection of its particle's
+    whatever the face's kind (the odd mirror flips velocities, not places), so across the plane
+    ``x_k = c`` its moment is ``2 c m' − X_k`` along ``k`` and ``X`` across it. ``mass``: a copy
+    of the unfolded mass row (slots, 1, stride), folded here axis by axis alongside; the face
+    node's moment along ``k`` is its mass at the face (its image's centre and its own meet
+    there). Call it before :func:`fold_sums` folds the mass itself."""
+    for k in range(d):
+        for side in range(2):
+            if sym[k, side]:
+                f = face_lo[k] if side == 0 else face_hi[k]
+                _fold_moments_axis(nloc, base, k, side, f, origin[k] + f * h[k], mass, X)
+
+
+@helper_kernel
+def _fold_moments_axis(nloc, base, k, side, f, c, mass, X):
+    """One face (:func:`_fold_axis`'s walk), the plane at ``x_k = c``."""
+    stride = 1
+    for a in range(k):
+        stride *= nloc[a]
+    n_k = nloc[k]
+    outer = 1
+    for a in range(k + 1, 3):
+        outer *= nloc[a]
+    rows = X.shape[1]
+    for p in range(X.shape[0]):
+        b = base[p, k]
+        for beyond in range(2):
+            for ik in range(n_k):
+                dist = (b + ik - f) if side == 0 else (f - b - ik)
+                if (dist < 0) != (beyond == 1):
+                    continue
+                im = ik - 2 * dist if side == 0 else ik + 2 * dist
+                if dist != 0 and (im < 0 or im >= n_k):
+                    continue
+                for o in range(outer):
+                    for i in range(stride):
+                        node = i + stride * (ik + n_k * o)
+                        mnode = i + stride * (im + n_k * o)
+                        if dist == 0:
+                            X[p, 1 + k, node] = c * mass[p, 0, node]
+                            continue
+                        m_img = mass[p, 0, mnode]
+                        keep = 1.0 if dist > 0 else 0.0  # beyond: the reflection alone
+                        for r in range(1, rows):
+                            img = X[p, r, mnode]
+                            if r == 1 + k:
+                                img = 2.0 * c * m_img - img
+                            X[p, r, node] = keep * X[p, r, node] + img
+                        mass[p, 0, node] = keep * mass[p, 0, node] + m_img

@@ -22,7 +22,9 @@ Columns (SI units; ``docs/energy.md`` derives the energy balance):
                                       over the last step, their impulse since the start   N, N s
     work_walls, <wall>.force_x.., <wall>.impulse_x..   with [[walls]] (parmpm.grid.walls)
     work_loads                        with [[loads]]: their work, estimated at the particles J
-    work_contact, contact<k>.force_x.., contact<k>.impulse_x..   with [contact] (field k)
+    work_contact, <name>.force_x.., <name>.impulse_x..   with [contact]: per field, named by
+                                      contact.names (default contact<k>); with cracks each
+                                      one's far side too, <name>_far                 J, N, N s
 
 and the scene's probes (``[[output.history.probes]]``): ``<name>.<field>`` for the particle
 nearest a point in the initial configuration (followed through the run), ``<name>.<field>.<stat>`` for the
@@ -213,13 +215,13 @@ class History:
     """The history's columns and rows; :meth:`sample` is collective and returns the new row."""
 
     def __init__(self, dim: int, probes: list[Probe], walls: tuple[str, ...] = (),
-                 loads: bool = False, supports: bool = False, contact: int = 0):
+                 loads: bool = False, supports: bool = False, contact: tuple[str, ...] = ()):
         self.dim = dim
         self.probes = probes
         self.walls = walls
         self.loads = loads
         self.supports = supports
-        self.contact = contact  # the contact fields (0: none)
+        self.contact = contact  # the contact fields' names (none: no contact)
         self.columns = (["time", "step", "dt", *ENERGY_COLUMNS, *_vector_columns(dim), "mass",
                          "damaged", "frozen"] + [c for p in probes for c in p.columns()]
                         + wall_columns(dim, walls) + (["work_loads"] if loads else [])
@@ -259,7 +261,7 @@ class History:
         if self.supports:
             row += support_row(ledger, self.dim)
         if self.contact:
-            row += contact_row(ledger, self.dim, self.contact)
+            row += contact_row(ledger, self.dim, len(self.contact))
         return [float(v) for v in row]
 
 
@@ -286,7 +288,7 @@ class HistoryOutput:
         self.history = History(sim.dim, [Probe(p, bodies, rows) for p in probes],
                                tuple(w.name for w in spec.walls), bool(spec.loads),
                                held(spec.boundary),
-                               len(spec.contact.fields) if spec.contact else 0)
+                               spec.contact.column_names() if spec.contact else ())
         self.file = None
         self.last_step = -1
         self.last = None

@@ -58,13 +58,13 @@ def support_row(ledger, dim: int) -> list[float]:
             + [ledger.support[a] for a in range(dim)])
 
 
-def contact_columns(dim: int, fields: int) -> list[str]:
-    """With contact between ``fields`` velocity fields: the contact's work (J, ≤ 0: friction
-    and impact losses), and per field the contact force on it over the last step (N) and the
-    impulse since the start (N s); the fields are numbered as in ``contact.fields``."""
-    if not fields:
+def contact_columns(dim: int, names: tuple[str, ...]) -> list[str]:
+    """With contact between velocity fields (``names``: each field's, in field order): the
+    contact's work (J), and per field the contact force on it over the last step (N) and the
+    impulse since the start (N s)."""
+    if not names:
         return []
-    return ["work_contact"] + [f"contact{k}.{kind}_{AXES[a]}" for k in range(fields)
+    return ["work_contact"] + [f"{name}.{kind}_{AXES[a]}" for name in names
                                for kind in ("force", "impulse") for a in range(dim)]
 
 

@@ -5,11 +5,17 @@ frictional contact (:mod:`parmpm.grid.contact`) instead of sharing one grid velo
     friction = 0.3                  # Coulomb's μ >= 0 between fields, or "stick" (default 0)
     fields = [[0], [1, 2]]          # optional: bodies (indices in [[bodies]]) that share a field;
                                     # default: every body its own field
+    names = ["block", "table"]      # optional: one per field, naming its history columns
+                                    # (default "contact<k>")
     normal = "centroids"            # how a node's contact normal is found (the one method)
+    cracks = true                   # crack faces from the damage model (default false)
+    crack_damage = 1.0              # the damage at which a crack face opens (0 < D <= 1)
 
 A scene without ``[contact]`` has one field, as before. Every body must be in exactly one field,
-and there must be at least two: one field is the single-field run. Every problem is one line
-naming the key, the value and what was expected.
+and there must be at least two, unless ``cracks`` is on: then every field gets a second one, the
+far side of a crack (:mod:`parmpm.grid.crack`), and the default is one field of all bodies.
+Crack faces need a material with a damage model. Every problem is one line naming the key, the
+value and what was expected.
 """
 from __future__ import annotations
 
@@ -19,19 +25,35 @@ from typing import Any
 
 from parmpm.scene.check import Checker, show
 
-CONTACT_KEYS = ("friction", "fields", "normal")
+CONTACT_KEYS = ("friction", "fields", "normal", "cracks", "crack_damage", "names")
 NORMALS = ("centroids",)
-#: the most velocity fields a scene may have (each costs a grid's memory and a transfer pass)
+#: the most velocity fields a scene may have (each costs a grid's memory and a transfer pass;
+#: with cracks every field has a far side: half as many body fields)
 MAX_FIELDS = 16
 
 
 @dataclass(frozen=True, slots=True)
 class Contact:
-    """``fields``: per field, its bodies' indices; ``friction``: μ or "stick"; ``normal``."""
+    """``fields``: per field, its bodies' indices; ``friction``: μ or "stick"; ``normal``;
+    ``cracks``: crack faces from the damage model, opening at ``crack_damage``."""
 
     fields: tuple[tuple[int, ...], ...]
     friction: float | str
     normal: str = "centroids"
+    cracks: bool = False
+    crack_damage: float = 1.0
+    names: tuple[str, ...] = ()
+
+    def column_names(self) -> tuple[str, ...]:
+        """Every velocity field's history name: its given name or ``contact<k>``, and with
+        cracks each one's far side, ``<name>_far``."""
+        base = tuple(self.names) or tuple(f"contact{k}" for k in range(len(self.fields)))
+        return base + (tuple(f"{n}_far" for n in base) if self.cracks else ())
+
+    @property
+    def velocity_fields(self) -> int:
+        """How many velocity fields: the body fields, and with cracks each one's far side."""
+        return len(self.fields) * (2 if self.cracks else 1)
 
     @property
     def mu(self) -> float:
@@ -46,9 +68,22 @@ class Contact:
         return tuple(out)
 
 
-def check_contact(c: Checker, raw: Any, n_bodies: int) -> dict:
-    """The resolved ``[contact]``."""
+def check_contact(c: Checker, raw: Any, n_bodies: int, materials: dict, method: dict,
+                  taken: set) -> dict:
+    """The resolved ``[contact]`` (``materials``, ``method``: the resolved tables, for what
+    cracks need; ``taken``: the walls' and loads' names, which share the history's columns)."""
     t = c.table("contact", raw, CONTACT_KEYS)
+    cracks = t.get("cracks", False)
+    if not isinstance(cracks, bool):
+        c.expected("contact.cracks", "true or false", cracks)
+    crack_damage = None
+    if "crack_damage" in t:
+        if not cracks:
+            c.fail("contact.crack_damage", "used only with contact.cracks = true")
+        crack_damage = c.number("contact.crack_damage", t["crack_damage"],
+                                "a damage 0 < D <= 1", lambda x: 0.0 < x <= 1.0)
+    if cracks:
+        _crack_needs(c, materials, 1.0 if crack_damage is None else crack_damage)
     friction = t.get("friction", 0.0)
     if friction != "stick":
         friction = c.number("contact.friction", friction, 'a number >= 0 or "stick"',
@@ -56,21 +91,57 @@ def check_contact(c: Checker, raw: Any, n_bodies: int) -> dict:
     normal = c.string("contact.normal", t.get("normal", "centroids"))
     if normal not in NORMALS:
         c.expected("contact.normal", " | ".join(f'"{n}"' for n in NORMALS), normal)
+    limit = MAX_FIELDS // 2 if cracks else MAX_FIELDS
     if "fields" not in t:
-        fields = [[b] for b in range(n_bodies)]
+        fields = [list(range(n_bodies))] if cracks else [[b] for b in range(n_bodies)]
     else:
-        fields = _fields(c, t["fields"], n_bodies)
-    if len(fields) < 2:
+        fields = _fields(c, t["fields"], n_bodies, limit)
+    if len(fields) < 2 and not cracks:
         c.fail("contact.fields" if "fields" in t else "contact",
                f"expected at least two fields (the scene has {n_bodies} "
                f"{'body' if n_bodies == 1 else 'bodies'}): one field is the run without [contact]")
-    return {"friction": friction, "fields": fields, "normal": normal}
+    out = {"friction": friction, "fields": fields, "normal": normal}
+    if "names" in t:  # absent otherwise: scenes without names resolve as they did
+        out["names"] = _names(c, t["names"], len(fields), taken)
+    if cracks:  # absent otherwise: scenes without cracks resolve as they did
+        out["cracks"] = True
+        out["crack_damage"] = 1.0 if crack_damage is None else crack_damage
+    return out
 
 
-def _fields(c: Checker, raw: Any, n_bodies: int) -> list:
-    what = (f"a list of at most {MAX_FIELDS} lists of body indices (0 to {n_bodies - 1}), "
+def _names(c: Checker, raw: Any, n_fields: int, taken: set) -> list:
+    """One history name per field: 1 to 40 letters, digits, '_' or '-', none used twice (nor by a
+    wall or load)."""
+    if not isinstance(raw, list) or len(raw) != n_fields:
+        c.expected("contact.names", f"a list of {n_fields} names, one per field", raw)
+    out = []
+    for k, name in enumerate(raw):
+        key = f"contact.names.{k}"
+        name = c.string(key, name)
+        if not name or not all(ch.isalnum() or ch in "_-" for ch in name) or len(name) > 40:
+            c.expected(key, "1 to 40 letters, digits, '_' or '-' (it names history columns)",
+                       name)
+        if name in taken or name in out:
+            c.fail(key, f"{show(name)} is used twice (each field, wall and load needs its own)")
+        out.append(name)
+    return out
+
+
+def _crack_needs(c: Checker, materials: dict, crack_damage: float) -> None:
+    """What crack faces need of the scene's materials and method (module doc)."""
+    damaged = {n: m["damage"] for n, m in materials.items() if m.get("damage")}
+    if not damaged:
+        c.fail("contact.cracks", "no material has a damage model ([materials.NAME.damage]): "
+                                 "nothing can crack")
+    if crack_damage >= 1.0 and all(d["softening"] == "exponential" for d in damaged.values()):
+        c.fail("contact.crack_damage", f"exponential softening never reaches D = 1 (materials "
+                                       f"{show(sorted(damaged))}): give a crack_damage below 1")
+
+
+def _fields(c: Checker, raw: Any, n_bodies: int, limit: int) -> list:
+    what = (f"a list of at most {limit} lists of body indices (0 to {n_bodies - 1}), "
             "every body in exactly one")
-    if not isinstance(raw, list) or not raw or len(raw) > MAX_FIELDS:
+    if not isinstance(raw, list) or not raw or len(raw) > limit:
         c.expected("contact.fields", what, raw)
     seen: dict[int, int] = {}
     out = []

@@ -95,9 +95,16 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   become separate velocity fields that meet through frictional contact instead of sharing one
   grid velocity. ``friction`` (Coulomb's μ >= 0 between fields, or "stick"; default 0),
   ``fields`` (a list of lists of body indices, every body in exactly one, at least two fields,
-  at most 16; default: every body its own field), ``normal`` ("centroids", the one method:
-  the better separating of the heavy field's moment normal and the centre-to-centre line).
-  Absent: one field, as before.
+  at most 16; default: every body its own field), ``names`` (optional: one per field, 1 to 40
+  letters, digits, ``_ -``, unused by any wall or load; they name the field's history columns,
+  default "contact<k>"), ``normal`` ("centroids", the one method:
+  the better separating of the heavy field's moment normal and the centre-to-centre line),
+  ``cracks`` (bool, default false: crack faces from the damage model, :mod:`parmpm.grid.crack`;
+  every field gets a far side, where a particle goes at a node whose crack it is across; the
+  default ``fields`` is then one field of all bodies, at most 8; needs a material with a damage
+  model; the transfers then run the generic loops), ``crack_damage`` (0 < D <= 1,
+  default 1; with ``cracks`` only: a node's crack opens when the most damaged particle reaching
+  it has at least this damage). Absent: one field, as before.
 * ``[manufactured]`` (optional): ``amplitude`` (> 0 m, required): drive the scene with the
   axis-aligned manufactured solution (``parmpm.loads.manufactured``; one neo-Hookean material; particles
   start on the exact field and get its body force every step).

@@ -9,14 +9,24 @@ contact kernels see every field at a node. A particle's field is its body's
 so nothing is stored, moved or checkpointed for it. The transfers run once per field on that
 field's share of the canonical particle order (:func:`parmpm.grid.contact.split_by_field`): each
 field's sums are added in the same order as a single field's, on any number of ranks.
+
+With crack faces (``[contact] cracks``, :mod:`parmpm.grid.crack`) every body field has a second
+field, the far side of a crack, and a particle's field is chosen per node inside the transfer
+loops: the grids of all fields are then one stacked grid (field ``k``'s node ``j`` at
+``j + k · stride``, the arrays laid out (slots, rows, fields, stride)) that one pass of the
+generic transfers fills, and each field's grid a view into it.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from decomposition import accumulate_max, fill
+from decomposition import accumulate, accumulate_max, fill
+from parmpm.core.records import Sides
 from parmpm.grid.contact import (contact_correct, contact_extents, contact_normals,
                                  field_of_rows, split_by_field)
+from parmpm.grid.crack import crack_normals, nodal_damage
+from parmpm.grid.update import grid_block
+from parmpm.transfer.damage_field import damage_gradients, damage_sums
 
 
 def _views(block: np.ndarray, nodes: int) -> np.ndarray:
@@ -39,12 +49,21 @@ class FieldGrid:
 class ContactPhase:
     """``field_of_body``: every body's field; ``body_start``: every body's first global id, then
     the total; ``mu``: Coulomb's μ between fields (inf: stick); ``reach``: the interpolator's
-    support past a particle's domain, in cells."""
+    support past a particle's domain, in cells; ``crack``: the damage at which a node's crack
+    opens (``[contact] crack_damage``), or None: no crack faces."""
 
-    def __init__(self, field_of_body, body_start, mu: float, reach: float, dim: int):
+    def __init__(self, field_of_body, body_start, mu: float, reach: float, dim: int,
+                 crack: float | None = None):
         self.field_of_body = np.asarray(field_of_body, np.int64)
         self.body_start = np.asarray(body_start, np.int64)
-        self.K = int(self.field_of_body.max()) + 1
+        self.fields = int(self.field_of_body.max()) + 1  # body fields
+        self.crack = None if crack is None else float(crack)
+        self.K = self.fields * (1 if crack is None else 2)
+        self.grad = np.zeros((0, 3))  # crack faces: every row's damage gradient
+        self.sides: Sides | None = None
+        #: the largest damage of any particle on any rank, from the last step's end (inf: not
+        #: known yet); below ``crack`` no node can have a crack
+        self.max_damage = np.inf
         self.mu, self.reach, self.dim = float(mu), float(reach), dim
         self.field = np.zeros(0, np.int64)     # every physical row's field
         self.starts = np.zeros((self.K, 1), np.int64)
@@ -60,9 +79,25 @@ class ContactPhase:
         nodes, d, K = grid.gsum.shape[1], self.dim, self.K
         spare = max(slots, 2)  # as GridBuffers: never a 0- or 1-slot array; the kernels visit
         # the patches' slots only, and a field's block is its first ``slots`` (C-contiguous)
-        self.sum_all = np.zeros((K, spare, rows, stride))
-        self.new_all = np.zeros((K, spare, 2 * d, stride))
-        self.x_all = np.zeros((K, spare, 1 + d, stride))
+        if self.crack is None:
+            self.sum_all = np.zeros((K, spare, rows, stride))
+            self.new_all = np.zeros((K, spare, 2 * d, stride))
+            self.x_all = np.zeros((K, spare, 1 + d, stride))
+        else:  # stacked: every row holds the fields' copies of the box one after another
+            # (field k's node j at j + k·nodes: a stacked index modulo the box's node count is
+            # the node), the row padded as the grid's are; seen by the contact kernels as above
+            stacked = [grid_block(spare, r, K * nodes)[0] for r in (rows, 2 * d, 1 + d)]
+            self.sum_all, self.new_all, self.x_all = (
+                b[:, :, :K * nodes].reshape(spare, b.shape[1], K, nodes).transpose(2, 0, 1, 3)
+                for b in stacked)
+            s, n, x = (b[:slots] for b in stacked)
+            self.stacked = FieldGrid(s, n, K * nodes, d, grid.inside)
+            self.stacked_x = FieldGrid(x, n, K * nodes, d, grid.inside)
+            self.dsum = np.zeros((spare, 2, stride))    # Σ S m, Σ S m D, then D_i
+            self.dmax = np.zeros((spare, 1, stride))    # the largest D reaching a node
+            self.tsum = np.zeros((spare, d + d * (d + 1) // 2, stride))  # Σ S m g, Σ S m g gᵀ
+            self.cnormal = np.zeros((spare, 3, stride))  # the crack normal; 0: no crack
+        self.stride = nodes  # crack faces: how far apart two fields' copies of a node are
         self.normal = np.zeros((K, spare, 2 * d, stride))  # two candidates
         self.ext = np.zeros((K, spare, 4, stride))  # two extremes per candidate
         self.mask = np.zeros((spare, 1, stride))     # 1 at a node where fields meet
@@ -83,7 +118,34 @@ class ContactPhase:
             self.starts = np.zeros((self.K, P.start.size), np.int64)
         R = P.rows
         field_of_rows(R.gid, self.body_start, self.field_of_body, self.field)
-        split_by_field(P.start, P.lazy_order(), self.field, self.starts, self.orders)
+        if self.crack is None:
+            split_by_field(P.start, P.lazy_order(), self.field, self.starts, self.orders)
+
+    def find_sides(self, transfers, P, plan, nodes, err: np.ndarray) -> None:
+        """Crack faces: the damage field, every particle's damage gradient and every node's
+        crack normal (collective: four exchanges), as :attr:`sides` for this step's transfers
+        (:mod:`parmpm.grid.crack`). While no particle anywhere is damaged enough for a crack
+        (:attr:`max_damage`, the same on every rank) every node's normal is zero without a
+        pass: what the passes would find."""
+        slots = self.grids[0].gsum_block.shape[0]
+        if self.grad.shape[0] != P.n:
+            self.grad = np.zeros((P.n, 3))
+        self.sides = Sides(self.field, self.fields, self.grad, self.cnormal, self.stride)
+        if self.max_damage < self.crack:
+            self.cnormal[:slots] = 0.0
+            return
+        how, boxes, fields = transfers.records()
+        dsum, dmax = _views(self.dsum[:slots], self.nodes), _views(self.dmax[:slots], self.nodes)
+        damage_sums(how, boxes, fields, P.rows.damage, dsum, dmax, err)
+        accumulate(plan, dsum)
+        accumulate_max(plan, dmax)
+        nodal_damage(nodes, self.dsum)
+        fill(plan, dsum[:, :, 1:])
+        tsum = _views(self.tsum[:slots], self.nodes)
+        damage_gradients(how, boxes, fields, dsum[:, :, 1:], self.grad, tsum, err)
+        accumulate(plan, tsum)
+        crack_normals(self.dim, nodes, self.tsum, self.dmax, self.crack, self.cnormal)
+        fill(plan, _views(self.cnormal[:slots], self.nodes))
 
     def boxes(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Field ``k``'s (start, order)."""
@@ -114,7 +176,7 @@ class ContactPhase:
         R = P.rows
         contact_extents(disc.dim, P.start, P.order(), self.field, R.x, R.F, R.r0, disc.origin3,
                         disc.h3, self.reach, disc.base, disc.nloc, self.normal, self.mask,
-                        active, self.ext)
+                        active, self.ext, self.sides if self.crack is not None else None)
         accumulate_max(plan, *self.node_views("ext"))
 
     def correct(self, disc, nodes, dt: float, gravity: np.ndarray, heavy: float, eps: float,

@@ -12,7 +12,8 @@ import numpy as np
 
 from decomposition import allreduce_max
 from parmpm.core.records import Constraints, OwnedNodes
-from parmpm.grid.symmetry import fold_sums, mirror_faces, row_signs
+from parmpm.grid.symmetry import (fold_moments, fold_sums, mirror_faces, reflect_beyond,
+                                  row_signs)
 from parmpm.grid.update import grid_update, region_node_ranges
 
 
@@ -35,6 +36,7 @@ class GridPhase:
         mmin = float(particle_mass.min(initial=np.inf))
         mmin = float(allreduce_max(comm, np.array([-mmin]))[0])
         self.mass_eps = 1e-12 * (-mmin if math.isfinite(mmin) else 1.0)
+        self._mass = np.zeros((0, 1, 0))  # contact's moments fold: the unfolded mass
 
     def records(self) -> tuple[OwnedNodes, Constraints]:
         """The grid update's records: the owned nodes of every patch slot, the constraints."""
@@ -59,3 +61,27 @@ class GridPhase:
         d = D.dim
         fold_sums(d, D.nloc, D.base, D.face_lo3, D.face_hi3, self.symmetry, self._signs,
                   1 if momentum_only else 0, 1 + d if momentum_only else rows, grid.gsum_block)
+
+    def fold_moments(self, moments, grid) -> None:
+        """Mirror faces: fold the images' first moments into contact's ``moments`` (a field's,
+        rows 1..d) from ``grid``'s mass row, before :meth:`fold` folds that mass."""
+        if self.symmetry is None:
+            return
+        D = self.disc
+        m = grid.gsum_block[:, :1]
+        if self._mass.shape != m.shape:  # kept: a copy per step would be garbage
+            self._mass = np.zeros(m.shape)
+        np.copyto(self._mass, m)
+        fold_moments(D.dim, D.nloc, D.base, D.face_lo3, D.face_hi3, self.symmetry, D.origin3, D.h3,
+                     self._mass, moments.gsum_block)
+
+    def reflect_beyond(self, grid) -> None:
+        """Mirror faces: the nodes beyond take the reflection of their twins' updated velocities
+        (``grid``'s v, Δv rows) again, after contact's correction."""
+        if self.symmetry is None:
+            return
+        D = self.disc
+        d = D.dim
+        signs = self._signs[:, :, 1:]  # the velocity rows reflect as the momentum rows do
+        reflect_beyond(d, D.nloc, D.base, D.face_lo3, D.face_hi3, self.symmetry, signs,
+                       grid.gnew_block)

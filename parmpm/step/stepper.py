@@ -126,6 +126,8 @@ class Stepper:
     def use_contact(self, contact) -> None:
         """Separate velocity fields from now on (a :class:`~parmpm.step.contact.ContactPhase`)."""
         self.contact = contact
+        if contact.crack is not None:  # a particle's field per node: the generic loops
+            self.use_kernels("generic")
         contact.rebuild(self.disc, self.grid)
 
     @property
@@ -154,6 +156,15 @@ class Stepper:
         C, T, err = self.contact, self.transfers, self.faults.err
         if C is None:
             T.p2g(self.grid, bforce, dt, err, self.ledger is not None)
+        elif C.crack is not None:  # every field in one pass, each particle's per node
+            C.split(self.P)
+            C.find_sides(T, self.P, self.plan, self.grid_phase.records()[0], err)
+            T.sides = C.sides
+            try:
+                T.p2g(C.stacked, bforce, dt, err, self.ledger is not None)
+                T.p2g_momentum(C.stacked_x, err, positions=True)
+            finally:
+                T.sides = None
         else:
             C.split(self.P)
             try:
@@ -170,6 +181,12 @@ class Stepper:
         C, T = self.contact, self.transfers
         if C is None:
             T.p2g_momentum(self.grid, self.faults.err)
+        elif C.crack is not None:
+            T.sides = C.sides
+            try:
+                T.p2g_momentum(C.stacked, self.faults.err)
+            finally:
+                T.sides = None
         else:
             try:
                 for k in range(C.K):
@@ -190,6 +207,14 @@ class Stepper:
                 self.moves.located = located
             return vmax
         vmax = 0.0
+        if C.crack is not None:
+            T.sides = C.sides
+            try:
+                vmax = T.g2p(C.stacked, mode, dt, self.faults.err, locate)[0]
+            finally:
+                T.sides = None
+            self.moves.located = None
+            return vmax
         try:  # each field's particles from its own grid; the migration finds the new patches
             for k in range(C.K):
                 T.subset = C.boxes(k)
@@ -217,11 +242,14 @@ class Stepper:
         plan, phase, C = self.plan, self.grid_phase, self.contact
         grids = self.field_grids
         rows = self._sum_rows()
+        if C is not None and not momentum_only:  # the images' moments, from the unfolded mass
+            for moments, grid in zip(C.moments, grids):
+                phase.fold_moments(moments, grid)
         for grid in grids:
             phase.fold(grid, rows, momentum_only)
         t = self._lap("p2g", t)
         sums = [g.gmv if momentum_only else g.gsum[:, :, :rows] for g in grids]
-        if C is not None and not momentum_only:  # (a mirror face's images are not folded in)
+        if C is not None and not momentum_only:
             sums += C.node_views("x")
         accumulate(plan, *sums)
         t = self._lap("accumulate", t)
@@ -236,6 +264,8 @@ class Stepper:
                                  momentum_only, add=k > 0)
         if C is not None:
             C.correct(self.disc, nodes, dt, gravity, heavy, phase.mass_eps, momentum_only)
+            for grid in grids:
+                phase.reflect_beyond(grid)
         if self.ledger is not None and not momentum_only:
             self.ledger.add(self, dt, gravity)
         t = self._lap("grid", t)
@@ -292,12 +322,16 @@ class Stepper:
         """End-of-step collective: one ``Allreduce(MAX)`` of (speed, error, patch-set change,
         particles per rank, stop signal); raises a run-stopping error on every rank at once."""
         ps, P, faults = self.patches, self.P, self.faults
+        cracks = self.contact is not None and self.contact.crack is not None
         local = np.array([vmax if math.isfinite(vmax) else math.inf,
                           ps.rank + 1.0 if faults.error else 0.0,
                           1.0 if self.moves.occupancy_changed else 0.0, float(P.n),
-                          1.0 if self.stop_flag else 0.0])
+                          1.0 if self.stop_flag else 0.0,
+                          float(P.rows.damage.max(initial=0.0)) if cracks else 0.0])
         g = allreduce_max(self.comm, local)
         self.stop_requested = bool(g[4] > 0)
+        if cracks:  # no crack anywhere: the next step's sides need no passes (ContactPhase)
+            self.contact.max_damage = float(g[5])
         if g[1] > 0:  # the error of the first particle in (patch, id) order, as on one rank
             agree(self.comm, faults.error, root=None, error=SimulationError, key=faults.error_key)
         if g[2] > 0:

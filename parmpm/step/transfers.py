@@ -43,6 +43,9 @@ class Transfers:
         self.empty_boxes = False  # no slot, an index order: see Stepper.compile_lazy_order
         #: (start, order) of the particles to visit instead of all (a contact field's), or None
         self.subset: tuple[np.ndarray, np.ndarray] | None = None
+        #: crack faces (:data:`parmpm.core.records.Sides`: every particle to its field at each
+        #: node of a stacked grid; the generic loops only), or None
+        self.sides = None
         self._zero_affine: np.ndarray | None = None  # see _no_affine
         self.use("specialised")
 
@@ -91,7 +94,7 @@ class Transfers:
         elif k is not None:
             k.p2g(how.lcr, boxes, boxes.order, fields, bforce, grid.gsum_block, err)
         else:
-            p2g(how, boxes, fields, bforce, dt, (grid.gm, grid.gmv, grid.gf), err)
+            p2g(how, boxes, fields, bforce, dt, (grid.gm, grid.gmv, grid.gf), err, self.sides)
 
     def p2g_momentum(self, grid, err: np.ndarray, positions: bool = False) -> None:
         """MUSL's re-map: the momentum of the updated particle velocities alone; ``positions``:
@@ -103,7 +106,7 @@ class Transfers:
         if self.kernels is not None:
             self.kernels.p2g_momentum(how.lcr, boxes, boxes.order, fields, grid.gsum_block, err)
         else:
-            p2g_momentum(how, boxes, fields, grid.gmv, err)
+            p2g_momentum(how, boxes, fields, grid.gmv, err, self.sides)
 
     def _no_affine(self, affine: np.ndarray) -> np.ndarray:
         """Zero affine matrices shaped like ``affine`` (kept: a fresh one each step would be
@@ -126,4 +129,4 @@ class Transfers:
                                                       grid.gnew_block, err, locate)
             return vmax, (first_out, moved)
         return g2p(mode, how, boxes, dt, self.flip, fields, material, (grid.gvel, grid.gdv),
-                   err), None
+                   err, self.sides), None

@@ -1,7 +1,7 @@
 """The affine pieces of the generic transfers (:mod:`parmpm.transfer.generic`): APIC's affine momentum
 and MLS's gradient (:mod:`parmpm.transfer.affine` has the equations), over one particle's support entries.
 
-They read and write the generic loops' per-call scratch (:func:`parmpm.transfer.generic._scratch`): the
+They read and write the generic loops' per-call scratch (:func:`parmpm.transfer.generic.loop_scratch`): the
 grid coordinates ``xi`` (2), the entries' nodes ``idx`` (7), weights ``w`` (8) and gradients
 ``g`` (9), and the offsets ``r`` (12) that :func:`offsets` fills.
 """
@@ -11,11 +11,14 @@ from parmpm.core.jit import helper_kernel
 @helper_kernel
 def offsets(d, boxes, p, n, scratch):
     """``r[e] = x_i − x_p`` (physical units) of the ``n`` entries of the particle whose grid
-    coordinates are in the scratch's ``xi`` (APIC's affine terms)."""
+    coordinates are in the scratch's ``xi`` (APIC's affine terms). An entry's node is its index
+    modulo the box's node count: crack faces stack the fields' copies of the box that far apart
+    (:func:`parmpm.grid.crack.to_fields`)."""
     xi, idx, r = scratch[2], scratch[7], scratch[12]
     base, nloc, inv_h = boxes.base, boxes.nloc, boxes.inv_h
+    box = nloc[0] * nloc[1] * nloc[2]
     for e in range(n):
-        loc = idx[e]
+        loc = idx[e] % box
         r[e, 0] = (base[p, 0] + loc % nloc[0] - xi[0]) / inv_h[0]
         if d > 1:
             r[e, 1] = (base[p, 1] + (loc // nloc[0]) % nloc[1] - xi[1]) / inv_h[1]

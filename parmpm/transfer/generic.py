@@ -37,7 +37,7 @@ the step still ends on every rank, and the caller stops the run.
 
 Each public kernel allocates its scratch and hands it to a ``@loop_kernel`` body (``_*_loop``)
 that runs the particle loop without reference counting (see :mod:`parmpm.core.jit`): one walk,
-:func:`_each_particle`, with each kernel's work per particle (``_*_one``) inlined into it. The
+:func:`each_particle`, with each kernel's work per particle (``_*_one``) inlined into it. The
 hot bodies (P2G, the momentum re-map, G2P) are compiled once per dimension —
 ``literal_unroll(DIMS)`` passes ``d`` as a compile-time constant — so LLVM fully unrolls every
 ``range(d)`` loop, the helpers' included (1.2–1.4× over a runtime ``d``; three compilations
@@ -49,6 +49,7 @@ import numpy as np
 from numba import literal_unroll, literally
 
 from parmpm.core.jit import DIMS, helper_kernel, inline_kernel, kernel, loop_kernel
+from parmpm.grid.crack import field_node, to_fields
 from parmpm.materials.damage import damage_update
 from parmpm.materials.kinematics import det_d, flip_pic, update_F
 from parmpm.materials.laws import cauchy_stress, wave_speed
@@ -63,7 +64,7 @@ from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_U
 
 
 @kernel
-def _scratch(nloc, d):
+def loop_scratch(nloc, d):
     """Per-call scratch of the particle loops: ``R, C`` (CPDI domain and cofactor), ``xi`` (grid
     coordinates), the per-axis rows ``nk, jk, wk, dwk`` of :func:`particle_support`, its entries
     ``idx, w, g``, ``Lg, Fn`` (velocity gradient and new F in G2P) and ``r`` (each entry's node
@@ -104,12 +105,12 @@ def _entries(method, d, lcr, boxes, fields, i, p, err, scratch):
 
 
 @helper_kernel
-def _move_corners(d, dt, gvel, p, base, nloc, nglob, inv_h, c, scratch):
-    """cpdi2: ``c_α += Δt (v(x_p + ĉ_α) − v_move)`` for the particle whose capped corners ``ĉ``
-    :func:`_entries` left in the scratch (``sc``), ``v(y) = Σ_i S_i(y) v_i`` the linear hat of
-    the grid velocity ``gvel`` of slot ``p`` (node box at ``base``; ``c`` the particle's
-    corners, the scratch's ``vm`` its ``v_move``). The capped corners' nodes are in the box: the
-    support held them."""
+def _move_corners(d, dt, gvel, p, base, nloc, nglob, inv_h, c, scratch, sides, i):
+    """cpdi2: ``c_α += Δt (v(x_p + ĉ_α) − v_move)`` for the particle ``i`` whose capped corners
+    ``ĉ`` :func:`_entries` left in the scratch (``sc``), ``v(y) = Σ_i S_i(y) v_i`` the linear hat
+    of the grid velocity ``gvel`` of slot ``p`` (node box at ``base``; ``c`` the particle's
+    corners, the scratch's ``vm`` its ``v_move``; with crack ``sides``, each node's copy in the
+    particle's field there). The capped corners' nodes are in the box: the support held them."""
     xi, jk, wk, dwk, sc, vm = scratch[2], scratch[4], scratch[5], scratch[6], scratch[13], scratch[14]
     L0, L1 = nloc[0], nloc[1]
     for alpha in range(1 << d):
@@ -120,7 +121,7 @@ def _move_corners(d, dt, gvel, p, base, nloc, nglob, inv_h, c, scratch):
             s = 0.0
             for e in range(1 << d):
                 node, S = cell_node(d, jk, wk, L0, L1, e)
-                s += S * gvel[p, node, a]
+                s += S * gvel[p, field_node(sides, i, p, node), a]
             c[alpha, a] += dt * (s - vm[a])
 
 
@@ -134,11 +135,13 @@ def _frozen(d, rf):
 
 
 @inline_kernel
-def _each_particle(body, d, how, boxes, order, fields, err, scratch, out, args, acc):
+def each_particle(body, d, how, boxes, order, fields, err, scratch, out, args, acc, sides):
     """``acc = body(i, p, n, d, how, boxes, fields, scratch, out, args, acc)`` for every particle
     ``i`` of every patch slot ``p``, in canonical order, whose ``n`` support entries
     :func:`_entries` left in the scratch; one whose support fails is skipped (and noted in
-    ``err``). Returns ``acc``. What a body writes comes as a kernel argument (``fields``,
+    ``err``). With crack ``sides`` (:data:`parmpm.core.records.Sides`) each entry's node is
+    moved to its field's copy in the stacked grid first (:func:`parmpm.grid.crack.to_fields`).
+    Returns ``acc``. What a body writes comes as a kernel argument (``fields``,
     ``scratch``, ``out``), never in ``args``, a tuple built in the kernel
     (:mod:`parmpm.transfer.kernels2d.loops` says why)."""
     method, lcr, start = how.code, how.lcr, boxes.start
@@ -147,31 +150,35 @@ def _each_particle(body, d, how, boxes, order, fields, err, scratch, out, args, 
             i = row(order, kk)
             n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
             if n >= 0:
+                to_fields(sides, i, p, n, scratch[7])
                 acc = body(i, p, n, d, how, boxes, fields, scratch, out, args, acc)
     return acc
 
 
 @kernel
-def p2g(how, boxes, fields, bforce, dt, out, err):
+def p2g(how, boxes, fields, bforce, dt, out, err, sides):
     """``out = (gm, gmv, gf)`` (node-major views of this rank's patch slots) from the particles;
     ``how``, ``boxes``, ``fields``: :mod:`parmpm.core.records`; ``dt``: the step (MLS folds
-    ``Δt f`` into the momentum; unused otherwise)."""
+    ``Δt f`` into the momentum; unused otherwise); ``sides``: crack faces (the stacked grid of
+    every field, :data:`parmpm.core.records.Sides`) or None."""
     d = how.dim
-    scratch = _scratch(boxes.nloc, d)
+    scratch = loop_scratch(boxes.nloc, d)
     for dim in literal_unroll(DIMS):
         if dim == d:
-            _p2g_loop(how, dim, boxes, boxes.order, fields, bforce, dt, out, err, scratch)
+            _p2g_loop(how, dim, boxes, boxes.order, fields, bforce, dt, out, err, scratch,
+                      sides)
 
 
 @loop_kernel
-def _p2g_loop(how, dim, boxes, order, fields, bforce, dt, out, err, scratch):
+def _p2g_loop(how, dim, boxes, order, fields, bforce, dt, out, err, scratch, sides):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
     gm, gmv, gf = out
     gm[:] = 0.0
     gmv[:] = 0.0
     gf[:] = 0.0
-    _each_particle(_p2g_one, d, how, boxes, order, fields, err, scratch, out, (bforce, dt), 0)
+    each_particle(_p2g_one, d, how, boxes, order, fields, err, scratch, out, (bforce, dt), 0,
+                  sides)
 
 
 @inline_kernel
@@ -210,21 +217,22 @@ def _p2g_one(i, p, n, d, how, boxes, fields, scratch, out, args, acc):
 
 
 @kernel
-def p2g_momentum(how, boxes, fields, gmv, err):
-    """The MUSL re-map of particle momentum into ``gmv``."""
+def p2g_momentum(how, boxes, fields, gmv, err, sides):
+    """The MUSL re-map of particle momentum into ``gmv`` (``sides``: as :func:`p2g`)."""
     d = how.dim
-    scratch = _scratch(boxes.nloc, d)
+    scratch = loop_scratch(boxes.nloc, d)
     for dim in literal_unroll(DIMS):
         if dim == d:
-            _p2g_momentum_loop(how, dim, boxes, boxes.order, fields, gmv, err, scratch)
+            _p2g_momentum_loop(how, dim, boxes, boxes.order, fields, gmv, err, scratch, sides)
 
 
 @loop_kernel
-def _p2g_momentum_loop(how, dim, boxes, order, fields, gmv, err, scratch):
+def _p2g_momentum_loop(how, dim, boxes, order, fields, gmv, err, scratch, sides):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
     gmv[:] = 0.0
-    _each_particle(_p2g_momentum_one, d, how, boxes, order, fields, err, scratch, gmv, None, 0)
+    each_particle(_p2g_momentum_one, d, how, boxes, order, fields, err, scratch, gmv, None, 0,
+                  sides)
 
 
 @inline_kernel
@@ -245,33 +253,34 @@ def _p2g_momentum_one(i, p, n, d, how, boxes, fields, scratch, gmv, args, acc):
 
 
 @kernel
-def g2p(mode, how, boxes, dt, flip, fields, material, grid, err):
+def g2p(mode, how, boxes, dt, flip, fields, material, grid, err, sides):
     """One of the three G2P modes (:mod:`parmpm.transfer.update_order`) from ``grid = (v, Δv)`` node-major
     views. Returns the largest ``c_p + |v_p|`` over the particles (for the next CFL step) in the
     deformation modes."""
     d = how.dim
-    scratch = _scratch(boxes.nloc, d)
+    scratch = loop_scratch(boxes.nloc, d)
     vmax = 0.0
     for dim in literal_unroll(DIMS):
         if dim == d:
             vmax = _g2p_loop(mode, how, dim, boxes, boxes.order, dt, flip, fields, material, grid,
-                             err, scratch)
+                             err, scratch, sides)
     return vmax
 
 
 @loop_kernel
-def _g2p_loop(mode, how, dim, boxes, order, dt, flip, fields, material, grid, err, scratch):
+def _g2p_loop(mode, how, dim, boxes, order, dt, flip, fields, material, grid, err, scratch,
+              sides):
     literally(dim)
     d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
-    return _each_particle(_g2p_one, d, how, boxes, order, fields, err, scratch, material,
-                          (mode, dt, flip, grid), 0.0)
+    return each_particle(_g2p_one, d, how, boxes, order, fields, err, scratch, material,
+                         (mode, dt, flip, grid, sides), 0.0, sides)
 
 
 @inline_kernel
 def _g2p_one(i, p, n, d, how, boxes, fields, scratch, material, args, vmax):
     """G2P of particle ``i`` from its entries and ``args = (mode, Δt, flip, (v, Δv))`` (module
     doc), updating ``fields`` and ``material``; returns the running largest ``c_p + |v_p|``."""
-    mode, dt, flip, grid = args
+    mode, dt, flip, grid, sides = args
     apic, mls = how.apic, how.mls
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     affine = fields.affine
@@ -310,7 +319,7 @@ def _g2p_one(i, p, n, d, how, boxes, fields, scratch, material, args, vmax):
                     vi += w[e] * gvel[p, idx[e], a]
                 vm[a] = vi
         _move_corners(d, dt, gvel, p, boxes.base[p], boxes.nloc, boxes.nglob,
-                      boxes.inv_h, corners[i], scratch)
+                      boxes.inv_h, corners[i], scratch, sides, i)
     if mode == G2P_MUSL_MOTION:
         return vmax
     if mls and mode == G2P_USL:  # L = C, gathered above
@@ -348,13 +357,13 @@ def support_nodes(how, boxes, fields, nodes, count, err):
     """Global flat ids of the nodes each particle touches with nonzero weight (for separation
     detection: particles sharing no node exchange no momentum). ``nodes`` is (N, K)."""
     _support_nodes_loop(how, boxes, boxes.order, fields, (nodes, count, err),
-                        _scratch(boxes.nloc, how.dim))
+                        loop_scratch(boxes.nloc, how.dim))
 
 
 @loop_kernel
 def _support_nodes_loop(how, boxes, order, fields, out, scratch):
-    _each_particle(_support_nodes_one, how.dim, how, boxes, order, fields, out[2], scratch, out,
-                   None, 0)
+    each_particle(_support_nodes_one, how.dim, how, boxes, order, fields, out[2], scratch, out,
+                  None, 0, None)
 
 
 @inline_kernel
