@@ -9,7 +9,8 @@ one process, interleaved, each repeat's milliseconds per step kept:
 
 Each is timed over ``--steps`` steps before the break (no node has a crack: what a crack run
 pays for finding that out) and, continued from there, over the steps after it (the crack open,
-the halves in two fields). The phase times (P2G, grid, G2P, ...) of the last repeat are printed.
+the halves in two fields). The phases' shares (P2G, grid, G2P, ...) printed last are over each
+run's whole life, its first steps' compiling included: a rough guide, not a measurement.
 
     python run_scripts/crack_cost.py --cell 0.0025 --steps 40 --repeat 3
 """
@@ -96,7 +97,7 @@ def main() -> None:
     for name, s in states.items():
         T = s.stepper.timers
         total = sum(T.values())
-        print(f"  phases ({name}): " + ", ".join(f"{k} {100 * v / total:.0f}%"
+        print(f"  phase shares over the run, compiling included ({name}): " + ", ".join(f"{k} {100 * v / total:.0f}%"
                                                   for k, v in T.items() if v > 0))
 
 
