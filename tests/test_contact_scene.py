@@ -5,11 +5,14 @@ a contact run continued from a checkpoint on another rank count is bit-identical
 from __future__ import annotations
 
 import csv
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from mpi_launch import needs_mpi
+from mpi_launch import mpirun, needs_mpi
+from test_checkpoint import _same
 from test_contact import BASE_SCENE, G, slid, slide_scene
 
 from parmpm import Simulation
@@ -161,23 +164,19 @@ def test_block_on_block_example_stops_at_mu_g(tmp_path):
 # ------------------------------------------------------------------ restart
 
 
+def cli(n: int, *args: str) -> subprocess.CompletedProcess:
+    """``python -m parmpm ARGS --quiet``, under ``mpirun -n n`` when n > 1."""
+    cmd = [sys.executable, "-m", "parmpm", *args, "--quiet"]
+    cmd = [mpirun(), "-n", str(n)] + cmd if n > 1 else cmd
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+
+
 @needs_mpi
 @pytest.mark.mpi
 def test_contact_restart_is_bit_identical(tmp_path):
     """A contact run checkpointed at step 50 on one rank and continued on two reaches step 100
     exactly as the run straight through (a particle's field is its body's, from its global id:
     nothing else to carry; the ledger's contact impulses are in the checkpoint's state)."""
-    import subprocess
-    import sys
-
-    from mpi_launch import mpirun
-    from test_checkpoint import _same
-
-    def cli(n, *args):
-        cmd = [sys.executable, "-m", "parmpm", *args, "--quiet"]
-        cmd = [mpirun(), "-n", str(n)] + cmd if n > 1 else cmd
-        return subprocess.run(cmd, capture_output=True, text=True, timeout=600)
-
     a, b = tmp_path / "a", tmp_path / "b"
     sets = ["--set", "output.snapshots=false", "--set", "output.figure=false", "--set",
             "grid.patch_size=5", "--set", "time.steps=100", "--set", "checkpoint.every_steps=50"]
@@ -199,17 +198,6 @@ def test_crack_restart_is_bit_identical(tmp_path):
     """The broken bar checkpointed after its break on one rank and continued on three ends as
     the run straight through: the sides are found afresh each step from what a checkpoint holds
     (positions, damage), nothing else to carry."""
-    import subprocess
-    import sys
-
-    from mpi_launch import mpirun
-    from test_checkpoint import _same
-
-    def cli(n, *args):
-        cmd = [sys.executable, "-m", "parmpm", *args, "--quiet"]
-        cmd = [mpirun(), "-n", str(n)] + cmd if n > 1 else cmd
-        return subprocess.run(cmd, capture_output=True, text=True, timeout=600)
-
     a, b = tmp_path / "a", tmp_path / "b"
     sets = ["--set", "output.snapshots=false", "--set", "output.figure=false", "--set",
             "grid.patch_size=10", "--set", "time.steps=500", "--set", "checkpoint.every_steps=250"]

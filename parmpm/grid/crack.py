@@ -55,7 +55,7 @@ def to_fields(sides, i, p, n, idx):
     if sides is None:
         return
     for e in range(n):
-        idx[e] += crack_field(sides, i, p, idx[e]) * sides.stride
+        idx[e] = field_node(sides, i, p, idx[e])
 
 
 @helper_kernel

@@ -68,10 +68,9 @@ class Contact:
         return tuple(out)
 
 
-def check_contact(c: Checker, raw: Any, n_bodies: int, materials: dict, method: dict,
-                  taken: set) -> dict:
-    """The resolved ``[contact]`` (``materials``, ``method``: the resolved tables, for what
-    cracks need; ``taken``: the walls' and loads' names, which share the history's columns)."""
+def check_contact(c: Checker, raw: Any, n_bodies: int, materials: dict, taken: set) -> dict:
+    """The resolved ``[contact]`` (``materials``: the resolved table, for what cracks need;
+    ``taken``: the walls' and loads' names, which share the history's columns)."""
     t = c.table("contact", raw, CONTACT_KEYS)
     cracks = t.get("cracks", False)
     if not isinstance(cracks, bool):
@@ -128,7 +127,7 @@ def _names(c: Checker, raw: Any, n_fields: int, taken: set) -> list:
 
 
 def _crack_needs(c: Checker, materials: dict, crack_damage: float) -> None:
-    """What crack faces need of the scene's materials and method (module doc)."""
+    """What crack faces need of the scene's materials (module doc)."""
     damaged = {n: m["damage"] for n, m in materials.items() if m.get("damage")}
     if not damaged:
         c.fail("contact.cracks", "no material has a damage model ([materials.NAME.damage]): "

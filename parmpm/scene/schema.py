@@ -116,7 +116,7 @@ def resolve(raw: dict, where: str, default_name: str,
             c.expected(section, f"an array of tables [[{section}]]", raw[section])
     if "contact" in raw:  # absent when not given: older scenes resolve as they did
         out["contact"] = check_contact(c, raw["contact"], len(out["bodies"]), out["materials"],
-                                       out["method"], names)
+                                       names)
     if out.get("loads") and out["manufactured"]:
         c.fail("loads", "expected no [[loads]] with [manufactured] (its body force is the load)")
     out["time"] = _time(c, raw.get("time", {}))

@@ -97,7 +97,6 @@ class ContactPhase:
             self.dmax = np.zeros((spare, 1, stride))    # the largest D reaching a node
             self.tsum = np.zeros((spare, d + d * (d + 1) // 2, stride))  # Σ S m g, Σ S m g gᵀ
             self.cnormal = np.zeros((spare, 3, stride))  # the crack normal; 0: no crack
-        self.stride = nodes  # crack faces: how far apart two fields' copies of a node are
         self.normal = np.zeros((K, spare, 2 * d, stride))  # two candidates
         self.ext = np.zeros((K, spare, 4, stride))  # two extremes per candidate
         self.mask = np.zeros((spare, 1, stride))     # 1 at a node where fields meet
@@ -130,7 +129,8 @@ class ContactPhase:
         slots = self.grids[0].gsum_block.shape[0]
         if self.grad.shape[0] != P.n:
             self.grad = np.zeros((P.n, 3))
-        self.sides = Sides(self.field, self.fields, self.grad, self.cnormal, self.stride)
+        # two fields' copies of a node are a box's node count apart in the stacked grid
+        self.sides = Sides(self.field, self.fields, self.grad, self.cnormal, self.nodes)
         if self.max_damage < self.crack:
             self.cnormal[:slots] = 0.0
             return
