@@ -10,7 +10,7 @@
 #                                 processes (pytest-xdist; 0: one process); pytest options with
 #                                 PYTEST_ARGS='-k cli -x' (-m "not slow": no studies)
 #   make lint                     only the linter
-#   make figures                  run_scripts/make_figures.py, where it exists (the only target
+#   make figures                  run_scripts/tools/make_figures.py, where it exists (the only target
 #                                 that writes docs/figures/)
 #   make docs                     the documentation site: installs the docs extra into the venv
 #                                 (once) and runs mkdocs build --strict into site/ (open
@@ -42,7 +42,7 @@ help:
 	@echo "make run      run the default scene on $(NP) MPI ranks (creates $(VENV) on first use)"
 	@echo "make test     run the linter and the test suite (PYTEST_ARGS='...' passes options to pytest)"
 	@echo "make lint     run the linter (ruff check)"
-	@echo "make figures  regenerate the figures in docs/figures (run_scripts/make_figures.py)"
+	@echo "make figures  regenerate the figures in docs/figures (run_scripts/tools/make_figures.py)"
 	@echo "make docs     build the documentation site into site/ (mkdocs build --strict)"
 	@echo "make venv     only create $(VENV) and install parmpm[$(EXTRAS)] into it"
 	@echo "make clean    remove caches and build files (keeps results: parmpm-out/, run_scripts/out/; keeps $(VENV))"
@@ -76,10 +76,10 @@ docs: $(DOCS_STAMP)
 	$(DOCS_ENV) $(BIN)/mkdocs build --strict --site-dir site
 
 figures: $(STAMP)
-	@if [ -f run_scripts/make_figures.py ]; then \
-	  $(BIN)/python run_scripts/make_figures.py; \
+	@if [ -f run_scripts/tools/make_figures.py ]; then \
+	  $(BIN)/python run_scripts/tools/make_figures.py; \
 	else \
-	  echo "run_scripts/make_figures.py does not exist yet (planned)"; \
+	  echo "run_scripts/tools/make_figures.py does not exist yet (planned)"; \
 	fi
 
 # Results are never cleaned: parmpm-out/ (runs) and run_scripts/out/ (studies) stay. Removing

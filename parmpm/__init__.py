@@ -7,7 +7,7 @@ The public API (scripts and tests import from here, not from internals)::
     summary = parmpm.Simulation(scene, out_dir="parmpm-out/hb").run()
 
 The packages are the layers, listed top to bottom; a package imports only packages below it
-(``tests/test_import_contract.py`` derives the allowed arrows from :data:`LAYERS`):
+(``tests/project/test_import_contract.py`` derives the allowed arrows from :data:`LAYERS`):
 
 =============  =========================================================================
 ``cli``        the command line: parser, commands, launching under MPI, benchmarks

@@ -7,7 +7,7 @@ rank count). Only rank 0 writes the CSV and the PNGs. Any exception on any rank 
 rank (``main_guard``), so a study never hangs under mpirun.
 
 Outputs: ``--out`` (default ``run_scripts/out/<study>``) gets the CSV and the figures;
-``--figures DIR`` puts the figures elsewhere. Only ``make figures`` (run_scripts/make_figures.py,
+``--figures DIR`` puts the figures elsewhere. Only ``make figures`` (run_scripts/tools/make_figures.py,
 which passes ``--figures docs/figures``) writes the documentation's committed figures: a study run by
 hand, or by the tests, never overwrites them.
 

@@ -3,7 +3,7 @@
 Why a separate command: a physics scene mixes solver cost with output, metrics and scene-specific
 set-up, and its particle count is fixed. The benchmark block isolates the time-step loop at a
 chosen size, so that time per step and parallel efficiency ``E(P) = T1 / (P · T_P)`` can be
-measured at 1, 2, 4, ... ranks (``run_scripts/scaling.py`` drives it).
+measured at 1, 2, 4, ... ranks (``run_scripts/benchmarks/scaling.py`` drives it).
 
 The scene: a neo-Hookean block (E = 1 MPa, ν = 0.3, ρ = 1050 kg/m³; the hanging bar's material)
 of ``ppc`` particles per cell per axis on a grid of 0.01 m cells, square (cube) in 2D (3D) and

@@ -138,7 +138,7 @@ def _add_tools(commands) -> None:
         "bench", help="time steps of a synthetic block (time per step, phases, halo share)",
         description="Benchmark the time-step loop on a translating neo-Hookean block of about "
         "--particles particles; print time per step and its phases (rank 0). Run under mpirun "
-        "for several ranks; run_scripts/scaling.py compares rank counts.")
+        "for several ranks; run_scripts/benchmarks/scaling.py compares rank counts.")
     from parmpm.cli.bench import add_arguments  # light: the solver is imported only when it runs
     add_arguments(bench)
 

@@ -6,7 +6,7 @@ Jacobson (2018, "Fast winding numbers for soups and clouds", ACM TOG 37(4)): a b
 tree over the triangles, and a cluster farther than ``BETA`` times its radius from a point counts
 by the Taylor expansion of its dipole field about its centre (the vector area term and the first
 moment term), the near ones triangle by triangle. With ``BETA = 3`` its error is ~1e-3 typical,
-~2-4e-2 at worst (icospheres of 320-20480 triangles; ``tests/test_surface_geometry.py`` holds it
+~2-4e-2 at worst (icospheres of 320-20480 triangles; ``tests/geometry/test_surface_geometry.py`` holds it
 under 0.05): ample for the inside test ``w >= 1/2``, not for the number itself, which
 :func:`winding_sum` gives exactly.
 

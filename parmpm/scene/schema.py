@@ -132,7 +132,7 @@ def _regions_and_splines(c: Checker, interpolator: str, boundary: dict) -> None:
     1.5 cells, so particles a cell away from the region still lean on its held nodes (a bar held
     by a region vibrates as if held about 0.35 cells further out). A grid face mirrors the
     splines exactly (:mod:`parmpm.grid.symmetry`): the fix the message names. A study that
-    measures the error (``tests/test_bspline.py``) says ``boundary.regions_with_splines``."""
+    measures the error (``tests/shapes/test_bspline.py``) says ``boundary.regions_with_splines``."""
     if interpolator != "bspline" or boundary.get("regions_with_splines"):
         return
     for kind in ("fixed_regions", "slip_regions"):

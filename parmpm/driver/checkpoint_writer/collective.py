@@ -48,7 +48,7 @@ def write_collective(comm, P, order, path, top, like, all_patches, first, index,
     """Every rank writes its rows into ``path`` (through ``<path>.tmp``), then rank 0 fsyncs
     and renames it and prunes this run's older checkpoints. ``driver=None`` on one rank runs
     the same code serially (the tests' only way to run it with PyPI's h5py;
-    tests/test_parallel_hdf5.py runs the driver itself where a parallel HDF5 is installed). No
+    tests/io/test_parallel_hdf5.py runs the driver itself where a parallel HDF5 is installed). No
     :class:`parmpm.io.guarded_file.GuardedFile` here (MPI-IO writes the file): the free space
     is checked first."""
     rank = comm.Get_rank()

@@ -4,7 +4,7 @@
 *serialised form* (``Scene.data``: written as ``scene.toml``, hashed across ranks, stored in
 checkpoints, changed by restart keys). :meth:`SceneSpec.from_resolved` turns that dict into
 these records, in one place and by one rule, so that a misspelt name is an ``AttributeError``
-(a lint in ``tests/test_scene_records.py``), not a ``KeyError`` deep in a run:
+(a lint in ``tests/scene/test_scene_records.py``), not a ``KeyError`` deep in a run:
 
 * every table becomes the record its field is annotated with; an array of tables a tuple of
   records; ``materials`` a read-only mapping (:class:`FrozenMap`) of name → :class:`Material`;
