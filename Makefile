@@ -24,9 +24,8 @@ VENV ?= .venv
 NP ?= 2
 RUN_ARGS ?=
 PYTEST_ARGS ?=
-# two pytest workers: a fresh clone's suite is mostly numba compiling, one kernel per process at a
-# time, so two workers on two cores take 9 min where one takes 12.5 (more would oversubscribe the
-# mpirun tests' ranks, which spin while they wait)
+# two pytest workers, by measurement (2-core machine, kernels compiled, 2026-11-28): two took
+# 466 s, three 506 s (the mpirun tests' ranks then share the cores with a third worker)
 PYTEST_WORKERS ?= 2
 
 BIN := $(VENV)/bin
