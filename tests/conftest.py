@@ -42,8 +42,7 @@ def pytest_collection_modifyitems(config, items):
     first, then those with ``mpi`` tests (a launch: seconds each), most first, then the rest;
     each file's tests keep their order. pytest-xdist (``--dist loadfile``) hands out whole files
     in this order: the long ones start first and the short ones fill the workers in at the end
-    (ordered by a weight of 10 per slow test and 1 per mpi test, the pip install, 50 s, came
-    late and ran alone for the last minute: 458 s; measured again below)."""
+    (collection order put the 1-4 rank launches, the longest file, in the middle of the run)."""
     for item in items:
         if "mpirun" in getattr(item, "fixturenames", ()):
             item.add_marker(pytest.mark.mpi)
