@@ -154,7 +154,13 @@ def test_scaling_quick(tmp_path):
     assert int(weak[1]["particles"]) / int(weak[0]["particles"]) == pytest.approx(2.0, rel=0.1)
     assert float(strong[0]["efficiency"]) == 1.0 and float(weak[0]["efficiency"]) == 1.0
     for r in rows:
-        assert float(r["seconds_per_step"]) > 0 and 0.0 < float(r["efficiency"]) < 1.5
+        # the efficiency is the formula's (per-rank throughput against the 1-rank run's), not a
+        # bound on it: a bound judged the machine (1.84 measured once, the 1-rank run slowed by
+        # the other pytest worker), and timings are benchmarks' business, not tests'
+        base = strong[0] if r["kind"] == "strong" else weak[0]
+        per_rank = float(r["particles"]) / (int(r["ranks"]) * float(r["seconds_per_step"]))
+        assert float(r["seconds_per_step"]) > 0 and float(r["efficiency"]) == pytest.approx(
+            per_rank * float(base["seconds_per_step"]) / float(base["particles"]), rel=1e-9)
         assert r["oversubscribed"] == str(int(r["ranks"]) > (os.cpu_count() or 1))
         shares = {k: float(v) for k, v in r.items() if k.startswith("share_") and v != ""}
         assert {"share_p2g", "share_g2p"} <= set(shares)
