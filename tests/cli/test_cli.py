@@ -1,8 +1,10 @@
 """The command line (``python -m parmpm``) and its helpers (rank-aware logging, progress bar).
 
-Mostly subprocess tests, as a user runs it: exit codes, help text, the one-line error contract
+The command as a user runs it: exit codes, help text, the one-line error contract
 (``parmpm: error: <message>``, exit 2, no traceback), and the same contract under ``mpirun -n 2``
-(printed once, not once per rank). A few in-process tests check the error paths of ``main``
+(printed once, not once per rank). One-rank commands run inside the test process
+(:mod:`cli_harness`; ``PARMPM_TEST_CLI=subprocess`` runs them as subprocesses), launches under
+``mpirun`` as subprocesses. A few in-process tests check the error paths of ``main``
 (KeyboardInterrupt, a bug) with the scene loader replaced, without starting MPI.
 """
 
@@ -17,6 +19,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from cli_harness import parmpm_cli
 
 import parmpm.cli.main as cli
 from parmpm.core.errors import SceneError
@@ -26,10 +29,8 @@ TIMEOUT_S = 120
 
 
 def parmpm(*args: str, cwd: Path, timeout: float = TIMEOUT_S) -> subprocess.CompletedProcess:
-    """Run ``python -m parmpm ARGS`` in ``cwd`` with this repository first on the path."""
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")])))
-    return subprocess.run([sys.executable, "-m", "parmpm", *args], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=timeout)
+    """``python -m parmpm ARGS`` in ``cwd``, one rank (in this process: :mod:`cli_harness`)."""
+    return parmpm_cli(*args, cwd=cwd, timeout=timeout)
 
 
 def assert_one_line_error(proc: subprocess.CompletedProcess, *fragments: str) -> None:

@@ -12,6 +12,7 @@ import sys
 import h5py
 import numpy as np
 import pytest
+from cli_harness import parmpm_cli
 from run_waits import HISTORY_EVERY_STEP, wait_for_steps
 from mpi_launch import MPI_MARKS, mpirun, needs_mpi
 from tools.rank_cases import CROSSING
@@ -22,11 +23,8 @@ QUIET = ["--quiet"]
 OFF = ["--set", "output.snapshots=false", "--set", "output.figure=false"]
 
 
-def _cli(n, *args, timeout=180):
-    cmd = [sys.executable, "-m", "parmpm", *args]
-    if n > 1:
-        cmd = [mpirun(), "-n", str(n)] + cmd
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+def _cli(n, *args, timeout=600):
+    return parmpm_cli(*args, ranks=n, timeout=timeout)
 
 
 def _particles(path):

@@ -23,6 +23,7 @@ from types import SimpleNamespace
 import h5py
 import numpy as np
 import pytest
+from cli_harness import parmpm_cli
 from old_checkpoints import write_v3
 from tools.rank_cases import CROSSING
 
@@ -258,10 +259,7 @@ def test_random_bit_flips_in_parts_and_top_never_read_different_data(synthetic_p
 
 # --- the solver: write on N ranks, continue on M ------------------------------------------------------
 def _cli(mpirun, n, *args, timeout=TIMEOUT):
-    cmd = [sys.executable, "-m", "parmpm", *args]
-    if n > 1:
-        cmd = [mpirun, "-n", str(n)] + cmd
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+    return parmpm_cli(*args, ranks=n, mpirun=mpirun, timeout=timeout)
 
 
 RESTART = """

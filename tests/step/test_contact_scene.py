@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import csv
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from mpi_launch import mpirun, needs_mpi
+from cli_harness import parmpm_cli
+from mpi_launch import needs_mpi
 from test_checkpoint import _same
 from test_contact import BASE_SCENE, G, slid, slide_scene
 
@@ -166,9 +166,7 @@ def test_block_on_block_example_stops_at_mu_g(tmp_path):
 
 def cli(n: int, *args: str) -> subprocess.CompletedProcess:
     """``python -m parmpm ARGS --quiet``, under ``mpirun -n n`` when n > 1."""
-    cmd = [sys.executable, "-m", "parmpm", *args, "--quiet"]
-    cmd = [mpirun(), "-n", str(n)] + cmd if n > 1 else cmd
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    return parmpm_cli(*args, "--quiet", ranks=n)
 
 
 @needs_mpi

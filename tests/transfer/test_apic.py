@@ -1,12 +1,11 @@
 """APIC and MLS transfers (``method.transfer = "apic" | "mls"``, :mod:`parmpm.transfer.affine`): angular
 momentum kept to round-off on the spinning disk (FLIP's drifts), the affine field's start, rigid
 translation, a checkpoint round trip on 1 and 2 ranks, and the scene's refusals."""
-import subprocess
-import sys
 
 import h5py
 import numpy as np
 import pytest
+from cli_harness import parmpm_cli
 
 from parmpm.core.errors import SceneError
 from parmpm.scene.load import load_scene
@@ -18,10 +17,8 @@ TIMEOUT = 600
 
 
 def _run(tmp, name, *args, ranks=1, mpirun=None):
-    cmd = [sys.executable, "-m", "parmpm", *args, "-o", str(tmp / name), *QUIET]
-    if ranks > 1:
-        cmd = [mpirun, "-n", str(ranks)] + cmd
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT)
+    proc = parmpm_cli(*args, "-o", str(tmp / name), *QUIET, ranks=ranks, mpirun=mpirun,
+                      timeout=TIMEOUT)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return tmp / name
 
