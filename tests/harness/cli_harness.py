@@ -23,6 +23,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from mpi_launch import mpirun as find_mpirun
+
 REPO = Path(__file__).resolve().parents[2]
 #: a hang, not a timing: a loaded CI machine runs 3x slower
 TIMEOUT_S = 600
@@ -39,11 +41,7 @@ def parmpm_cli(*args: str, cwd: Path | str | None = None, ranks: int = 1, mpirun
     if ranks > 1 or not in_process():
         cmd = [sys.executable, "-m", "parmpm", *args]
         if ranks > 1:
-            if mpirun is None:
-                from mpi_launch import mpirun as find
-
-                mpirun = find()
-            cmd = [mpirun, "-n", str(ranks), *cmd]
+            cmd = [mpirun or find_mpirun(), "-n", str(ranks), *cmd]
         path = os.pathsep.join(filter(None, [str(REPO), os.environ.get("PYTHONPATH")]))
         return subprocess.run(cmd, cwd=cwd, env=dict(os.environ, PYTHONPATH=path),
                               capture_output=True, text=True, timeout=timeout)
@@ -55,9 +53,8 @@ def _run_here(args: list[str], cwd) -> subprocess.CompletedProcess:
 
     out, err = io.StringIO(), io.StringIO()
     logger = logging.getLogger("parmpm")
-    saved_logger = (list(logger.handlers), logger.level, logger.propagate)
-    handled = [s for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)]
-    saved_signals = {s: signal.getsignal(s) for s in handled}
+    saved_handlers, saved_level, saved_propagate = list(logger.handlers), logger.level, logger.propagate
+    saved_signals = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     saved_argv, here = sys.argv, os.getcwd()
     sys.argv = [str(REPO / "parmpm" / "__main__.py"), *args]
     try:
@@ -67,20 +64,20 @@ def _run_here(args: list[str], cwd) -> subprocess.CompletedProcess:
             try:
                 code = main(args)
             except SystemExit as exc:  # argparse: usage errors (2), --help and --version (0)
-                code = exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 1)
-                if not isinstance(exc.code, (int, type(None))):
+                if exc.code is None or isinstance(exc.code, int):
+                    code = exc.code or 0
+                else:  # sys.exit("message"): printed, exit 1, as the interpreter does
                     print(exc.code, file=sys.stderr)
+                    code = 1
     finally:
         os.chdir(here)
         sys.argv = saved_argv
         for s, handler in saved_signals.items():
             signal.signal(s, handler)
-        for h in [h for h in logger.handlers if h not in saved_logger[0]]:
-            logger.removeHandler(h)
-            h.close()
-        for h in saved_logger[0]:
-            if h not in logger.handlers:
-                logger.addHandler(h)
-        logger.setLevel(saved_logger[1])
-        logger.propagate = saved_logger[2]
+        for h in logger.handlers:
+            if h not in saved_handlers:  # the run's console handler, bound to `err`
+                h.close()
+        logger.handlers[:] = saved_handlers
+        logger.setLevel(saved_level)
+        logger.propagate = saved_propagate
     return subprocess.CompletedProcess(["parmpm", *args], code, out.getvalue(), err.getvalue())
