@@ -92,3 +92,44 @@ def ordered_sum(comm, keys: np.ndarray, partials: np.ndarray) -> np.ndarray:
     order = np.argsort(keys, kind="stable")
     # cumsum adds strictly in sequence (np.sum's pairwise blocking is not an order we control)
     return np.cumsum(partials[order], axis=0)[-1]
+
+
+def max_and_patch_sum(comm, maxima: np.ndarray, partials: np.ndarray, owner: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """One collective for what a time step's end agrees on: the element-wise maximum of
+    ``maxima`` over all ranks (as :func:`allreduce_max`), and the sum of every existing patch's
+    row of ``partials`` added in ascending patch id (as :func:`ordered_sum`: the same bits on any
+    number of ranks).
+
+    ``partials`` is this rank's (own patches, k) rows in slot order (ascending id); ``owner`` the
+    rank of every existing patch in ascending id (:attr:`decomposition.PatchSet.owner`, the same
+    on every rank), from which every rank knows how many rows every other sends: one
+    ``Allgatherv`` of plain buffers, where an ``Allreduce`` and an ``allgather`` of pickled
+    arrays were two synchronisations per step.
+    """
+    maxima = np.ascontiguousarray(maxima, dtype=np.float64)
+    partials = np.asarray(partials, dtype=np.float64)
+    m, k = maxima.size, partials.shape[1]
+    if not is_parallel(comm):
+        rows = partials
+        top = maxima.copy()
+    else:
+        from mpi4py import MPI
+
+        counts = np.bincount(owner, minlength=comm.Get_size()) * k + m
+        send = np.concatenate([maxima, partials.ravel()])
+        if send.size != counts[comm.Get_rank()]:
+            raise ValueError(f"partials must be (own patches, k), got {partials.shape} for "
+                             f"{(counts[comm.Get_rank()] - m) // max(k, 1)} own patches")
+        recv = np.empty(int(counts.sum()))
+        displs = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        comm.Allgatherv(send, [recv, counts, displs, MPI.DOUBLE])
+        top = recv[displs[:, None] + np.arange(m)].max(axis=0)
+        blocks = np.delete(recv, (displs[:, None] + np.arange(m)).ravel()).reshape(-1, k)
+        # the blocks come rank after rank, each in ascending id: put the rows in id order
+        rows = np.empty_like(blocks)
+        rows[np.argsort(owner, kind="stable")] = blocks
+    if rows.shape[0] == 0:
+        return top, np.zeros(k)
+    # cumsum adds strictly in sequence, as ordered_sum does
+    return top, np.cumsum(rows, axis=0)[-1]

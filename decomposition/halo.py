@@ -205,19 +205,22 @@ def _waitall(reqs) -> None:
         MPI.Request.Waitall(reqs)
 
 
-def accumulate(plan: HaloPlan, *fields: np.ndarray) -> None:
-    """Add every ghost copy's partial sum into the owning node; fields are (slots, nodes, k)."""
-    _gather(plan, fields, 1)
+def accumulate(plan: HaloPlan, *fields: np.ndarray, maxima: tuple = ()) -> None:
+    """Add every ghost copy's partial sum into the owning node; fields are (slots, nodes, k).
+    ``maxima``: more fields combined as :func:`accumulate_max` combines them, in the same
+    message (one exchange with each peer for both)."""
+    _gather(plan, fields + tuple(maxima), (1,) * len(fields) + (2,) * len(maxima))
 
 
 def accumulate_max(plan: HaloPlan, *fields: np.ndarray) -> None:
     """Keep at every owning node the largest of its ghost copies' values (a per-node maximum
     over the particles of every patch: the same on any number of ranks, whatever the order)."""
-    _gather(plan, fields, 2)
+    _gather(plan, fields, (2,) * len(fields))
 
 
-def _gather(plan: HaloPlan, fields, mode: int) -> None:
-    """Bring every ghost copy to its owner and combine (``mode`` of :func:`_owner_rows`)."""
+def _gather(plan: HaloPlan, fields, modes) -> None:
+    """Bring every ghost copy to its owner and combine each field by its ``modes`` entry
+    (``mode`` of :func:`_owner_rows`)."""
     k_total = sum(f.shape[2] for f in fields)
     ob, obuf, gb, gbuf = plan._buffers(k_total)
     L = plan.local_nodes3
@@ -229,7 +232,7 @@ def _gather(plan: HaloPlan, fields, mode: int) -> None:
                            TAG_ACCUMULATE)
     _waitall(rreq)
     kb = 0
-    for f in fields:
+    for f, mode in zip(fields, modes):
         _owner_rows(f, plan.own_rows, L, obuf, ob, plan.own_seg_nodes, kb, mode)
         kb += f.shape[2]
     _waitall(sreq)

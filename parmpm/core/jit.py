@@ -26,9 +26,6 @@ from parmpm.core.cache_key import install as _key_cache_to_sources
 
 _key_cache_to_sources()  # before any kernel below is decorated
 
-#: the dimensions loops are compiled for, one specialisation each (``literal_unroll(DIMS)``)
-DIMS = (1, 2, 3)
-
 JIT_OPTIONS = dict(cache=True, fastmath=False, nogil=True, error_model="numpy")
 
 kernel = njit(**JIT_OPTIONS)

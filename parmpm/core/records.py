@@ -25,11 +25,17 @@ def kernel_lcr(lcr: float | None) -> float:
         raise ValueError(f"l_cr must be positive or None, got {lcr!r}")
     return lcr
 
-#: the interpolator code, the dimension, ``l_cr`` (:data:`NO_SCALING`: no domain scaling),
+#: the axes of a ``d``-dimensional problem, ``(0, …, d−1)``, by ``d``. A kernel argument holding
+#: them has a numba type of its own per dimension, so the kernel is compiled (and cached) for the
+#: dimensions a run uses and no other, with ``d = len(axes)`` a compile-time constant (LLVM unrolls
+#: every ``range(d)``)
+AXES = {1: (0,), 2: (0, 1), 3: (0, 1, 2)}
+
+#: the interpolator code, the axes (:data:`AXES`), ``l_cr`` (:data:`NO_SCALING`: no domain scaling),
 #: whether transfers are affine (APIC or MLS, :mod:`parmpm.transfer.affine`) rather than FLIP/PIC, and
 #: whether the weight gradient is MLS's (force and ``L`` from ``φ D⁻¹ r``, ``Δt f`` folded into
 #: the momentum)
-Method = namedtuple("Method", ("code", "dim", "lcr", "apic", "mls"))
+Method = namedtuple("Method", ("code", "axes", "lcr", "apic", "mls"))
 #: a rank's patches in slot order: particle ranges ``start`` of the canonical ``order`` (slot
 #: ``s`` holds physical rows ``order[start[s]:start[s + 1]]``; None: rows ``start[s]`` on, see
 #: :meth:`parmpm.particles.store.Particles.lazy_order`; the loops take it as an argument of its own so

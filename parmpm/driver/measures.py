@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from decomposition import allreduce_max, ordered_sum
+from decomposition import max_and_patch_sum, ordered_sum
 from parmpm.output import domains
 from parmpm.core.collective import agree
 from parmpm.output.connectivity import compact_nodes, global_components, local_components, shared_pairs
@@ -48,15 +48,24 @@ def components(s) -> int:
         st, i, phase = s.stepper, int(err[0]), "the separation check"
         problem = st.faults.error or (inverted_message(st.disc, st.P.rows, i, phase) if inverted
                                else reach_message(st.disc, st.P.rows, st.grid_phase.bc, i, phase))
-    agree(s.comm, problem, root=None, error=SimulationError, key=-s.rank)
-    compact, n_nodes = compact_nodes(nodes, count)
-    k, label = local_components(compact, count, n_nodes)
     if s.size == 1:
-        return int(k)
-    lay = D.layout
-    pairs = shared_pairs(nodes, count, label, lay.global_nodes3, lay.psize3, lay.ghost3,
-                         lay.patches_per_axis, ps.rank_of, s.rank)
-    return global_components(s.comm, int(k), pairs)
+        agree(s.comm, problem, root=None, error=SimulationError)
+        compact, n_nodes = compact_nodes(nodes, count)
+        return int(local_components(compact, count, n_nodes)[0])
+    k, pairs = 0, (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    if problem is None:
+        compact, n_nodes = compact_nodes(nodes, count)
+        k, label = local_components(compact, count, n_nodes)
+        lay = D.layout
+        pairs = shared_pairs(nodes, count, label, lay.global_nodes3, lay.psize3, lay.ghost3,
+                             lay.patches_per_axis, ps.rank_of, s.rank)
+    # one exchange for both: the problems (the highest rank's is raised, on every rank) and
+    # every rank's pieces and shared nodes, merged alike on every rank
+    parts = s.comm.allgather((-s.rank, problem, int(k), *pairs))
+    found = [(key, p) for key, p, *_ in parts if p]
+    if found:
+        raise SimulationError(min(found, key=lambda kp: kp[0])[1])
+    return global_components([rest for _, _, *rest in parts])
 
 
 def sample_metrics(s) -> int:
@@ -71,8 +80,7 @@ def sample_metrics(s) -> int:
                                   method=s.disc.method, lcr=s.disc.lcr,
                                   inertia=s.stepper.inertia)
     per_patch = patch_sums(P.start, np.ascontiguousarray(sums))
-    total = ordered_sum(s.comm, s.patches.local_ids, per_patch)
-    maxes = allreduce_max(s.comm, maxes) if maxes.size else maxes
+    maxes, total = max_and_patch_sum(s.comm, maxes, per_patch, s.patches.owner)
     s.metrics.record(t, total, maxes, pieces, v_time=t - 0.5 * s.clock.last_dt)
     return pieces
 

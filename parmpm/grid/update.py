@@ -26,9 +26,8 @@ added (they are zero, or the energy ledger's copy of ``f``). Its force carries t
 mass, so ``f/m`` stays bounded as ``m → 0`` and no node is exempt.
 """
 import numpy as np
-from numba import literal_unroll, literally
 
-from parmpm.core.jit import DIMS, helper_kernel, kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, kernel, loop_kernel
 
 #: row stride modulo 4 KiB (in doubles) of a grid block: 208 doubles = 1664 B puts the rows of a
 #: 5-row block 768 B or more apart modulo 4 KiB, so stores to one row never falsely depend on loads
@@ -147,15 +146,18 @@ def near_region(gi0, gi1, gi2, ranges):
 
 
 @kernel
-def grid_update(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, from_momentum_only,
+def grid_update(axes, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, from_momentum_only,
                 fused):
     """Owned-node update from the P2G block ``gsum[slot] = (m, mv, f)`` rows into the block
     ``gnew[slot] = (v, Δv)`` rows (:func:`grid_block` layout). With ``from_momentum_only`` (the
     MUSL re-map) only ``v = mv/m`` with boundary conditions is formed; ``fused``: MLS momentum
     rows that already hold ``Δt f`` (module doc). Constraints are applied
     only on nodes of a constrained face (at or beyond the global node indices ``face_lo``,
-    ``face_hi`` of the physical faces) or near a region (``ranges``). The node loop is
-    compiled once per dimension (as :mod:`parmpm.transfer.generic`'s loops), without reference counting."""
+    ``face_hi`` of the physical faces) or near a region (``ranges``). ``axes``:
+    :data:`parmpm.core.records.AXES` of the dimension, so the kernel and its node loop are compiled
+    for the dimensions a run uses alone (as :mod:`parmpm.transfer.generic`'s loops); the loop runs
+    without reference counting."""
+    d = len(axes)
     bc = constraints.bc
     vold = np.zeros(3)
     vnew = np.zeros(3)
@@ -167,17 +169,14 @@ def grid_update(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, 
             face[k, side] = bc[k, side] != FREE
             mirror = mirror or is_mirror(bc[k, side])
     gref = np.zeros(3)
-    for dim in literal_unroll(DIMS):
-        if dim == d:
-            _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
-                       from_momentum_only, fused, vold, vnew, gidx, face, mirror, gref)
+    _grid_loop(axes, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
+               from_momentum_only, fused, vold, vnew, gidx, face, mirror, gref)
 
 
 @loop_kernel
-def _grid_loop(dim, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
+def _grid_loop(axes, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew,
                from_momentum_only, fused, vold, vnew, gidx, face, mirror, gref):
-    literally(dim)
-    d = dim * 1
+    d = len(axes)
     own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
     bc, regions, normal, ranges, origin, h = constraints
     L0, L1 = nloc[0], nloc[1]

@@ -110,17 +110,16 @@ def compact_nodes(nodes: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, int
     return compact, max(int(uniq.size), 1)
 
 
-def global_components(comm, local: int, pairs: tuple[np.ndarray, np.ndarray]) -> int:
-    """Number of components over all ranks from each rank's count and shared (node, label)."""
-    parts = comm.gather((local, pairs[0], pairs[1]), root=0)
-    total = None
-    if comm.Get_rank() == 0:
-        offset, nodes, labels = 0, [], []
-        for k, nd, lb in parts:
-            nodes.append(nd)
-            labels.append(lb + offset)
-            offset += k
-        nodes, labels = np.concatenate(nodes), np.concatenate(labels)
-        order = np.lexsort((labels, nodes))
-        total = offset - int(merge_count(nodes[order], labels[order], max(offset, 1)))
-    return int(comm.bcast(total, root=0))
+def global_components(parts) -> int:
+    """Number of components over all ranks from every rank's ``(count, shared nodes, their
+    labels)`` (:func:`shared_pairs`), in rank order: each rank's labels offset past the ranks
+    before it, the pieces that share a node merged. Every rank that holds ``parts`` (an
+    ``allgather``) finds the same number."""
+    offset, nodes, labels = 0, [], []
+    for k, nd, lb in parts:
+        nodes.append(nd)
+        labels.append(lb + offset)
+        offset += k
+    nodes, labels = np.concatenate(nodes), np.concatenate(labels)
+    order = np.lexsort((labels, nodes))
+    return offset - int(merge_count(nodes[order], labels[order], max(offset, 1)))

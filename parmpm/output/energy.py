@@ -20,7 +20,8 @@ the decision is the same on any number of ranks.
 
 :class:`EnergyLedger` keeps the full account a history needs (:mod:`parmpm.output.history`): the work
 of gravity, of the boundary constraints and of damping, summed on the grid every step, exactly as
-the grid update applies them. ``docs/energy.md`` derives the balance and what its residual
+the grid update applies them; the step's per-patch sums ride on the step's one closing
+collective (:meth:`parmpm.step.stepper.Stepper.finish`). ``docs/energy.md`` derives the balance and what its residual
 measures.
 """
 from __future__ import annotations
@@ -166,7 +167,7 @@ class EnergyLedger:
     """The energy given to and taken from the body since the ledger started, summed every step
     on the grid (:func:`grid_work`): ``forces`` (internal and body forces), ``gravity``,
     ``damping`` (dissipated, ≥ 0) and ``boundary`` (the constraints' work, ≤ 0). Each step's
-    per-patch sums are added in patch order (:func:`decomposition.ordered_sum`), so every total
+    per-patch sums are added in patch order (:func:`decomposition.max_and_patch_sum`), so every total
     is the same on any number of ranks. The stepper calls :meth:`add` after its force update
     when a history is written."""
 
@@ -191,9 +192,13 @@ class EnergyLedger:
         self.steps = 0
         self.power = None      # the last step's internal power −W_f/Δt
         self.estimate = 0.0    # ½ Σ Δt_k (P_k − P_{k−1}): the residual's leading term
+        #: this step's local rows until the step's end sums them: [grid's (with walls' and
+        #: contact's), loads' or None, Δt, walls, contact fields]
+        self._pending = None
 
     def add(self, stepper, dt: float, gravity: np.ndarray) -> None:
-        """Add one grid update's work (collective: every rank calls it in the same step)."""
+        """This rank's per-patch work of one grid update (local: the step's end sums it over all
+        ranks with the step's other agreements, :meth:`partials`, and books it, :meth:`settle`)."""
         phase = stepper.grid_phase
         nodes, constraints = phase.records()
         per_patch = None
@@ -201,14 +206,45 @@ class EnergyLedger:
             work = grid_work(stepper.disc.dim, nodes, constraints, dt, gravity, phase.damping,
                              phase.mass_eps, grid.gsum_block, grid.gnew_block, stepper.mls)
             per_patch = work if per_patch is None else per_patch + work
-        both = ordered_sum(stepper.comm, stepper.patches.local_ids, per_patch)
-        step, self.support_step = both[:5], both[5:]
-        self.support = self.support + self.support_step
-        walls = stepper.walls
+        blocks = [per_patch]
+        walls, contact = stepper.walls, stepper.contact
+        n_walls = 0 if walls is None else len(walls.names)
+        n_contact = 0 if contact is None else contact.K
         if walls is not None:
-            n = len(walls.names)
-            sums = walls.sums.reshape(walls.sums.shape[0], 6 * n)
-            both = ordered_sum(stepper.comm, stepper.patches.local_ids, sums).reshape(n, 6)
+            blocks.append(walls.sums.reshape(walls.sums.shape[0], 6 * n_walls))
+        if contact is not None:
+            blocks.append(contact.sums.reshape(contact.sums.shape[0], 6 * n_contact))
+        self._pending = [np.concatenate(blocks, axis=1), None, dt, n_walls, n_contact]
+
+    def add_loads(self, stepper, dt: float, bforce: np.ndarray, v_start: np.ndarray) -> None:
+        """This rank's per-patch work of the external loads over one step, from the step's start
+        velocities ``v_start`` and the particles' velocities now (rows as they lie); local, summed
+        and booked with the grid's work (:meth:`add`)."""
+        P = stepper.P
+        self._pending[1] = load_work(P.dim, P.start, P.order(), P.rows.mass, bforce, v_start,
+                                     P.rows.v, dt)
+
+    def partials(self) -> np.ndarray | None:
+        """The step's per-patch rows to sum over all ranks (patch order), or None when
+        :meth:`add` was not called this step."""
+        if self._pending is None:
+            return None
+        grid, loads = self._pending[:2]
+        return grid if loads is None else np.concatenate([grid, loads], axis=1)
+
+    def settle(self, sums: np.ndarray) -> None:
+        """Book the step's totals: ``sums`` of :meth:`partials` over every patch, added in patch
+        order (:func:`decomposition.max_and_patch_sum`), so every total is the same on any number
+        of ranks. Columns: the grid's 8 (:func:`grid_work`), 6 per wall, 6 per contact field,
+        then the loads' 1 when they work."""
+        _, loads, dt, n, n_contact = self._pending
+        self._pending = None
+        step, self.support_step = sums[:5], sums[5:8]
+        self.support = self.support + self.support_step
+        at = 8
+        if n:
+            both = sums[at:at + 6 * n].reshape(n, 6)
+            at += 6 * n
             self.wall_step = both[:, :4]
             if self.walls.shape[0] != n:
                 self.walls = np.zeros((n, 4))
@@ -219,14 +255,12 @@ class EnergyLedger:
             step = np.concatenate([step, [self.wall_step[:, 3].sum(), 0.0]])
         else:
             step = np.concatenate([step, [0.0, 0.0]])
-        contact = stepper.contact
-        if contact is not None:
-            n = contact.K
-            sums = contact.sums.reshape(contact.sums.shape[0], 6 * n)
-            both = ordered_sum(stepper.comm, stepper.patches.local_ids, sums).reshape(n, 6)
+        if n_contact:
+            both = sums[at:at + 6 * n_contact].reshape(n_contact, 6)
+            at += 6 * n_contact
             self.contact_step = both[:, :4]
-            if self.contact.shape[0] != n:
-                self.contact = np.zeros((n, 4))
+            if self.contact.shape[0] != n_contact:
+                self.contact = np.zeros((n_contact, 4))
             self.contact += self.contact_step
             step = step.copy()
             step[0] += both[:, 4].sum()  # the forces' and gravity's work at the contact nodes
@@ -241,15 +275,8 @@ class EnergyLedger:
             self.estimate += 0.5 * dt * (power - self.power)
         self.power = power
         self.steps += 1
-
-    def add_loads(self, stepper, dt: float, bforce: np.ndarray, v_start: np.ndarray) -> None:
-        """Add the external loads' work over one step (collective), from the step's start
-        velocities ``v_start`` and the particles' velocities now (rows as they lie)."""
-        P = stepper.P
-        per_patch = load_work(P.dim, P.start, P.order(), P.rows.mass, bforce, v_start,
-                              P.rows.v, dt)
-        step = ordered_sum(stepper.comm, stepper.patches.local_ids, per_patch)
-        self.totals[self.FIELDS.index("loads")] += float(step[0])
+        if loads is not None:
+            self.totals[self.FIELDS.index("loads")] += float(sums[at])
 
     def work(self) -> dict:
         return dict(zip(self.FIELDS, (float(v) for v in self.totals)))

@@ -4,9 +4,9 @@ particle), for seeding, restarts, re-decomposition and the migration check."""
 from __future__ import annotations
 
 import numpy as np
-from numba import literal_unroll, literally
 
-from parmpm.core.jit import DIMS, kernel, loop_kernel
+from parmpm.core.jit import kernel, loop_kernel
+from parmpm.core.records import AXES
 from parmpm.grid.patch_index import patch_id1, patch_id2, patch_id3
 
 
@@ -17,26 +17,23 @@ def locate_patches(d, x, origin, inv_h, cells, psize, ppa, current, out, order=N
     specialised kernels use; the loop is compiled per dimension without reference counting."""
     if order is None:
         order = np.arange(x.shape[0], dtype=np.uint64)
-    return _locate_patches(d, x, origin, inv_h, cells, psize, ppa, current, out, order)
+    return _locate_patches(AXES[d], x, origin, inv_h, cells, psize, ppa, current, out, order)
 
 
 @kernel
-def _locate_patches(d, x, origin, inv_h, cells, psize, ppa, current, out, order):
+def _locate_patches(axes, x, origin, inv_h, cells, psize, ppa, current, out, order):
+    d = len(axes)  # compiled per dimension (parmpm.core.records.AXES)
     loc = np.zeros((3, 3), np.int64)
     inv_ps = np.zeros(3)
     for k in range(d):
         loc[0, k], loc[1, k], loc[2, k] = cells[k], psize[k], ppa[k]
         inv_ps[k] = 1.0 / psize[k]
-    result = (-1, 0)
-    for dim in literal_unroll(DIMS):
-        if dim == d:
-            result = _locate_loop(dim, x, origin, inv_h, loc, inv_ps, current, out, order)
-    return result
+    return _locate_loop(axes, x, origin, inv_h, loc, inv_ps, current, out, order)
 
 
 @loop_kernel
-def _locate_loop(dim, x, origin, inv_h, loc, inv_ps, current, out, order):
-    literally(dim)
+def _locate_loop(axes, x, origin, inv_h, loc, inv_ps, current, out, order):
+    dim = len(axes)
     first = -1
     moved = 0
     for k in range(order.size):

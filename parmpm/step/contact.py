@@ -122,7 +122,7 @@ class ContactPhase:
 
     def find_sides(self, transfers, P, plan, nodes, err: np.ndarray) -> None:
         """Crack faces: the damage field, every particle's damage gradient and every node's
-        crack normal (collective: four exchanges), as :attr:`sides` for this step's transfers
+        crack normal (collective: four halo exchanges), as :attr:`sides` for this step's transfers
         (:mod:`parmpm.grid.crack`). While no particle anywhere is damaged enough for a crack
         (:attr:`max_damage`, the same on every rank) every node's normal is zero without a
         pass: what the passes would find."""
@@ -137,8 +137,7 @@ class ContactPhase:
         how, boxes, fields = transfers.records()
         dsum, dmax = _views(self.dsum[:slots], self.nodes), _views(self.dmax[:slots], self.nodes)
         damage_sums(how, boxes, fields, P.rows.damage, dsum, dmax, err)
-        accumulate(plan, dsum)
-        accumulate_max(plan, dmax)
+        accumulate(plan, dsum, maxima=(dmax,))
         nodal_damage(nodes, self.dsum)
         fill(plan, dsum[:, :, 1:])
         tsum = _views(self.tsum[:slots], self.nodes)

@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from decomposition import allreduce_max
-from parmpm.core.records import Constraints, OwnedNodes
+from parmpm.core.records import AXES, Constraints, OwnedNodes
 from parmpm.grid.symmetry import (fold_moments, fold_sums, mirror_faces, reflect_beyond,
                                   row_signs)
 from parmpm.grid.update import grid_update, region_node_ranges
@@ -49,7 +49,7 @@ class GridPhase:
     def update(self, grid, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
         """Nodal velocities (and increments) from the summed blocks of ``grid``."""
         nodes, constraints = self.records()
-        grid_update(self.disc.dim, nodes, constraints, dt, gravity, self.damping, self.mass_eps,
+        grid_update(AXES[self.disc.dim], nodes, constraints, dt, gravity, self.damping, self.mass_eps,
                     grid.gsum_block, grid.gnew_block, momentum_only, self.mls)
 
     def fold(self, grid, rows: int, momentum_only: bool) -> None:

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from decomposition import PatchSet, accumulate, allreduce_max, fill
+from decomposition import PatchSet, accumulate, allreduce_max, fill, max_and_patch_sum
 from parmpm.core.collective import agree
 from parmpm.core.errors import SimulationError
 from parmpm.materials import COL_DAMAGE
@@ -319,8 +319,10 @@ class Stepper:
 
     # --- agreement between ranks ----------------------------------------------------------------
     def finish(self, vmax: float) -> float:
-        """End-of-step collective: one ``Allreduce(MAX)`` of (speed, error, patch-set change,
-        particles per rank, stop signal); raises a run-stopping error on every rank at once."""
+        """End-of-step collective: the maximum over the ranks of (speed, error, patch-set change,
+        particles per rank, stop signal, largest damage) and, when a history is written, the
+        energy ledger's per-patch sums, in one exchange (:func:`decomposition.max_and_patch_sum`);
+        raises a run-stopping error on every rank at once."""
         ps, P, faults = self.patches, self.P, self.faults
         cracks = self.contact is not None and self.contact.crack is not None
         local = np.array([vmax if math.isfinite(vmax) else math.inf,
@@ -328,7 +330,12 @@ class Stepper:
                           1.0 if self.moves.occupancy_changed else 0.0, float(P.n),
                           1.0 if self.stop_flag else 0.0,
                           float(P.rows.damage.max(initial=0.0)) if cracks else 0.0])
-        g = allreduce_max(self.comm, local)
+        partials = self.ledger.partials() if self.ledger is not None else None
+        if partials is None:
+            g = allreduce_max(self.comm, local)
+        else:
+            g, sums = max_and_patch_sum(self.comm, local, partials, ps.owner)
+            self.ledger.settle(sums)
         self.stop_requested = bool(g[4] > 0)
         if cracks:  # no crack anywhere: the next step's sides need no passes (ContactPhase)
             self.contact.max_damage = float(g[5])

@@ -14,7 +14,7 @@ def damage_sums(how, boxes, fields, damage, sums, dmax, err):
     """``sums`` (node-major, rows ``Σ S m``, ``Σ S m D``) and ``dmax`` (the largest ``D`` of a
     particle of nonzero weight) of this rank's patch slots (zeroed here)."""
     _damage_sums_loop(how, boxes, boxes.order, fields, damage, (sums, dmax), err,
-                      loop_scratch(boxes.nloc, how.dim))
+                      loop_scratch(boxes.nloc, len(how.axes)))
 
 
 @loop_kernel
@@ -22,7 +22,7 @@ def _damage_sums_loop(how, boxes, order, fields, damage, out, err, scratch):
     sums, dmax = out
     sums[:] = 0.0
     dmax[:] = 0.0
-    each_particle(_damage_one, how.dim, how, boxes, order, fields, err, scratch, out, damage, 0,
+    each_particle(_damage_one, len(how.axes), how, boxes, order, fields, err, scratch, out, damage, 0,
                   None)
 
 
@@ -48,13 +48,13 @@ def damage_gradients(how, boxes, fields, dnode, grad, tsum, err):
     ``dnode`` (node-major, one row), and ``tsum`` (node-major, zeroed here): rows ``Σ S m g``
     then the upper triangle of ``Σ S m g gᵀ``."""
     _gradients_loop(how, boxes, boxes.order, fields, dnode, (grad, tsum), err,
-                    loop_scratch(boxes.nloc, how.dim))
+                    loop_scratch(boxes.nloc, len(how.axes)))
 
 
 @loop_kernel
 def _gradients_loop(how, boxes, order, fields, dnode, out, err, scratch):
     out[1][:] = 0.0
-    each_particle(_gradient_one, how.dim, how, boxes, order, fields, err, scratch, out, dnode,
+    each_particle(_gradient_one, len(how.axes), how, boxes, order, fields, err, scratch, out, dnode,
                   0, None)
 
 

@@ -38,17 +38,16 @@ the step still ends on every rank, and the caller stops the run.
 Each public kernel allocates its scratch and hands it to a ``@loop_kernel`` body (``_*_loop``)
 that runs the particle loop without reference counting (see :mod:`parmpm.core.jit`): one walk,
 :func:`each_particle`, with each kernel's work per particle (``_*_one``) inlined into it. The
-hot bodies (P2G, the momentum re-map, G2P) are compiled once per dimension —
-``literal_unroll(DIMS)`` passes ``d`` as a compile-time constant — so LLVM fully unrolls every
-``range(d)`` loop, the helpers' included (1.2–1.4× over a runtime ``d``; three compilations
-instead of one).
+kernels are compiled once per dimension a run uses: ``how.axes`` (:data:`parmpm.core.records.AXES`)
+has a type of its own per dimension, so ``d = len(how.axes)`` is a compile-time constant and LLVM
+fully unrolls every ``range(d)`` loop, the helpers' included (1.2–1.4× over a runtime ``d``), and a
+1D run never compiles the 2D and 3D loops.
 """
 import math
 
 import numpy as np
-from numba import literal_unroll, literally
 
-from parmpm.core.jit import DIMS, helper_kernel, inline_kernel, kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, inline_kernel, kernel, loop_kernel
 from parmpm.grid.crack import field_node, to_fields
 from parmpm.materials.damage import damage_update
 from parmpm.materials.kinematics import det_d, flip_pic, update_F
@@ -161,18 +160,13 @@ def p2g(how, boxes, fields, bforce, dt, out, err, sides):
     ``how``, ``boxes``, ``fields``: :mod:`parmpm.core.records`; ``dt``: the step (MLS folds
     ``Δt f`` into the momentum; unused otherwise); ``sides``: crack faces (the stacked grid of
     every field, :data:`parmpm.core.records.Sides`) or None."""
-    d = how.dim
-    scratch = loop_scratch(boxes.nloc, d)
-    for dim in literal_unroll(DIMS):
-        if dim == d:
-            _p2g_loop(how, dim, boxes, boxes.order, fields, bforce, dt, out, err, scratch,
-                      sides)
+    scratch = loop_scratch(boxes.nloc, len(how.axes))
+    _p2g_loop(how, boxes, boxes.order, fields, bforce, dt, out, err, scratch, sides)
 
 
 @loop_kernel
-def _p2g_loop(how, dim, boxes, order, fields, bforce, dt, out, err, scratch, sides):
-    literally(dim)
-    d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
+def _p2g_loop(how, boxes, order, fields, bforce, dt, out, err, scratch, sides):
+    d = len(how.axes)  # a compile-time constant (the dimension is in how's type)
     gm, gmv, gf = out
     gm[:] = 0.0
     gmv[:] = 0.0
@@ -219,17 +213,13 @@ def _p2g_one(i, p, n, d, how, boxes, fields, scratch, out, args, acc):
 @kernel
 def p2g_momentum(how, boxes, fields, gmv, err, sides):
     """The MUSL re-map of particle momentum into ``gmv`` (``sides``: as :func:`p2g`)."""
-    d = how.dim
-    scratch = loop_scratch(boxes.nloc, d)
-    for dim in literal_unroll(DIMS):
-        if dim == d:
-            _p2g_momentum_loop(how, dim, boxes, boxes.order, fields, gmv, err, scratch, sides)
+    scratch = loop_scratch(boxes.nloc, len(how.axes))
+    _p2g_momentum_loop(how, boxes, boxes.order, fields, gmv, err, scratch, sides)
 
 
 @loop_kernel
-def _p2g_momentum_loop(how, dim, boxes, order, fields, gmv, err, scratch, sides):
-    literally(dim)
-    d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
+def _p2g_momentum_loop(how, boxes, order, fields, gmv, err, scratch, sides):
+    d = len(how.axes)  # a compile-time constant (the dimension is in how's type)
     gmv[:] = 0.0
     each_particle(_p2g_momentum_one, d, how, boxes, order, fields, err, scratch, gmv, None, 0,
                   sides)
@@ -257,21 +247,14 @@ def g2p(mode, how, boxes, dt, flip, fields, material, grid, err, sides):
     """One of the three G2P modes (:mod:`parmpm.transfer.update_order`) from ``grid = (v, Δv)`` node-major
     views. Returns the largest ``c_p + |v_p|`` over the particles (for the next CFL step) in the
     deformation modes."""
-    d = how.dim
-    scratch = loop_scratch(boxes.nloc, d)
-    vmax = 0.0
-    for dim in literal_unroll(DIMS):
-        if dim == d:
-            vmax = _g2p_loop(mode, how, dim, boxes, boxes.order, dt, flip, fields, material, grid,
-                             err, scratch, sides)
-    return vmax
+    scratch = loop_scratch(boxes.nloc, len(how.axes))
+    return _g2p_loop(mode, how, boxes, boxes.order, dt, flip, fields, material, grid, err,
+                     scratch, sides)
 
 
 @loop_kernel
-def _g2p_loop(mode, how, dim, boxes, order, dt, flip, fields, material, grid, err, scratch,
-              sides):
-    literally(dim)
-    d = dim * 1  # a plain int for the helpers (compiled once, not per dim); LLVM still folds it
+def _g2p_loop(mode, how, boxes, order, dt, flip, fields, material, grid, err, scratch, sides):
+    d = len(how.axes)  # a compile-time constant (the dimension is in how's type)
     return each_particle(_g2p_one, d, how, boxes, order, fields, err, scratch, material,
                          (mode, dt, flip, grid, sides), 0.0, sides)
 
@@ -357,12 +340,12 @@ def support_nodes(how, boxes, fields, nodes, count, err):
     """Global flat ids of the nodes each particle touches with nonzero weight (for separation
     detection: particles sharing no node exchange no momentum). ``nodes`` is (N, K)."""
     _support_nodes_loop(how, boxes, boxes.order, fields, (nodes, count, err),
-                        loop_scratch(boxes.nloc, how.dim))
+                        loop_scratch(boxes.nloc, len(how.axes)))
 
 
 @loop_kernel
 def _support_nodes_loop(how, boxes, order, fields, out, scratch):
-    each_particle(_support_nodes_one, how.dim, how, boxes, order, fields, out[2], scratch, out,
+    each_particle(_support_nodes_one, len(how.axes), how, boxes, order, fields, out[2], scratch, out,
                   None, 0, None)
 
 

@@ -2,10 +2,14 @@
 
 * accumulate then fill over ranks: every rank's patches hold exactly (bit for bit) what the
   one-rank exchange of the same fields gives — the global sum on every copy of every node, added
-  in the same order — for random patch-to-rank assignments and sparse patch sets;
+  in the same order — for random patch-to-rank assignments and sparse patch sets; sums and
+  maxima in one message give what two exchanges give on one rank;
 * migrate: records sent to random ranks arrive exactly once with every field intact, through the
   all-ranks path and the neighbours-only path;
-* PatchSet: every rank derives the same patch set and owners after updates and re-balancing.
+* PatchSet: every rank derives the same patch set and owners after updates and re-balancing;
+* a step's closing collective (:func:`decomposition.max_and_patch_sum`): the maximum over the
+  ranks, and per-patch rows summed in patch order bit for bit as one rank sums them (and as
+  :func:`decomposition.ordered_sum` does), also with ranks that own no patch.
 """
 
 import sys
@@ -13,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from decomposition import HaloPlan, PatchLayout, PatchSet, accumulate, fill, migrate, world
+from decomposition import (HaloPlan, PatchLayout, PatchSet, accumulate, accumulate_max, fill,
+                           max_and_patch_sum, migrate, ordered_sum, world)
 from decomposition.partition import active_patches
 
 LAYOUTS = [((10,), (3,), 1), ((9,), (2,), 2), ((7, 5), (3, 2), 1), ((6, 4), (2, 2), 3),
@@ -46,6 +51,14 @@ def check_halo(comm, rng_seed: int) -> None:
             fill(plan, fl, gl)
             assert np.array_equal(fl, fs[mine]) and np.array_equal(gl, gs[mine]), \
                 f"rank {rank}: halo differs from one rank for layout {cells}/{psize}/{ghost} trial {trial}"
+            # sums and maxima in one message: each as its own exchange gives it on one rank
+            fs, gs = f.copy(), g.copy()
+            accumulate(serial, fs)
+            accumulate_max(serial, gs)
+            fl, gl = f[mine].copy(), g[mine].copy()
+            accumulate(plan, fl, maxima=(gl,))
+            assert np.array_equal(fl, fs[mine]) and np.array_equal(gl, gs[mine]), \
+                f"rank {rank}: sums with maxima differ for layout {cells}/{psize}/{ghost} trial {trial}"
 
 
 def check_migrate(comm) -> None:
@@ -99,11 +112,30 @@ def check_patchset(comm) -> None:
         assert np.array_equal(ps.ids, active_patches(lay, np.flatnonzero(counts)))
 
 
+def check_step_collective(comm) -> None:
+    lay = PatchLayout((40, 24), (4, 4), 2)
+    rank, size = comm.Get_rank(), comm.Get_size()
+    for seed, occupied in ((3, 12), (4, 2)):  # two occupied patches: idle ranks on 3 and 4
+        rng = np.random.default_rng(seed)  # same on every rank
+        counts = np.zeros(lay.n_patches, np.int64)
+        counts[rng.choice(lay.n_patches, occupied, replace=False)] = rng.integers(1, 500, occupied)
+        ps = PatchSet(lay, comm, counts)
+        # rows of widely different magnitudes: a sum in another order rounds differently
+        rows = rng.standard_normal((lay.n_patches, 7)) * 10.0 ** rng.integers(-8, 9, (lay.n_patches, 1))
+        maxima = rng.standard_normal((size, 5))
+        top, sums = max_and_patch_sum(comm, maxima[rank], rows[ps.local_ids], ps.owner)
+        assert np.array_equal(top, maxima.max(axis=0)), "maximum differs"
+        one_rank = np.cumsum(rows[ps.ids], axis=0)[-1]
+        assert np.array_equal(sums, one_rank), "patch sums differ from one rank's"
+        assert np.array_equal(sums, ordered_sum(comm, ps.local_ids, rows[ps.local_ids]))
+
+
 def main() -> None:
     comm = world()
     check_halo(comm, 5)
     check_migrate(comm)
     check_patchset(comm)
+    check_step_collective(comm)
     comm.Barrier()
     if comm.Get_rank() == 0:
         print("OK", flush=True)
