@@ -21,7 +21,7 @@ SHAPE_DIMS = {"box": (1, 2, 3), "disk": (2,), "sphere": (3,),
               **{s: d for s, d in PART_DIMS.items() if s != "half_space"}, **FILE_DIMS}
 BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration",
              "angular_velocity", "angle", "velocity_gradient", "axis", "length", "vertices",
-             "parts", "file", "groups", "split", "step")
+             "parts", "file", "groups", "split", "step", "seeding")
 SHAPE_KEYS = {"box": ("min", "max"), "disk": ("center", "radius"), "sphere": ("center", "radius"),
               **{s: k for s, k in PART_KEYS.items() if s not in ("box", "half_space")},
               **FILE_KEYS}
@@ -33,6 +33,11 @@ _PLACED_BY = {"disk": "center", "sphere": "center", "cylinder": "center", "polyg
 #: bodies whose particles are listed (one per quadrature point or file row), not a lattice
 LISTED_SHAPES = ("mesh", "particles")
 VIBRATION_KEYS = ("amplitude", "mode", "axis")
+#: how a body's particles are placed: "conforming" follows its outline (a disk's rings,
+#: :mod:`parmpm.particles.seeding.polar`), "lattice" is the grid-aligned lattice it masks
+SEEDINGS = ("conforming", "lattice")
+#: the shapes that can be seeded to follow their outline
+CONFORMING_SHAPES = ("disk",)
 
 
 #: the most particles per cell per axis: beyond it one cell holds more particles than a machine
@@ -74,8 +79,25 @@ def _body(c: Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: di
                         f"axis {axis} ({AXIS_NAMES[axis]}), expected it inside the grid "
                         f"[{lo[axis]!r}, {hi[axis]!r}]")
     out["ppc"] = _ppc(c, key, t, dim, shape)
+    out["seeding"] = _seeding(c, key, t, shape)
     _motion(c, key, t, dim, out)
     return out
+
+
+def _seeding(c: Checker, key: str, t: dict, shape: str) -> str | None:
+    """"conforming" (the default where the shape has it) or "lattice"; None for a listed
+    body (its points are given)."""
+    if shape in LISTED_SHAPES:
+        if t.get("seeding") is not None:
+            c.fail(f"{key}.seeding", f'not used by shape "{shape}" (its particles are listed); '
+                                     "expected no seeding key")
+        return None
+    default = "conforming" if shape in CONFORMING_SHAPES else "lattice"
+    seeding = c.choice(f"{key}.seeding", t.get("seeding", default), SEEDINGS)
+    if seeding == "conforming" and shape not in CONFORMING_SHAPES:
+        c.fail(f"{key}.seeding", f'"conforming" is not yet available for shape "{shape}" '
+                                 f'(only for {", ".join(CONFORMING_SHAPES)}); expected "lattice"')
+    return seeding
 
 
 def _material(c: Checker, key: str, t: dict, out: dict, dim: int, materials: dict) -> str | None:

@@ -29,7 +29,14 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
 * ``[[bodies]]`` (at least one): ``shape`` ("box", "disk" in 2D, "sphere" in 3D; default "box");
   box: ``min``, ``max``; disk/sphere: ``center``, ``radius``; ``material`` (required);
   ``ppc`` (particles per cell per axis, 1 to 1000, default 2; a disk or sphere must hold at
-  least one point of its lattice); ``velocity`` (default 0); optional
+  least one point of its lattice); ``seeding`` ("conforming" | "lattice"; default "conforming"
+  for a disk, the only shape that has it yet, "lattice" elsewhere; not for bodies from files):
+  "conforming" cuts a disk into rings about a particle spacing wide (the spacing
+  ``Δx/ppc``, the geometric mean over the axes), one particle per cell at its centroid with the
+  cell's area and a CPDI domain along its radius, so the outer particles follow the circle and
+  the masses add up to ``ρ π R²`` (:mod:`parmpm.particles.seeding.polar`); "lattice" keeps the
+  points of the grid-aligned lattice inside the shape (a disk then has flats where the circle
+  meets a lattice row); ``velocity`` (default 0); optional
   ``[bodies.vibration]`` (box only): ``amplitude`` (required), ``mode`` (default 1), ``axis``
   (default 0): initial velocity along ``axis`` is ``amplitude·sin(β_n (X − min[axis]))`` with
   ``β_n = (2n − 1)π / (2L)``, ``L`` the box length along ``axis`` (the first mode of a bar fixed

@@ -61,7 +61,15 @@ def _wait(proc: subprocess.Popen, limit: float = STOP_S) -> int:
         pytest.fail(f"the run did not stop within {limit} s of the hang-up")
 
 
+def _hang_ups_delivered():
+    """In the child: SIGHUP's default disposition, whatever the test process inherited (under
+    ``nohup make test`` it is ignored, and an ignored disposition survives exec: parmpm would
+    rightly keep running, as :func:`test_nohup_keeps_the_run_going` wants)."""
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
+
+
 def _set_controlling_terminal():  # in the child, a session leader: stdin becomes its terminal
+    _hang_ups_delivered()
     fcntl.ioctl(0, termios.TIOCSCTTY, 0)
 
 
@@ -110,7 +118,7 @@ def test_a_hang_up_of_one_rank_stops_both_with_a_checkpoint(tmp_path, mpirun):
     proc = subprocess.Popen([mpirun, "-n", "2", sys.executable, "-m", "parmpm", "run",
                              "hanging_bar_1d", "-o", str(out), "--quiet", *LONG],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=ENV,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_hang_ups_delivered)
     try:
         wait_for_steps(proc, out / "history.csv")
         ranks = _rank_pids(out)

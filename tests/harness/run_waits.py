@@ -8,6 +8,7 @@ run wait for proof of steps instead: ``history.csv`` (one row per step with
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -49,7 +50,10 @@ def signal_during_set_up(out: Path, sig: int, busy: float, limit: float) -> tupl
                              "s.Simulation.__init__ = slow\n"
                              "sys.exit(main(['run', 'hanging_bar_1d', '--quiet', '-o', sys.argv[1]]))",
                              str(out)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                            # the signal's default disposition, even under nohup (an ignored
+                            # one survives exec, and parmpm keeps an ignored signal ignored)
+                            preexec_fn=lambda: signal.signal(sig, signal.SIG_DFL))
     assert proc.stdout.readline().strip() == "setting up"
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=limit)

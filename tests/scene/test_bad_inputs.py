@@ -27,7 +27,9 @@ QUIET = ["--quiet", "--set", "time.steps=2", "--set", "output.figure=false"]
 
 @pytest.mark.parametrize("scene,override,fragment", [
     # before: ValueError from numpy (a disk that seeds no particle)
-    ("spinning_disk", "bodies.0.radius=1e-6", "holds no point of its particle lattice"),
+    ("spinning_disk", "bodies.0.radius=1e-6", "is smaller than half its particle spacing"),
+    ("spinning_disk", "bodies.0={shape='disk', center=[0, 0], radius=1e-6, material='disk', "
+     "seeding='lattice'}", "holds no point of its particle lattice"),
     # before: ValueError "dimensions are too large"
     ("hanging_bar", "bodies.0.ppc=9223372036854775808", "integers from 1 to 1000"),
     ("hanging_bar", "grid.cells=[1e9,1e9]", "positive integers"),

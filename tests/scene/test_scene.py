@@ -176,11 +176,13 @@ def test_disk_and_sphere(tmp_path):
     assert scene.data["bodies"][0] == {
         "shape": "disk", "center": [2.0, 2.0], "radius": 0.5, "material": "rubber",
         "ppc": [2, 2], "velocity": [0.0, 0.0], "vibration": None,
-        "angular_velocity": None, "angle": None, "velocity_gradient": None}
+        "angular_velocity": None, "angle": None, "velocity_gradient": None,
+        "seeding": "conforming"}
     assert _round_trip(scene, tmp_path).data == scene.data
     scene = load_scene("hanging_bar_3d", ['bodies.0={shape = "sphere", center = [0.5, -0.5, 0.5], '
                                           'radius = 0.5, material = "bar"}'])
     assert scene.data["bodies"][0]["shape"] == "sphere"
+    assert scene.data["bodies"][0]["seeding"] == "lattice"  # no conforming sphere yet
 
 
 # ---------------------------------------------------------------- l_cr

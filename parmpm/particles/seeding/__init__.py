@@ -17,8 +17,10 @@ the whole body was turned at once (the same bits). A disk or sphere is its bound
 lattice masked by the ball, block by block (elementwise: the same bits on any block); a
 cylinder, polygon or CSG body (:class:`_Masked`) the same lattice filtered by its inside test
 (:func:`parmpm.geometry.csg.inside`; a surface body the winding number's), its particle volume
-the spacing's product as a disk's. A mesh or particle-file body is listed point by point, each
-with its own volume (:mod:`parmpm.particles.seeding.listed`).
+the spacing's product as a disk's. A disk seeded "conforming" (the default) is cut in rings
+instead, so that its outer particles follow the circle (:mod:`parmpm.particles.seeding.polar`),
+each particle its cell's area and domain. A mesh or particle-file body is listed point by point,
+each with its own volume (:mod:`parmpm.particles.seeding.listed`).
 
 The initial velocity field a body's particles start with is
 :mod:`parmpm.particles.seeding.velocity`.
@@ -32,6 +34,7 @@ from parmpm.core.errors import SceneError, SimulationError
 from parmpm.geometry.primitives import turn as rotation
 from parmpm.particles.locate import locate_patches
 from parmpm.particles.seeding.listed import Listed, fill, listed_seeds
+from parmpm.particles.seeding.polar import Rings
 from parmpm.particles.seeding.velocity import _initial_affine, _initial_velocity
 from parmpm.particles.store import Particles
 from parmpm.shapes.cpdi2 import affine_corners
@@ -189,7 +192,8 @@ class Seeds:
 
     def __init__(self, dim: int, chunks: list):
         self.dim = dim
-        # (points: _Lattice | _Turned | _Masked | Listed, body, spacing (None: listed),
+        # (points: _Lattice | _Turned | _Masked | Rings | Listed, body, spacing (None: listed;
+        #  a mean cell's for Rings),
         #  material row (-1: per particle, the file's), turn or None)
         self.chunks = chunks
         self.n = sum(len(c[0]) for c in chunks)
@@ -290,10 +294,14 @@ class Seeds:
     def mass(self, params: np.ndarray) -> np.ndarray:
         """Every particle's mass (a one-rank convenience)."""
         WATCH.note(self.n)
-        return np.concatenate([
-            params[c[0].material_rows(np.arange(len(c[0])), c[3]), 1] * c[0].vol
-            if isinstance(c[0], Listed) else np.full(len(c[0]), params[c[3], 1] * np.prod(c[2]))
-            for c in self.chunks])
+        def body_mass(src, spacing, row):
+            if isinstance(src, Listed):
+                return params[src.material_rows(np.arange(len(src)), row), 1] * src.vol
+            if isinstance(src, Rings):
+                return params[row, 1] * src.domains(np.arange(len(src)))[0]
+            return np.full(len(src), params[row, 1] * np.prod(spacing))
+
+        return np.concatenate([body_mass(c[0], c[2], c[3]) for c in self.chunks])
 
     def particles(self, params: np.ndarray, keep: np.ndarray | None = None,
                   optional: tuple[str, ...] = ()) -> Particles:
@@ -319,11 +327,16 @@ class Seeds:
             P.v[s] = _initial_velocity(self.dim, body, pts)
             if "affine" in P.optional:
                 P.affine[s] = _initial_affine(self.dim, body, pts)
-            P.vol0[s] = np.prod(spacing)
-            P.mass[s] = params[row, 1] * np.prod(spacing)
+            if isinstance(src, Rings):  # each cell its own area and domain
+                vol, P.lh0[s], P.r0[s] = src.domains(ids)
+                P.vol0[s] = vol
+                P.mass[s] = params[row, 1] * vol
+            else:
+                P.vol0[s] = np.prod(spacing)
+                P.mass[s] = params[row, 1] * np.prod(spacing)
+                P.lh0[s] = 0.5 * spacing
+                P.r0[s] = np.diag(0.5 * spacing) if turn is None else turn * (0.5 * spacing)
             P.mat[s] = row
-            P.lh0[s] = 0.5 * spacing
-            P.r0[s] = np.diag(0.5 * spacing) if turn is None else turn * (0.5 * spacing)
             if "corners" in P.optional:  # CPDI2: the corners of the domain R0 (F = I)
                 P.corners[s] = affine_corners(P.F[s], P.r0[s])
             first += len(src)
@@ -354,6 +367,15 @@ def seed_bodies(grid, bodies, material_rows: dict[str, int]) -> Seeds:
             if body.angle:  # the lattice turned about the box centre, domains with it
                 turn = rotation(d, body.angle)
                 pts = _Turned(pts, 0.5 * (lo + hi), turn)
+        elif body.shape == "disk" and body.seeding == "conforming":  # rings, outline followed
+            c, r = np.asarray(body.center, float), float(body.radius)
+            size = float(np.sqrt(np.prod(h / ppc)))
+            if r < 0.5 * size:
+                raise SceneError(f"bodies.{k}: a disk of radius {r:g} m is smaller than half its "
+                                 f"particle spacing ({size:.4g} m); enlarge the radius or raise "
+                                 "ppc")
+            pts = Rings(c, r, size, _block_edges)
+            spacing = pts.mean_spacing()
         elif body.shape in ("disk", "sphere"):  # on a grid-aligned lattice
             c, r = np.asarray(body.center, float), float(body.radius)
             spacing = h / ppc

@@ -150,6 +150,7 @@ class Body:
     groups: tuple[str | int, ...] | None = None
     split: int | None = None
     step: int | None = None
+    seeding: str | None = None   # "conforming" | "lattice"; None: listed (mesh, particles)
 
     @property
     def dim(self) -> int:
