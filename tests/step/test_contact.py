@@ -199,6 +199,7 @@ def test_disks_bounce_apart_keeping_momentum(head_on):
     assert 0.8 < kept <= 1.0
 
 
+@pytest.mark.slow  # two runs at Δx = 0.01 m through the impact: ~20 s, the fast loop's longest
 def test_oblique_frictionless_disks_keep_their_tangential_velocities(tmp_path):
     """Centres 0.15 m apart across the motion: the line of centres at impact is at 30°, and
     each disk's velocity along the contact plane (0.25 m/s) should survive a frictionless
