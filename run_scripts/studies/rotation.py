@@ -73,8 +73,9 @@ ring's particles do not sit on the grid's lattice, so at Δx = 0.05 m (16 rings)
 transfers lose more angular momentum (end, conforming against lattice, 2026-11-29, 2 ranks:
 mpm 0.928 / 0.968, uGIMP 0.924 / 0.974, cpGIMP 0.923 / 0.973, B-spline 0.945 / 0.974, CPDI
 0.977 / 0.982) and the stress is noisier (largest ratio mpm 9.87 / 6.31, cpGIMP 10.3 / 6.25,
-CPDI 2.13 / 1.61). At Δx = 0.025 m the two agree (momentum mpm 0.9949 / 0.9938, uGIMP
-0.9979 / 0.9954, cpGIMP 0.9958 / 0.9955, CPDI 0.9963, both), and APIC keeps the angular
+CPDI 2.13 / 1.61). At Δx = 0.025 m the two come within 0.5 % (momentum mpm 0.9949 / 0.9938,
+uGIMP 0.9979 / 0.9954, cpGIMP 0.9958 / 0.9955, CPDI 0.9963 / 0.9969, B-spline 0.9913 / 0.9959),
+and APIC keeps the angular
 momentum to round-off with either. cpGIMP's domains collapse with either; on the coarse
 ``--quick`` grid (Δx = 0.1 m, 8 rings) the conforming disk turns slower, and its minimum near
 270° falls at ωt ≈ 307° instead of 277°.
