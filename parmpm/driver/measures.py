@@ -50,12 +50,12 @@ def components(s) -> int:
                                else reach_message(st.disc, st.P.rows, st.grid_phase.bc, i, phase))
     if s.size == 1:
         agree(s.comm, problem, root=None, error=SimulationError)
-        compact, n_nodes = compact_nodes(nodes, count)
-        return int(local_components(compact, count, n_nodes)[0])
     k, pairs = 0, (np.zeros(0, np.int64), np.zeros(0, np.int64))
     if problem is None:
         compact, n_nodes = compact_nodes(nodes, count)
         k, label = local_components(compact, count, n_nodes)
+        if s.size == 1:
+            return int(k)
         lay = D.layout
         pairs = shared_pairs(nodes, count, label, lay.global_nodes3, lay.psize3, lay.ghost3,
                              lay.patches_per_axis, ps.rank_of, s.rank)

@@ -26,6 +26,8 @@ measures.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from decomposition import ordered_sum
@@ -163,6 +165,19 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fu
     return out
 
 
+@dataclass
+class _StepRows:
+    """One step's per-patch rows on this rank, until the step's closing collective sums them:
+    the grid's work with the walls' and contact's columns, the loads' (None: no load worked),
+    the step, and how many walls and contact fields the columns hold."""
+
+    grid: np.ndarray
+    loads: np.ndarray | None
+    dt: float
+    walls: int
+    contact: int
+
+
 class EnergyLedger:
     """The energy given to and taken from the body since the ledger started, summed every step
     on the grid (:func:`grid_work`): ``forces`` (internal and body forces), ``gravity``,
@@ -192,9 +207,7 @@ class EnergyLedger:
         self.steps = 0
         self.power = None      # the last step's internal power −W_f/Δt
         self.estimate = 0.0    # ½ Σ Δt_k (P_k − P_{k−1}): the residual's leading term
-        #: this step's local rows until the step's end sums them: [grid's (with walls' and
-        #: contact's), loads' or None, Δt, walls, contact fields]
-        self._pending = None
+        self._pending: _StepRows | None = None  # this step's rows until the step's end sums them
 
     def add(self, stepper, dt: float, gravity: np.ndarray) -> None:
         """This rank's per-patch work of one grid update (local: the step's end sums it over all
@@ -214,14 +227,14 @@ class EnergyLedger:
             blocks.append(walls.sums.reshape(walls.sums.shape[0], 6 * n_walls))
         if contact is not None:
             blocks.append(contact.sums.reshape(contact.sums.shape[0], 6 * n_contact))
-        self._pending = [np.concatenate(blocks, axis=1), None, dt, n_walls, n_contact]
+        self._pending = _StepRows(np.concatenate(blocks, axis=1), None, dt, n_walls, n_contact)
 
     def add_loads(self, stepper, dt: float, bforce: np.ndarray, v_start: np.ndarray) -> None:
         """This rank's per-patch work of the external loads over one step, from the step's start
         velocities ``v_start`` and the particles' velocities now (rows as they lie); local, summed
         and booked with the grid's work (:meth:`add`)."""
         P = stepper.P
-        self._pending[1] = load_work(P.dim, P.start, P.order(), P.rows.mass, bforce, v_start,
+        self._pending.loads = load_work(P.dim, P.start, P.order(), P.rows.mass, bforce, v_start,
                                      P.rows.v, dt)
 
     def partials(self) -> np.ndarray | None:
@@ -229,16 +242,16 @@ class EnergyLedger:
         :meth:`add` was not called this step."""
         if self._pending is None:
             return None
-        grid, loads = self._pending[:2]
-        return grid if loads is None else np.concatenate([grid, loads], axis=1)
+        rows = self._pending
+        return rows.grid if rows.loads is None else np.concatenate([rows.grid, rows.loads], axis=1)
 
     def settle(self, sums: np.ndarray) -> None:
         """Book the step's totals: ``sums`` of :meth:`partials` over every patch, added in patch
         order (:func:`decomposition.max_and_patch_sum`), so every total is the same on any number
         of ranks. Columns: the grid's 8 (:func:`grid_work`), 6 per wall, 6 per contact field,
         then the loads' 1 when they work."""
-        _, loads, dt, n, n_contact = self._pending
-        self._pending = None
+        rows, self._pending = self._pending, None
+        loads, dt, n, n_contact = rows.loads, rows.dt, rows.walls, rows.contact
         step, self.support_step = sums[:5], sums[5:8]
         self.support = self.support + self.support_step
         at = 8
