@@ -179,7 +179,7 @@ def _contact(spec: SceneSpec, rows: dict) -> ContactPhase:
     reach = 1.5 if spec.method.interpolator == "bspline" else 1.0  # support past the domain
     c = spec.contact
     return ContactPhase(c.field_of_body(len(spec.bodies)), body_start, c.mu, reach, spec.dim,
-                        c.crack_damage if c.cracks else None)
+                        c.crack_damage if c.cracks else None, c.normal, c.gap)
 
 
 def _discretisation(comm, spec: SceneSpec, interp, lcr: float | None) -> Discretisation:

@@ -5,23 +5,33 @@ Every field ``k`` has its own mass ``m_k``, momentum, force and updated velocity
 node, and its own first moment ``X_k = Σ_p S_ip m_p x_p`` (P2G's momentum scatter with positions
 for velocities). At a node where two or more fields have mass:
 
-* **normal** (``contact_normals``): two candidates, out of the field with the most mass at
-  the node (``−D_h``, ``D_h = X_h − m_h x_i`` its first moment about the node: Nairn's "larger
-  volume gradient" choice, with a moment for the gradient) and the line between the fields'
-  local centres of mass; ``contact_correct`` takes the one along which the fields are separated
-  most (the larger gap, below). The heavy field's normal is right at the corner of a block
-  sliding on another, where the centre line tilts and turns the slide into approach; the centre
-  line is right between two curved bodies, where the heavy field's surface normal turns away
-  from the contact point. With two fields the normals are opposite, so both agree on the plane.
-* **separation** (``contact_extents``): along each candidate ``n_k``, the farthest point of
-  field ``k``'s particle domains near the node (``max x_p·n + e_p``, ``e_p = Σ_j |r_pj·n|`` the domain's half-extent,
-  ``r = F r0``) and the nearest point of the other fields' (``min x_p·n − e_p``); the gap is their
-  difference (Nairn et al. 2018: the closest particles decide). A node whose fields have a gap
-  is not in contact whatever their velocities: bodies touch when their domains meet, not when
-  their supports first overlap a cell or more earlier (Bardenhagen's approach test alone). Only
-  the particles in the node's column across the normal count (as for walls): along a normal a
-  few degrees off the line between two disks, particles a cell above and below the node spread
-  the projections and closed a gap half a cell early.
+* **normal** (``contact_normals``, ``[contact] normal``): by default ("separating") two
+  candidates, out of the field with the most mass at the node (``−D_h``, ``D_h = X_h − m_h x_i``
+  its first moment about the node: Nairn's "larger volume gradient" choice, with a moment for
+  the gradient) and the line between the fields' local centres of mass; ``contact_correct``
+  takes the one along which the fields are separated most (the larger gap, below). The heavy
+  field's normal is right at the corner of a block sliding on another, where the centre line
+  tilts and turns the slide into approach; the centre line is right between two curved bodies,
+  where the heavy field's surface normal turns away from the contact point. With two fields the
+  normals are opposite, so both agree on the plane. For comparisons a scene can ask for one
+  normal alone: "heavy", "centroids", "gradient" (out of the field whose moment points at the
+  others most: the moment's size is Nairn's volume gradient, its direction keeps a block's
+  free front face from deciding the normal of the contact beneath it) or "average"
+  (``Σ_{j≠k} D_j − D_k``, Nairn's average volume gradient; it tilts at a body's corners).
+* **separation** (``contact_extents``, ``[contact] gap``): along each candidate ``n_k``, the
+  farthest point of field ``k``'s particle domains near the node (``max x_p·n + e_p``,
+  ``e_p = Σ_j |r_pj·n|`` the domain's half-extent, ``r = F r0``) and the nearest point of the
+  other fields' (``min x_p·n − e_p``); the gap is their difference (Nairn et al. 2018: the
+  closest particles decide). A node whose fields have a gap is not in contact whatever their
+  velocities: bodies touch when their domains meet, not when their supports first overlap a
+  cell or more earlier (Bardenhagen's approach test alone). By default ("column") only the
+  particles in the node's column across the normal count (as for walls): along a normal a few
+  degrees off the line between two disks, particles a cell above and below the node spread the
+  projections and closed a gap half a cell early. With "line" only the domains the node's own
+  line crosses count, and only their stretch on the line
+  (:func:`parmpm.grid.near.line_span`): the surfaces' distance at the node itself, so a node a
+  cell from where a disk touches a flat sees the disk's surface ``s²/2R`` above it
+  (docs/concepts/contact.md compares the two).
   The extremes are per-node maxima, combined over the ghost layers by a maximum, the same on
   any number of ranks.
 * **correction** (``contact_correct``): with ``v_c = Σ m_j v_j / Σ m_j`` the node's centre-of-mass
@@ -42,17 +52,82 @@ for velocities). At a node where two or more fields have mass:
 """
 import numpy as np
 
-from parmpm.core.jit import kernel
+from parmpm.core.jit import helper_kernel, kernel
 from parmpm.grid.crack import pair_field
-from parmpm.grid.near import domain_vectors, half_extent, node_box
+from parmpm.grid.near import domain_vectors, half_extent, line_span, node_box
+
+
+#: ``[contact] normal`` → the mode :func:`contact_normals` takes
+NORMAL_MODES = {"separating": 0, "heavy": 1, "centroids": 2, "gradient": 3, "average": 4}
+SEPARATING, HEAVY, CENTROIDS, GRADIENT, AVERAGE = range(5)
+#: ``[contact] gap`` → the mode :func:`contact_extents` takes
+GAP_MODES = {"column": 0, "line": 1}
+COLUMN, LINE = range(2)
+
+
+@helper_kernel
+def deciding_field(d, sums, X, eps, p, node, xi, c):
+    """"gradient": the field whose moment about the node points at the others most,
+    ``max_k −D_k·u_k`` (``u_k`` the unit line from its local centre of mass to the others'):
+    the magnitude is Nairn's volume gradient, the direction keeps a field's free surface beside
+    the node (a block's front face at its corner) from deciding the normal of the contact
+    beneath. ``c``: (3,) scratch."""
+    K = sums.shape[0]
+    best = -np.inf
+    out = 0
+    for k in range(K):
+        mk = sums[k, p, 0, node]
+        if not mk > eps:
+            continue
+        rest = 0.0
+        for a in range(d):
+            c[a] = 0.0
+        for j in range(K):
+            mj = sums[j, p, 0, node]
+            if j != k and mj > eps:
+                rest += mj
+                for a in range(d):
+                    c[a] += X[j, p, 1 + a, node]
+        uu = 0.0
+        for a in range(d):
+            c[a] = c[a] / rest - X[k, p, 1 + a, node] / mk
+            uu += c[a] * c[a]
+        score = 0.0
+        for a in range(d):
+            score -= (X[k, p, 1 + a, node] - mk * xi[a]) * c[a]
+        score = score / np.sqrt(uu) if uu > 0.0 else 0.0
+        if score > best:
+            best = score
+            out = k
+    return out
+
+
+@helper_kernel
+def average_normal(d, sums, X, eps, p, node, xi, k, c):
+    """"average": field ``k``'s unit normal ``∝ Σ_{j≠k} D_j − D_k`` into ``c`` (zero where
+    the moments cancel), the moments' counterpart of Nairn's average volume gradient."""
+    K = sums.shape[0]
+    size = 0.0
+    for a in range(d):
+        c[a] = -(X[k, p, 1 + a, node] - sums[k, p, 0, node] * xi[a])
+        for j in range(K):
+            mj = sums[j, p, 0, node]
+            if j != k and mj > eps:
+                c[a] += X[j, p, 1 + a, node] - mj * xi[a]
+        size += c[a] * c[a]
+    size = np.sqrt(size)
+    for a in range(d):
+        c[a] = c[a] / size if size > 0.0 else 0.0
 
 
 @kernel
-def contact_normals(d, nodes, origin, h, sums, X, eps, normal, mask):
-    """``normal[k, p, :2d, node]`` (zeroed here on owned nodes): field ``k``'s two candidate
-    contact normals (rows ``0..d−1``: out of the heavy field; ``d..2d−1``: between the centres
-    of mass) at every owned node where it and another field have mass (more than ``eps``), else
-    zero; ``mask[p, 0, node]`` 1 at those nodes, else 0.
+def contact_normals(d, nodes, origin, h, sums, X, eps, mode, normal, mask):
+    """``normal[k, p, :2d, node]`` (zeroed here on owned nodes): field ``k``'s candidate
+    contact normals at every owned node where it and another field have mass (more than
+    ``eps``), else zero (``mode``: :data:`NORMAL_MODES`): rows ``0..d−1`` out of the heavy
+    field ("separating", "heavy"), out of the deciding field ("gradient") or the moments'
+    average ("average"); rows ``d..2d−1`` the line between the centres of mass ("separating",
+    "centroids"); ``mask[p, 0, node]`` 1 at those nodes, else 0.
     ``sums``: (fields, slots, rows, stride) P2G sums (row 0 the mass); ``X``: (fields, slots,
     1 + d, stride) first moments in rows 1..d (spare slots past the patches' are not visited)."""
     own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
@@ -84,21 +159,31 @@ def contact_normals(d, nodes, origin, h, sums, X, eps, normal, mask):
                     for k in range(1, K):
                         if sums[k, p, 0, node] > sums[heavy, p, 0, node]:
                             heavy = k
+                    if mode == GRADIENT:
+                        heavy = deciding_field(d, sums, X, eps, p, node, xi, e)
                     mh = sums[heavy, p, 0, node]
                     size = 0.0
                     for a in range(d):  # candidate 0: out of the heavy field, −D_heavy
                         c[a] = mh * xi[a] - X[heavy, p, 1 + a, node]
                         size += c[a] * c[a]
-                    if not size > 0.0:
+                    if not size > 0.0 and mode != CENTROIDS and mode != AVERAGE:
                         continue  # the node at the heavy field's centre: no side to tell
                     size = np.sqrt(size)
                     for k in range(K):
                         mk = sums[k, p, 0, node]
                         if not mk > eps:
                             continue
-                        sign = 1.0 if k == heavy else -1.0
-                        for a in range(d):
-                            normal[k, p, a, node] = sign * c[a] / size
+                        if mode == AVERAGE:
+                            average_normal(d, sums, X, eps, p, node, xi, k, e)
+                            for a in range(d):
+                                normal[k, p, a, node] = e[a]
+                            continue
+                        if mode != CENTROIDS:
+                            sign = 1.0 if k == heavy else -1.0
+                            for a in range(d):
+                                normal[k, p, a, node] = sign * c[a] / size
+                        if mode == HEAVY or mode == GRADIENT:
+                            continue
                         # candidate 1: from field k's centre of mass to the others'
                         rest = 0.0
                         for a in range(d):
@@ -121,7 +206,7 @@ def contact_normals(d, nodes, origin, h, sums, X, eps, normal, mask):
 
 @kernel
 def contact_extents(d, start, order, field, x, F, r0, origin, h, reach, base, nloc, normal,
-                    mask, active, ext, sides):
+                    mask, active, ext, sides, gap):
     """For every node near a particle (within its domain's axis extent plus ``reach`` cells)
     with contact normals, over the particles in the node's column (their distance from the node
     across ``n_k`` at most half a cell, 2D, or half a face diagonal, 3D, plus their domain's
@@ -129,10 +214,14 @@ def contact_extents(d, start, order, field, x, F, r0, origin, h, reach, base, nl
     largest ``x·n_k + e`` of field ``k``'s particles, ``ext[k, p, 2c + 1, node]`` the largest
     ``−(x·n_k − e)`` of the other fields' (the caller sets them to −inf first); ``field``: each
     physical row's field, or with crack ``sides`` (:data:`parmpm.core.records.Sides`) its
-    field at each node (:func:`parmpm.grid.crack.pair_field`). Only slots with a contact node (``active``) and the nodes marked in
-    ``mask`` are visited: the rest of the grid costs one test per slot or node."""
+    field at each node (:func:`parmpm.grid.crack.pair_field`). Only slots with a contact node
+    (``active``) and the nodes marked in ``mask`` are visited: the rest of the grid costs one
+    test per slot or node. ``gap`` "line" (:data:`GAP_MODES`): only the domains the node's own
+    line along ``n_k`` crosses count, with the stretch on the line
+    (:func:`parmpm.grid.near.line_span`) for ``x·n ± e``."""
     K = normal.shape[0]
     r = np.zeros((3, 3))
+    inv = np.zeros((3, 3))
     q = np.zeros(3)
     lo = np.zeros(3, np.int64)
     hi = np.zeros(3, np.int64)
@@ -177,6 +266,18 @@ def contact_extents(d, start, order, field, x, F, r0, origin, h, reach, base, nl
                                     nn += normal[k, p, o + a, node] * normal[k, p, o + a, node]
                                 if nn == 0.0:
                                     continue
+                                if gap == LINE:  # x·n of the line's ends in the domain
+                                    t_lo, t_hi = line_span(d, r, q, normal[k, p, o:o + d, node],
+                                                           inv)
+                                    if t_lo > t_hi:
+                                        continue  # the node's line misses this domain
+                                    if k == f:
+                                        ext[k, p, 2 * cand, node] = max(
+                                            ext[k, p, 2 * cand, node], s - qn + t_hi)
+                                    else:
+                                        ext[k, p, 2 * cand + 1, node] = max(
+                                            ext[k, p, 2 * cand + 1, node], qn - s - t_lo)
+                                    continue
                                 if qq - qn * qn > (column + size) * (column + size):
                                     continue  # not in the node's column across the plane
                                 e = half_extent(d, r, normal[k, p, o:o + d, node])
@@ -189,7 +290,8 @@ def contact_extents(d, start, order, field, x, F, r0, origin, h, reach, base, nl
 
 
 @kernel
-def contact_correct(d, nodes, sums, new, normal, ext, mu, dt, gvec, heavy, eps, momentum_only):
+def contact_correct(d, nodes, sums, new, normal, ext, mu, dt, gvec, heavy, eps, momentum_only,
+                    mode):
     """Correct every field's updated velocity (``new[k]``: rows ``v``, then ``Δv`` unless
     ``momentum_only``) at the owned nodes where fields touch and approach; returns per slot and
     field: the contact impulse on the field (3), its work, and what the forces' and gravity's
@@ -233,6 +335,9 @@ def contact_correct(d, nodes, sums, new, normal, ext, mu, dt, gvec, heavy, eps, 
                         g0 = -(ext[k, p, 0, node] + ext[k, p, 1, node])
                         g1 = -(ext[k, p, 2, node] + ext[k, p, 3, node])
                         o = d if g1 > g0 else 0
+                        if mode != SEPARATING:  # one candidate
+                            o = d if mode == CENTROIDS else 0
+                            g0 = g1 = g1 if mode == CENTROIDS else g0
                         if max(g0, g1) > 0.0:
                             continue  # a gap along the better normal: not touching
                         dn = 0.0

@@ -34,10 +34,11 @@ _PLACED_BY = {"disk": "center", "sphere": "center", "cylinder": "center", "polyg
 LISTED_SHAPES = ("mesh", "particles")
 VIBRATION_KEYS = ("amplitude", "mode", "axis")
 #: how a body's particles are placed: "conforming" follows its outline (a disk's rings,
-#: :mod:`parmpm.particles.seeding.polar`), "lattice" is the grid-aligned lattice it masks
+#: :mod:`parmpm.particles.seeding.polar`; a sphere's shells,
+#: :mod:`parmpm.particles.seeding.spherical`), "lattice" is the grid-aligned lattice it masks
 SEEDINGS = ("conforming", "lattice")
 #: the shapes that can be seeded to follow their outline
-CONFORMING_SHAPES = ("disk",)
+CONFORMING_SHAPES = ("disk", "sphere")
 
 
 #: the most particles per cell per axis: beyond it one cell holds more particles than a machine

@@ -7,7 +7,10 @@ frictional contact (:mod:`parmpm.grid.contact`) instead of sharing one grid velo
                                     # default: every body its own field
     names = ["block", "table"]      # optional: one per field, naming its history columns
                                     # (default "contact<k>")
-    normal = "centroids"            # how a node's contact normal is found (the one method)
+    normal = "separating"           # how a node's contact normal is found: "separating" (the
+                                    # default), "heavy", "centroids", "gradient" or "average"
+    gap = "column"                  # where the bodies' gap is measured at a node: "column" (the
+                                    # default) or "line"
     cracks = true                   # crack faces from the damage model (default false)
     crack_damage = 1.0              # the damage at which a crack face opens (0 < D <= 1)
 
@@ -25,8 +28,11 @@ from typing import Any
 
 from parmpm.scene.check import Checker, show
 
-CONTACT_KEYS = ("friction", "fields", "normal", "cracks", "crack_damage", "names")
-NORMALS = ("centroids",)
+CONTACT_KEYS = ("friction", "fields", "normal", "gap", "cracks", "crack_damage", "names")
+#: ``normal``: how a node's contact normal is found (:mod:`parmpm.grid.contact`)
+NORMALS = ("separating", "heavy", "centroids", "gradient", "average")
+#: ``gap``: where the gap between the fields is measured at a node
+GAPS = ("column", "line")
 #: the most velocity fields a scene may have (each costs a grid's memory and a transfer pass;
 #: with cracks every field has a far side: half as many body fields)
 MAX_FIELDS = 16
@@ -34,12 +40,14 @@ MAX_FIELDS = 16
 
 @dataclass(frozen=True, slots=True)
 class Contact:
-    """``fields``: per field, its bodies' indices; ``friction``: μ or "stick"; ``normal``;
-    ``cracks``: crack faces from the damage model, opening at ``crack_damage``."""
+    """``fields``: per field, its bodies' indices; ``friction``: μ or "stick"; ``normal``,
+    ``gap``: how the contact finds a node's normal and gap; ``cracks``: crack faces from the
+    damage model, opening at ``crack_damage``."""
 
     fields: tuple[tuple[int, ...], ...]
     friction: float | str
-    normal: str = "centroids"
+    normal: str = "separating"
+    gap: str = "column"
     cracks: bool = False
     crack_damage: float = 1.0
     names: tuple[str, ...] = ()
@@ -87,9 +95,12 @@ def check_contact(c: Checker, raw: Any, n_bodies: int, materials: dict, taken: s
     if friction != "stick":
         friction = c.number("contact.friction", friction, 'a number >= 0 or "stick"',
                             lambda x: x >= 0)
-    normal = c.string("contact.normal", t.get("normal", "centroids"))
+    normal = c.string("contact.normal", t.get("normal", "separating"))
     if normal not in NORMALS:
         c.expected("contact.normal", " | ".join(f'"{n}"' for n in NORMALS), normal)
+    gap = c.string("contact.gap", t.get("gap", "column"))
+    if gap not in GAPS:
+        c.expected("contact.gap", " | ".join(f'"{g}"' for g in GAPS), gap)
     limit = MAX_FIELDS // 2 if cracks else MAX_FIELDS
     if "fields" not in t:
         fields = [list(range(n_bodies))] if cracks else [[b] for b in range(n_bodies)]
@@ -100,6 +111,8 @@ def check_contact(c: Checker, raw: Any, n_bodies: int, materials: dict, taken: s
                f"expected at least two fields (the scene has {n_bodies} "
                f"{'body' if n_bodies == 1 else 'bodies'}): one field is the run without [contact]")
     out = {"friction": friction, "fields": fields, "normal": normal}
+    if gap != "column":  # absent otherwise: scenes without it resolve as they did
+        out["gap"] = gap
     if "names" in t:  # absent otherwise: scenes without names resolve as they did
         out["names"] = _names(c, t["names"], len(fields), taken)
     if cracks:  # absent otherwise: scenes without cracks resolve as they did

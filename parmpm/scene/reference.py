@@ -30,13 +30,14 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   box: ``min``, ``max``; disk/sphere: ``center``, ``radius``; ``material`` (required);
   ``ppc`` (particles per cell per axis, 1 to 1000, default 2; a disk or sphere must hold at
   least one point of its lattice); ``seeding`` ("conforming" | "lattice"; default "conforming"
-  for a disk, the only shape that has it yet, "lattice" elsewhere; not for bodies from files):
-  "conforming" cuts a disk into rings about a particle spacing wide (the spacing
-  ``Δx/ppc``, the geometric mean over the axes), one particle per cell at its centroid with the
-  cell's area and a CPDI domain along its radius, so the outer particles follow the circle and
-  the masses add up to ``ρ π R²`` (:mod:`parmpm.particles.seeding.polar`); "lattice" keeps the
-  points of the grid-aligned lattice inside the shape (a disk then has flats where the circle
-  meets a lattice row); ``velocity`` (default 0); optional
+  for a disk or sphere, the shapes that have it yet, "lattice" elsewhere; not for bodies from
+  files): "conforming" cuts a disk into rings (a sphere into shells, each in bands and sectors)
+  about a particle spacing wide (the spacing ``Δx/ppc``, the geometric mean over the axes), one
+  particle per cell at its centroid with the cell's exact area or volume and a CPDI domain along
+  its radius, so the outer particles follow the surface and the masses add up to ``ρ π R²``
+  (``ρ (4/3) π R³``) (:mod:`parmpm.particles.seeding.polar`,
+  :mod:`parmpm.particles.seeding.spherical`); "lattice" keeps the points of the grid-aligned
+  lattice inside the shape (a disk then has flats where the circle meets a lattice row); ``velocity`` (default 0); optional
   ``[bodies.vibration]`` (box only): ``amplitude`` (required), ``mode`` (default 1), ``axis``
   (default 0): initial velocity along ``axis`` is ``amplitude·sin(β_n (X − min[axis]))`` with
   ``β_n = (2n − 1)π / (2L)``, ``L`` the box length along ``axis`` (the first mode of a bar fixed
@@ -104,8 +105,15 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   ``fields`` (a list of lists of body indices, every body in exactly one, at least two fields,
   at most 16; default: every body its own field), ``names`` (optional: one per field, 1 to 40
   letters, digits, ``_ -``, unused by any wall or load; they name the field's history columns,
-  default "contact<k>"), ``normal`` ("centroids", the one method:
-  the better separating of the heavy field's moment normal and the centre-to-centre line),
+  default "contact<k>"), ``normal`` (how a node's contact normal is
+  found from the fields' first moments about the node: "separating", the default, the better
+  separating, by the gap below, of the normal out of the field with the most mass there and
+  the line between the fields' local centres of mass; "heavy" and "centroids", each of those
+  alone; "gradient", out of the field whose moment points at the others most, Nairn's larger
+  volume gradient; "average", all fields' moments combined as Nairn's average volume gradient),
+  ``gap`` (where a node's gap between the fields is measured: "column", the default, over the
+  particle domains in the node's column across the normal; "line", only where the node's own
+  line along the normal crosses the domains),
   ``cracks`` (bool, default false: crack faces from the damage model, :mod:`parmpm.grid.crack`;
   every field gets a far side, where a particle goes at a node whose crack it is across; the
   default ``fields`` is then one field of all bodies, at most 8; needs a material with a damage

@@ -22,8 +22,8 @@ import numpy as np
 
 from decomposition import accumulate, accumulate_max, fill
 from parmpm.core.records import Sides
-from parmpm.grid.contact import (contact_correct, contact_extents, contact_normals,
-                                 field_of_rows, split_by_field)
+from parmpm.grid.contact import (GAP_MODES, NORMAL_MODES, contact_correct, contact_extents,
+                                 contact_normals, field_of_rows, split_by_field)
 from parmpm.grid.crack import crack_normals, nodal_damage
 from parmpm.grid.update import grid_block
 from parmpm.transfer.damage_field import damage_gradients, damage_sums
@@ -50,10 +50,13 @@ class ContactPhase:
     """``field_of_body``: every body's field; ``body_start``: every body's first global id, then
     the total; ``mu``: Coulomb's μ between fields (inf: stick); ``reach``: the interpolator's
     support past a particle's domain, in cells; ``crack``: the damage at which a node's crack
-    opens (``[contact] crack_damage``), or None: no crack faces."""
+    opens (``[contact] crack_damage``), or None: no crack faces; ``normal``, ``gap``:
+    ``[contact] normal`` and ``gap`` (:data:`parmpm.grid.contact.NORMAL_MODES`,
+    :data:`~parmpm.grid.contact.GAP_MODES`)."""
 
     def __init__(self, field_of_body, body_start, mu: float, reach: float, dim: int,
-                 crack: float | None = None):
+                 crack: float | None = None, normal: str = "separating",
+                 gap: str = "column"):
         self.field_of_body = np.asarray(field_of_body, np.int64)
         self.body_start = np.asarray(body_start, np.int64)
         self.fields = int(self.field_of_body.max()) + 1  # body fields
@@ -65,6 +68,7 @@ class ContactPhase:
         #: known yet); below ``crack`` no node can have a crack
         self.max_damage = np.inf
         self.mu, self.reach, self.dim = float(mu), float(reach), dim
+        self.normal_mode, self.gap_mode = NORMAL_MODES[normal], GAP_MODES[gap]
         self.field = np.zeros(0, np.int64)     # every physical row's field
         self.starts = np.zeros((self.K, 1), np.int64)
         self.orders = np.zeros((self.K, 0), np.uint64)
@@ -165,7 +169,7 @@ class ContactPhase:
         """Normals at the owned nodes, filled to their ghost copies; the fields' extremes along
         them from every particle near a node, their maxima over the ghost layers (collective)."""
         contact_normals(disc.dim, nodes, disc.origin3, disc.h3, self.sum_all, self.x_all, eps,
-                        self.normal, self.mask)
+                        self.normal_mode, self.normal, self.mask)
         slots = self.grids[0].gsum_block.shape[0]
         mask = _views(self.mask[:slots], self.nodes)
         fill(plan, *self.node_views("normal"), mask)
@@ -175,7 +179,8 @@ class ContactPhase:
         R = P.rows
         contact_extents(disc.dim, P.start, P.order(), self.field, R.x, R.F, R.r0, disc.origin3,
                         disc.h3, self.reach, disc.base, disc.nloc, self.normal, self.mask,
-                        active, self.ext, self.sides if self.crack is not None else None)
+                        active, self.ext, self.sides if self.crack is not None else None,
+                        self.gap_mode)
         accumulate_max(plan, *self.node_views("ext"))
 
     def correct(self, disc, nodes, dt: float, gravity: np.ndarray, heavy: float, eps: float,
@@ -184,6 +189,7 @@ class ContactPhase:
         g = np.zeros(3)
         g[:disc.dim] = gravity[:disc.dim]
         sums = contact_correct(disc.dim, nodes, self.sum_all, self.new_all, self.normal,
-                               self.ext, self.mu, dt, g, heavy, eps, momentum_only)
+                               self.ext, self.mu, dt, g, heavy, eps, momentum_only,
+                               self.normal_mode)
         if not momentum_only:
             self.sums = sums

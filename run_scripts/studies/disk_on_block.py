@@ -1,24 +1,30 @@
-"""A disk on a held block under tilted gravity: contact's acceleration against Newton's, refined.
+"""A disk (2D) or sphere (3D) on a held block under tilted gravity: contact's acceleration against
+Newton's, refined.
 
 Physics. A neo-Hookean disk (R = 0.1 m, E = 1 MPa, ν = 0.3, ρ = 1000 kg/m³) rests on a
 1.2 × 0.1 m block of the same material that the grid's bottom face holds (``y_min = "fixed"``);
 gravity is tilted by θ = 30° (``g = [g sin θ, −g cos θ]``, applied at once), and the two bodies
 are separate velocity fields (``[contact]``, Coulomb friction μ). Only the contact acts between
-them, so the disk's centre accelerates along the block at
+them, so with ``k = I/(m R²)`` (½ for the disk, ⅖ for the sphere) the centre accelerates along
+the block at
 
 * μ = 0: ``g sin θ`` (slides, no spin);
-* μ < tan θ / 3: ``g (sin θ − μ cos θ)`` (slides and rolls);
-* μ ≥ tan θ / 3, or "stick": ``(2/3) g sin θ`` (rolls without slipping, ``I = ½ m R²``).
+* μ < k/(1 + k) tan θ: ``g (sin θ − μ cos θ)`` (slides and rolls);
+* otherwise, or "stick": ``g sin θ/(1 + k)`` (rolls without slipping: ⅔ g sin θ for the
+  disk, 5/7 g sin θ for the sphere).
 
-The acceleration is the slope of the disk's mean velocity (a history probe on body 1,
-mass-weighted) fitted over 0.05–0.15 s.
+``--dim 3``: the sphere (same radius and material) on a 0.48 × 0.1 × 0.2 m block in a grid
+0.3 m deep. The acceleration is the slope of the body's mean velocity (a history probe on
+body 1, mass-weighted) fitted over 0.05–0.15 s.
 
-Cases: ``--methods`` × μ ∈ {0, 0.1, 0.3} × R/Δx ∈ ``--resolutions`` × ``--seedings``
-("conforming": the disk in rings, its outline followed; "lattice": the grid-aligned lattice
-masked by the circle, with flats). ``--quick``: cpdi, μ = 0, R/Δx = 5, both seedings.
+Cases: ``--methods`` × ``--normals`` (``[contact] normal``) × μ ∈ {0, 0.1, 0.3} × R/Δx ∈
+``--resolutions`` × ``--seedings`` ("conforming": rings or shells, the outline followed;
+"lattice": the grid-aligned lattice masked by the circle, with flats). ``--quick``: cpdi,
+μ = 0, R/Δx = 5, both seedings.
 
-Outputs: ``disk_on_block.csv`` (one row per case: a/exact, the fitted acceleration, particles,
-steps, wall seconds) and ``disk_on_block.png`` (a/exact against R/Δx, one panel per μ) in
+Outputs: ``disk_on_block.csv`` (one row per case: a/exact, the fitted acceleration, the
+contact's friction over its normal push on the body (``mu_eff``: μ while it slides, whatever the
+drop's bounce does to the push), particles, steps, wall seconds) and ``disk_on_block.png`` (a/exact against R/Δx, one panel per μ) in
 ``--out`` (default ``run_scripts/out/disk_on_block``).
 
     mpirun -n 2 python run_scripts/studies/disk_on_block.py --resolutions 10 20 --methods cpdi
@@ -44,22 +50,33 @@ FIT = (0.05, 0.15)
 FRICTIONS = (0.0, 0.1, 0.3)
 
 
-def exact(mu: float) -> float:
-    """The disk centre's acceleration along the block (module doc)."""
-    if mu >= math.tan(THETA) / 3.0:
-        return 2.0 / 3.0 * G * math.sin(THETA)
+def exact(mu: float, dim: int = 2) -> float:
+    """The body centre's acceleration along the block (module doc)."""
+    k = 0.5 if dim == 2 else 0.4  # I / (m R²): disk, sphere
+    if mu >= k / (1.0 + k) * math.tan(THETA):
+        return G * math.sin(THETA) / (1.0 + k)
     return G * (math.sin(THETA) - mu * math.cos(THETA))
 
 
-def scene_text(method: str, per_radius: int, mu: float, seeding: str) -> str:
+def scene_text(method: str, per_radius: int, mu: float, seeding: str,
+               normal: str = "separating", dim: int = 2, gap: str = "column") -> str:
     h = R / per_radius
     friction = f"friction = {mu}" if mu > 0 else ""
+    if dim == 2:
+        grid = f"cells = [{round(1.2 / h)}, {round(0.35 / h)}]"
+        block = "min = [0.0, 0.0]\nmax = [1.2, 0.1]"
+        body = f'shape = "disk"\ncenter = [0.2, {0.1 + R}]'
+    else:
+        grid = f"cells = [{round(0.5 / h)}, {round(0.35 / h)}, {round(0.3 / h)}]"
+        block = "min = [0.0, 0.0, 0.05]\nmax = [0.48, 0.1, 0.25]"
+        body = f'shape = "sphere"\ncenter = [0.15, {0.1 + R}, 0.15]'
+    gravity = [G * math.sin(THETA), -G * math.cos(THETA)] + [0.0] * (dim - 2)
     return f"""
 name = "disk_on_block"
-dim = 2
+dim = {dim}
 [grid]
 cell_size = {h}
-cells = [{round(1.2 / h)}, {round(0.35 / h)}]
+{grid}
 [method]
 interpolator = "{method}"
 [materials.rubber]
@@ -70,19 +87,19 @@ poisson_ratio = 0.3
 [[bodies]]
 shape = "box"
 material = "rubber"
-min = [0.0, 0.0]
-max = [1.2, 0.1]
+{block}
 [[bodies]]
-shape = "disk"
+{body}
 material = "rubber"
-center = [0.2, {0.1 + R}]
 radius = {R}
 seeding = "{seeding}"
 [boundary]
 y_min = "fixed"
 [gravity]
-g = [{G * math.sin(THETA)}, {-G * math.cos(THETA)}]
+g = {gravity}
 [contact]
+normal = "{normal}"
+gap = "{gap}"
 {friction}
 [time]
 end = {FIT[1]}
@@ -98,24 +115,35 @@ stats = ["mean"]
 """
 
 
-def fitted_acceleration(history: Path) -> float:
-    """The slope of the disk's mean velocity over the fit window (least squares)."""
+def fitted_acceleration(history: Path) -> tuple[float, float]:
+    """The slope of the body's mean velocity over the fit window (least squares), and the
+    contact's friction over its normal push on the body in that window (the change of its
+    impulse along x over that along y): μ while it slides. The dropped body bounces on the block
+    at about 16 Hz (gravity comes at once), so its normal push, and with friction its
+    acceleration, swing by ±15 % within the window; the impulse ratio does not."""
     with open(history) as f:
-        rows = [(float(r["time"]), float(r["disk.v.x.mean"])) for r in csv.DictReader(f)]
-    t, v = np.array(rows).T
+        rows = list(csv.DictReader(f))
+    t = np.array([float(r["time"]) for r in rows])
+    v = np.array([float(r["disk.v.x.mean"]) for r in rows])
     keep = (t >= FIT[0]) & (t <= FIT[1])
-    return float(np.polyfit(t[keep], v[keep], 1)[0])
+    i, j = np.flatnonzero(keep)[[0, -1]]
+    jx, jy = (float(rows[j][f"contact1.impulse_{a}"]) - float(rows[i][f"contact1.impulse_{a}"])
+              for a in "xy")
+    return float(np.polyfit(t[keep], v[keep], 1)[0]), -jx / jy if jy else math.nan
 
 
-def run(method: str, per_radius: int, mu: float, seeding: str, runs: Path, comm) -> dict:
+def run(method: str, per_radius: int, mu: float, seeding: str, runs: Path, comm,
+        normal: str = "separating", dim: int = 2, gap: str = "column") -> dict:
     from parmpm.scene.load import scene_from_toml
 
-    out = runs / f"{method}_{seeding}_R{per_radius}_mu{mu}"
-    summary, wall = run_case(scene_from_toml(scene_text(method, per_radius, mu, seeding)),
-                             comm=comm, out_dir=out)
-    a = fitted_acceleration(out / "history.csv") if is_root(comm) else math.nan
-    return {"method": method, "seeding": seeding, "R_over_dx": per_radius, "mu": mu,
-            "exact": exact(mu), "a": a, "ratio": a / exact(mu),
+    out = runs / f"{method}_{seeding}_{normal}_{gap}_{dim}d_R{per_radius}_mu{mu}"
+    text = scene_text(method, per_radius, mu, seeding, normal, dim, gap)
+    summary, wall = run_case(scene_from_toml(text), comm=comm, out_dir=out)
+    a, mu_eff = (fitted_acceleration(out / "history.csv") if is_root(comm)
+                 else (math.nan, math.nan))
+    return {"method": method, "seeding": seeding, "normal": normal, "gap": gap, "dim": dim,
+            "R_over_dx": per_radius, "mu": mu,
+            "exact": exact(mu, dim), "a": a, "ratio": a / exact(mu, dim), "mu_eff": mu_eff,
             "particles": summary["particles"], "steps": summary["steps"], "wall_s": wall}
 
 
@@ -124,17 +152,19 @@ def plot(rows: list[dict], path: Path) -> Path:
     fig, axes = figure(1, len(frictions), size=(4.2 * len(frictions), 3.8))
     axes = axes.ravel()
     for ax, mu in zip(axes, frictions):
-        for key in sorted({(r["method"], r["seeding"]) for r in rows if r["mu"] == mu}):
+        for key in sorted({(r["method"], r["seeding"], r["normal"], r["gap"]) for r in rows
+                           if r["mu"] == mu}):
             pts = sorted((r["R_over_dx"], r["ratio"]) for r in rows
-                         if (r["method"], r["seeding"]) == key and r["mu"] == mu)
+                         if (r["method"], r["seeding"], r["normal"], r["gap"]) == key
+                         and r["mu"] == mu)
             ax.plot(*zip(*pts), "o-" if key[1] == "conforming" else "s--",
-                    label=f"{key[0]} {key[1]}")
+                    label=" ".join(key))
         ax.axhline(1.0, color="k", lw=0.8)
         ax.axhspan(0.98, 1.02, color="0.9")
         ax.set_xscale("log", base=2)
         ax.set_xticks(sorted({r["R_over_dx"] for r in rows}), labels=None)
         ax.set_xlabel("R / Δx")
-        ax.set_title(f"μ = {mu}: exact {exact(mu):.4g} m/s²")
+        ax.set_title(f"μ = {mu}: exact {exact(mu, rows[0]['dim']):.4g} m/s²")
     axes[0].set_ylabel("a / exact")
     axes[0].legend(fontsize=8)
     return save(fig, path)
@@ -146,22 +176,27 @@ def main() -> int:
     p.add_argument("--resolutions", nargs="+", type=int, default=[10, 20])
     p.add_argument("--frictions", nargs="+", type=float, default=list(FRICTIONS))
     p.add_argument("--seedings", nargs="+", default=["conforming", "lattice"])
+    p.add_argument("--dim", type=int, choices=(2, 3), default=2)
+    p.add_argument("--normals", nargs="+", default=["separating"],
+                   help="[contact] normal: separating, heavy, centroids, gradient, average")
+    p.add_argument("--gaps", nargs="+", default=["column"], help="[contact] gap: column, line")
     args = p.parse_args()
     if args.quick:
         args.methods, args.resolutions, args.frictions = ["cpdi"], [5], [0.0]
     out, figs = folders(args, "disk_on_block")
     comm = world()
     rows = []
-    for method in args.methods:
-        for seeding in args.seedings:
-            for mu in args.frictions:
-                for n in args.resolutions:
-                    rows.append(run(method, n, mu, seeding, out / "runs", comm))
-                    if is_root(comm):
-                        r = rows[-1]
-                        print(f"{method:7s} {seeding:10s} mu={mu:<4} R/dx={n:<3d} "
-                              f"a/exact={r['ratio']:.4f}  ({r['particles']} particles, "
-                              f"{r['steps']} steps, {r['wall_s']:.1f} s)", flush=True)
+    cases = [(m, s, nm, g, mu, n) for m in args.methods for s in args.seedings
+             for nm in args.normals for g in args.gaps for mu in args.frictions
+             for n in args.resolutions]
+    for method, seeding, normal, gap, mu, n in cases:
+        rows.append(run(method, n, mu, seeding, out / "runs", comm, normal, args.dim, gap))
+        if is_root(comm):
+            r = rows[-1]
+            print(f"{method:7s} {seeding:10s} {normal:10s} {gap:6s} mu={mu:<4} R/dx={n:<3d} "
+                  f"a/exact={r['ratio']:.4f} mu_eff={r['mu_eff']:.4f}  "
+                  f"({r['particles']} particles, {r['steps']} steps, {r['wall_s']:.1f} s)",
+                  flush=True)
     if is_root(comm):
         write_csv(out / "disk_on_block.csv", rows)
         print(wrote(out / "disk_on_block.csv"))

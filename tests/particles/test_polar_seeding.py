@@ -123,9 +123,6 @@ def test_the_default_disk_is_conforming_and_the_lattice_an_option():
     ("spinning_disk", ["bodies.0.seeding=polar"], 'bodies.0.seeding: expected one of'),
     ("hanging_bar", ["bodies.0.seeding=conforming"],
      'bodies.0.seeding: "conforming" is not yet available for shape "box"'),
-    ("hanging_bar_3d", ["bodies.0={shape='sphere', center=[0.5, -0.5, 0.5], radius=0.45, "
-                        "material='bar', seeding='conforming'}"],
-     'bodies.0.seeding: "conforming" is not yet available for shape "sphere"'),
     ("spinning_disk", ["bodies.0.seeding=3"], "bodies.0.seeding"),
 ])
 def test_a_seeding_a_shape_lacks_is_a_one_line_error(scene, over, message):

@@ -182,7 +182,7 @@ def test_disk_and_sphere(tmp_path):
     scene = load_scene("hanging_bar_3d", ['bodies.0={shape = "sphere", center = [0.5, -0.5, 0.5], '
                                           'radius = 0.5, material = "bar"}'])
     assert scene.data["bodies"][0]["shape"] == "sphere"
-    assert scene.data["bodies"][0]["seeding"] == "lattice"  # no conforming sphere yet
+    assert scene.data["bodies"][0]["seeding"] == "conforming"  # shells, as the disk's rings
 
 
 # ---------------------------------------------------------------- l_cr

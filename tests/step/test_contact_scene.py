@@ -29,7 +29,9 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples"
     ("friction = 0.3", "friction = inf", "contact.friction"),
     ("friction = 0.3", 'friction = "glue"', "contact.friction"),
     ("friction = 0.3", "friction = [0.3]", "contact.friction"),
-    ("friction = 0.3", 'normal = "gradient"', "contact.normal"),
+    ("friction = 0.3", 'normal = "sideways"', "contact.normal"),
+    ("friction = 0.3", 'gap = "surface"', "contact.gap"),
+    ("friction = 0.3", "gap = 1", "contact.gap"),
     ("friction = 0.3", "fields = [[0], [3]]", "contact.fields.1.0: expected a body index"),
     ("friction = 0.3", "fields = [[0], [0]]", "contact.fields.1.0: body 0 is already in"),
     ("friction = 0.3", "fields = [[0]]", "contact.fields: bodies [1] are in no field"),
@@ -132,9 +134,12 @@ def test_rings_example_bounces_apart(tmp_path):
 
 
 def test_spheres_example_collide_and_part(tmp_path):
-    """docs/examples/spheres_contact.toml as written (3D, off-centre, μ = 0.2): in contact from
-    0.46 s to 1.14 s (measured), apart at the end, the first sphere turned back and pushed
-    sideways (−0.060, −0.035, 0) m/s, momentum at round-off."""
+    """docs/examples/spheres_contact.toml as written (3D, off-centre, μ = 0.2, the spheres
+    seeded in shells): their surfaces meet at 0.5461 s (centres 0.3 m apart along x and 0.06 m
+    across, closing at 0.2 m/s: ``(0.3 − 0.2 t)² + 0.06² = 0.2²``); in contact from 0.555 s
+    (measured; 0.460 s with lattice spheres, whose outline bulges) to 1.11 s, apart at the end,
+    the first sphere turned back and pushed sideways (−0.055, −0.035, 0) m/s, momentum at
+    round-off."""
     sc = load_scene(EXAMPLES / "spheres_contact.toml",
                     overrides=["output.snapshots=false", "output.figure=false",
                                "output.history.every_steps=1"])
@@ -142,7 +147,8 @@ def test_spheres_example_collide_and_part(tmp_path):
     with open(tmp_path / "spheres" / "history.csv") as f:
         rows = [{k: float(v) for k, v in r.items()} for r in csv.DictReader(f)]
     touching = [r["time"] for r in rows if r["contact0.force_x"] != 0.0]
-    assert 0.4 < touching[0] < 0.55 and touching[-1] < rows[-1]["time"]
+    meet = (0.3 - (0.2 ** 2 - 0.06 ** 2) ** 0.5) / 0.2
+    assert abs(touching[0] - meet) < 0.02 and touching[-1] < rows[-1]["time"]
     m = rows[-1]["mass"] / 2
     v = [v0 + rows[-1][f"contact0.impulse_{a}"] / m for v0, a in zip((0.1, 0.0, 0.0), "xyz")]
     assert v[0] < -0.03 and v[1] < -0.01

@@ -29,6 +29,10 @@ def test_the_exact_accelerations():
     assert exact(0.0) == pytest.approx(4.905)
     assert exact(0.1) == pytest.approx(9.81 * (0.5 - 0.1 * 3 ** 0.5 / 2))
     assert exact(0.3) == exact(1.0) == pytest.approx(2.0 / 3.0 * 4.905)
+    # the sphere (I = 2/5 m R²) rolls from μ = (2/7) tan θ = 0.165 on, at 5/7 g sin θ
+    assert exact(0.1, 3) == exact(0.1)
+    assert exact(0.17, 3) == exact(0.3, 3) == pytest.approx(5.0 / 7.0 * 4.905)
+    assert exact(0.16, 3) == pytest.approx(9.81 * (0.5 - 0.16 * 3 ** 0.5 / 2))
 
 
 def test_a_frictionless_disk_slides_at_g_sin_theta_closer_when_refined(ratios):

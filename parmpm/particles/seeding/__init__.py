@@ -19,7 +19,8 @@ cylinder, polygon or CSG body (:class:`_Masked`) the same lattice filtered by it
 (:func:`parmpm.geometry.csg.inside`; a surface body the winding number's), its particle volume
 the spacing's product as a disk's. A disk seeded "conforming" (the default) is cut in rings
 instead, so that its outer particles follow the circle (:mod:`parmpm.particles.seeding.polar`),
-each particle its cell's area and domain. A mesh or particle-file body is listed point by point,
+a sphere in shells (:mod:`parmpm.particles.seeding.spherical`), each particle its cell's area
+or volume and domain. A mesh or particle-file body is listed point by point,
 each with its own volume (:mod:`parmpm.particles.seeding.listed`).
 
 The initial velocity field a body's particles start with is
@@ -35,10 +36,14 @@ from parmpm.geometry.primitives import turn as rotation
 from parmpm.particles.locate import locate_patches
 from parmpm.particles.seeding.listed import Listed, fill, listed_seeds
 from parmpm.particles.seeding.polar import Rings
+from parmpm.particles.seeding.spherical import Shells
 from parmpm.particles.seeding.velocity import _initial_affine, _initial_velocity
 from parmpm.particles.store import Particles
 from parmpm.shapes.cpdi2 import affine_corners
 from parmpm.transfer.reach import fmt_vec
+
+#: the seedings that follow a body's outline, each cell its own volume and domain
+CONFORMING = (Rings, Shells)
 
 #: lattice points per block (a multiple of ALIGN)
 BLOCK = 1 << 16
@@ -192,8 +197,8 @@ class Seeds:
 
     def __init__(self, dim: int, chunks: list):
         self.dim = dim
-        # (points: _Lattice | _Turned | _Masked | Rings | Listed, body, spacing (None: listed;
-        #  a mean cell's for Rings),
+        # (points: _Lattice | _Turned | _Masked | Rings | Shells | Listed, body, spacing
+        #  (None: listed; a mean cell's for Rings and Shells),
         #  material row (-1: per particle, the file's), turn or None)
         self.chunks = chunks
         self.n = sum(len(c[0]) for c in chunks)
@@ -297,7 +302,7 @@ class Seeds:
         def body_mass(src, spacing, row):
             if isinstance(src, Listed):
                 return params[src.material_rows(np.arange(len(src)), row), 1] * src.vol
-            if isinstance(src, Rings):
+            if isinstance(src, CONFORMING):
                 return params[row, 1] * src.domains(np.arange(len(src)))[0]
             return np.full(len(src), params[row, 1] * np.prod(spacing))
 
@@ -327,7 +332,7 @@ class Seeds:
             P.v[s] = _initial_velocity(self.dim, body, pts)
             if "affine" in P.optional:
                 P.affine[s] = _initial_affine(self.dim, body, pts)
-            if isinstance(src, Rings):  # each cell its own area and domain
+            if isinstance(src, CONFORMING):  # each cell its own area and domain
                 vol, P.lh0[s], P.r0[s] = src.domains(ids)
                 P.vol0[s] = vol
                 P.mass[s] = params[row, 1] * vol
@@ -367,14 +372,14 @@ def seed_bodies(grid, bodies, material_rows: dict[str, int]) -> Seeds:
             if body.angle:  # the lattice turned about the box centre, domains with it
                 turn = rotation(d, body.angle)
                 pts = _Turned(pts, 0.5 * (lo + hi), turn)
-        elif body.shape == "disk" and body.seeding == "conforming":  # rings, outline followed
+        elif body.seeding == "conforming":  # a disk's rings, a sphere's shells: outline followed
             c, r = np.asarray(body.center, float), float(body.radius)
-            size = float(np.sqrt(np.prod(h / ppc)))
+            size = float(np.prod(h / ppc) ** (1.0 / d))
             if r < 0.5 * size:
-                raise SceneError(f"bodies.{k}: a disk of radius {r:g} m is smaller than half its "
-                                 f"particle spacing ({size:.4g} m); enlarge the radius or raise "
-                                 "ppc")
-            pts = Rings(c, r, size, _block_edges)
+                raise SceneError(f"bodies.{k}: a {body.shape} of radius {r:g} m is smaller than "
+                                 f"half its particle spacing ({size:.4g} m); enlarge the radius "
+                                 "or raise ppc")
+            pts = (Rings if body.shape == "disk" else Shells)(c, r, size, _block_edges)
             spacing = pts.mean_spacing()
         elif body.shape in ("disk", "sphere"):  # on a grid-aligned lattice
             c, r = np.asarray(body.center, float), float(body.radius)
