@@ -66,6 +66,28 @@ COLUMN, LINE = range(2)
 
 
 @helper_kernel
+def centroid_line(d, sums, X, eps, p, node, k, c):
+    """Into ``c``: the line from field ``k``'s local centre of mass to the other fields'
+    (those with mass over ``eps``), not normalised; returns its squared length."""
+    K = sums.shape[0]
+    rest = 0.0
+    for a in range(d):
+        c[a] = 0.0
+    for j in range(K):
+        mj = sums[j, p, 0, node]
+        if j != k and mj > eps:
+            rest += mj
+            for a in range(d):
+                c[a] += X[j, p, 1 + a, node]
+    mk = sums[k, p, 0, node]
+    size = 0.0
+    for a in range(d):
+        c[a] = c[a] / rest - X[k, p, 1 + a, node] / mk
+        size += c[a] * c[a]
+    return size
+
+
+@helper_kernel
 def deciding_field(d, sums, X, eps, p, node, xi, c):
     """"gradient": the field whose moment about the node points at the others most,
     ``max_k −D_k·u_k`` (``u_k`` the unit line from its local centre of mass to the others'):
@@ -79,19 +101,7 @@ def deciding_field(d, sums, X, eps, p, node, xi, c):
         mk = sums[k, p, 0, node]
         if not mk > eps:
             continue
-        rest = 0.0
-        for a in range(d):
-            c[a] = 0.0
-        for j in range(K):
-            mj = sums[j, p, 0, node]
-            if j != k and mj > eps:
-                rest += mj
-                for a in range(d):
-                    c[a] += X[j, p, 1 + a, node]
-        uu = 0.0
-        for a in range(d):
-            c[a] = c[a] / rest - X[k, p, 1 + a, node] / mk
-            uu += c[a] * c[a]
+        uu = centroid_line(d, sums, X, eps, p, node, k, c)
         score = 0.0
         for a in range(d):
             score -= (X[k, p, 1 + a, node] - mk * xi[a]) * c[a]
@@ -185,19 +195,7 @@ def contact_normals(d, nodes, origin, h, sums, X, eps, mode, normal, mask):
                         if mode == HEAVY or mode == GRADIENT:
                             continue
                         # candidate 1: from field k's centre of mass to the others'
-                        rest = 0.0
-                        for a in range(d):
-                            e[a] = 0.0
-                        for j in range(K):
-                            mj = sums[j, p, 0, node]
-                            if j != k and mj > eps:
-                                rest += mj
-                                for a in range(d):
-                                    e[a] += X[j, p, 1 + a, node]
-                        size2 = 0.0
-                        for a in range(d):
-                            e[a] = e[a] / rest - X[k, p, 1 + a, node] / mk
-                            size2 += e[a] * e[a]
+                        size2 = centroid_line(d, sums, X, eps, p, node, k, e)
                         if size2 > 0.0:
                             size2 = np.sqrt(size2)
                             for a in range(d):
