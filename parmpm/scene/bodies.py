@@ -12,10 +12,13 @@ from __future__ import annotations
 from types import SimpleNamespace
 from typing import Any
 
+from parmpm.geometry import csg
+from parmpm.geometry.circular import round_form
 from parmpm.geometry.primitives import rotated_box_bounds
 from parmpm.scene.body_files import FILE_DIMS, FILE_KEYS, check_file_body, listed
 from parmpm.scene.check import AXIS_NAMES, Checker, show
 from parmpm.scene.parts import PART_DIMS, PART_KEYS, check_part, csg_bounds
+from parmpm.scene.records import Part, build
 
 SHAPE_DIMS = {"box": (1, 2, 3), "disk": (2,), "sphere": (3,),
               **{s: d for s, d in PART_DIMS.items() if s != "half_space"}, **FILE_DIMS}
@@ -33,12 +36,14 @@ _PLACED_BY = {"disk": "center", "sphere": "center", "cylinder": "center", "polyg
 #: bodies whose particles are listed (one per quadrature point or file row), not a lattice
 LISTED_SHAPES = ("mesh", "particles")
 VIBRATION_KEYS = ("amplitude", "mode", "axis")
-#: how a body's particles are placed: "conforming" follows its outline (a disk's rings,
-#: :mod:`parmpm.particles.seeding.polar`; a sphere's shells,
-#: :mod:`parmpm.particles.seeding.spherical`), "lattice" is the grid-aligned lattice it masks
+#: how a body's particles are placed: "conforming" follows a round body's outline (a disk's or
+#: annulus's rings, :mod:`parmpm.particles.seeding.polar`; a sphere's shells,
+#: :mod:`parmpm.particles.seeding.spherical`; a cylinder's or tube's extruded rings,
+#: :mod:`parmpm.particles.seeding.cylindrical`), "lattice" is the grid-aligned lattice it masks
 SEEDINGS = ("conforming", "lattice")
-#: the shapes that can be seeded to follow their outline
-CONFORMING_SHAPES = ("disk", "sphere")
+#: the shapes that can be seeded to follow their outline: these always, a CSG body when its
+#: geometry is one of them (:func:`parmpm.geometry.circular.round_form`: an annulus, a tube)
+CONFORMING_SHAPES = ("disk", "sphere", "cylinder")
 
 
 #: the most particles per cell per axis: beyond it one cell holds more particles than a machine
@@ -80,24 +85,31 @@ def _body(c: Checker, key: str, raw: Any, dim: int, lo: list, hi: list, grid: di
                         f"axis {axis} ({AXIS_NAMES[axis]}), expected it inside the grid "
                         f"[{lo[axis]!r}, {hi[axis]!r}]")
     out["ppc"] = _ppc(c, key, t, dim, shape)
-    out["seeding"] = _seeding(c, key, t, shape)
+    out["seeding"] = _seeding(c, key, t, out, dim)
     _motion(c, key, t, dim, out)
     return out
 
 
-def _seeding(c: Checker, key: str, t: dict, shape: str) -> str | None:
-    """"conforming" (the default where the shape has it) or "lattice"; None for a listed
+def _seeding(c: Checker, key: str, t: dict, out: dict, dim: int) -> str | None:
+    """"conforming" (the default where the body is round: :data:`CONFORMING_SHAPES`, or a CSG
+    body that is a disk, annulus, sphere, cylinder or tube) or "lattice"; None for a listed
     body (its points are given)."""
+    shape = out["shape"]
     if shape in LISTED_SHAPES:
         if t.get("seeding") is not None:
             c.fail(f"{key}.seeding", f'not used by shape "{shape}" (its particles are listed); '
                                      "expected no seeding key")
         return None
-    default = "conforming" if shape in CONFORMING_SHAPES else "lattice"
-    seeding = c.choice(f"{key}.seeding", t.get("seeding", default), SEEDINGS)
-    if seeding == "conforming" and shape not in CONFORMING_SHAPES:
-        c.fail(f"{key}.seeding", f'"conforming" is not yet available for shape "{shape}" '
-                                 f'(only for {", ".join(CONFORMING_SHAPES)}); expected "lattice"')
+    rounded = shape in CONFORMING_SHAPES or shape in csg.COMBINATORS and round_form(
+        build(Part, {"shape": shape, "parts": out["parts"]}), dim) is not None
+    seeding = c.choice(f"{key}.seeding", t.get("seeding", "conforming" if rounded else "lattice"),
+                       SEEDINGS)
+    if seeding == "conforming" and not rounded:
+        which = ("with these parts " if shape in csg.COMBINATORS else "")
+        c.fail(f"{key}.seeding", f'"conforming" is not yet available for shape "{shape}" {which}'
+                                 f'(only for {", ".join(CONFORMING_SHAPES)}, and a CSG body that '
+                                 "is one of them or a disk or cylinder minus smaller concentric "
+                                 'ones: an annulus or a tube); expected "lattice"')
     return seeding
 
 

@@ -30,14 +30,18 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   box: ``min``, ``max``; disk/sphere: ``center``, ``radius``; ``material`` (required);
   ``ppc`` (particles per cell per axis, 1 to 1000, default 2; a disk or sphere must hold at
   least one point of its lattice); ``seeding`` ("conforming" | "lattice"; default "conforming"
-  for a disk or sphere, the shapes that have it yet, "lattice" elsewhere; not for bodies from
-  files): "conforming" cuts a disk into rings (a sphere into shells, each in bands and sectors)
-  about a particle spacing wide (the spacing ``Δx/ppc``, the geometric mean over the axes), one
-  particle per cell at its centroid with the cell's exact area or volume and a CPDI domain along
-  its radius, so the outer particles follow the surface and the masses add up to ``ρ π R²``
-  (``ρ (4/3) π R³``) (:mod:`parmpm.particles.seeding.polar`,
-  :mod:`parmpm.particles.seeding.spherical`); "lattice" keeps the points of the grid-aligned
-  lattice inside the shape (a disk then has flats where the circle meets a lattice row); ``velocity`` (default 0); optional
+  for a round body — a disk, sphere or cylinder, or a CSG body that is one of them (alone in a
+  one-part combination), an annulus (a disk minus smaller concentric disks) or a tube (a
+  cylinder minus thinner coaxial cylinders as long or longer) —, "lattice" elsewhere, where
+  "conforming" is an error; not for bodies from files): "conforming" cuts a disk or annulus
+  into rings (a sphere into shells, each in bands and sectors; a cylinder or tube into its
+  cross-section's rings extruded in layers along its axis) about a particle spacing wide (the
+  spacing ``Δx/ppc``, the geometric mean over the axes), one particle per cell at its centroid
+  with the cell's exact area or volume and a CPDI domain along its radius, so the outer (and
+  inner) particles follow the surface and the masses add up to ``ρ π (R² − r_in²)``
+  (``ρ (4/3) π R³``, ``ρ π (R² − r_in²) L``) (:mod:`parmpm.particles.seeding.conforming`);
+  "lattice" keeps the points of the grid-aligned lattice inside the shape (a disk then has flats
+  where the circle meets a lattice row); ``velocity`` (default 0); optional
   ``[bodies.vibration]`` (box only): ``amplitude`` (required), ``mode`` (default 1), ``axis``
   (default 0): initial velocity along ``axis`` is ``amplitude·sin(β_n (X − min[axis]))`` with
   ``β_n = (2n − 1)π / (2L)``, ``L`` the box length along ``axis`` (the first mode of a bar fixed
@@ -55,7 +59,7 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   part minus the others): ``parts``, a list of 1 to 100 inline tables, each a shape with its own
   keys (box, disk, sphere, cylinder, polygon, a nested combination up to 8 deep, or "half_space":
   ``point`` and outward ``normal``, only as a part that cuts a bounded one). Seeded on a disk's
-  lattice kept by the inside test; spin and velocity gradient about the bounding box's centre.
+  lattice kept by the inside test (a round one conforming, above); spin and velocity gradient about the bounding box's centre.
   Bodies from files (:mod:`parmpm.scene.body_files`, docs/concepts/geometry_files.md): "mesh"
   (2D/3D; one particle per quadrature point, no ``ppc``): ``file`` (a volume mesh meshio reads;
   a relative path is relative to the scene file's folder, resolved to an absolute one),

@@ -119,6 +119,8 @@ steps = 1
 ANNULUS = """shape = "difference"
 parts = [{shape = "disk", center = [1.013, 0.987], radius = 0.8},
          {shape = "disk", center = [1.013, 0.987], radius = 0.4}]"""
+#: the annulus on its lattice (by default it is seeded in rings: test_conforming_csg.py)
+LATTICE_ANNULUS = ANNULUS + '\nseeding = "lattice"'
 
 
 def scene(body: str, h: float = 0.1, cells=(20, 20), dim: int = 2, extra: str = ""):
@@ -146,7 +148,7 @@ def test_annulus_converges_to_the_analytic_annulus():
     errors = []
     for k in range(4):
         h = 0.1 / 2 ** k
-        x, vol = seeded(scene(ANNULUS, h, (20 * 2 ** k,) * 2))
+        x, vol = seeded(scene(LATTICE_ANNULUS, h, (20 * 2 ** k,) * 2))
         layer = perimeter * (h / 2) / area  # the surface layer's share of the area
         errors.append((abs(vol * len(x) / area - 1), float(np.max(np.abs(x.mean(axis=0) - c))) / R,
                        float(np.max(np.abs(np.sum((x - c) ** 2, axis=0) * vol / moment - 1)))))
@@ -196,7 +198,7 @@ parts = [{shape = "box", min = [0.0, 0.0, 0.0], max = [1.0, 0.4, 0.4]},
 @pytest.mark.parametrize("block", [seeding.BLOCK, 32])
 def test_a_ranks_particles_are_the_ones_in_its_patches(block, monkeypatch):
     monkeypatch.setattr(seeding, "BLOCK", block)
-    sc = scene(ANNULUS, extra="patch_size = 4")
+    sc = scene(LATTICE_ANNULUS, extra="patch_size = 4")
     grid, dim = sc.spec.grid, 2
     D = Discretisation.from_grid(dim, 0, None, grid, 2)
     seeds = seed_bodies(grid, sc.spec.bodies, {"steel": 0})

@@ -131,7 +131,8 @@ def test_csg_annulus_agrees_with_the_meshed_one(tmp_path):
     h = 0.05
     csg = scene('material = "steel"\nppc = 2\nshape = "difference"\nparts = ['
                 '{shape = "disk", center = [0.3, -0.2], radius = 1.5},'
-                '{shape = "disk", center = [0.3, -0.2], radius = 0.5}]', h=h, cells=(120, 120))
+                '{shape = "disk", center = [0.3, -0.2], radius = 0.5}]\nseeding = "lattice"', h=h,
+                cells=(120, 120))
     lattice, _ = particles(csg)
     a, b = particle_moments(meshed.x0, meshed.vol0), particle_moments(lattice.x0, lattice.vol0)
     layer = 2 * math.pi * 2.0 * (h / 2) / a[0]  # the lattice's surface layer, relative

@@ -124,6 +124,14 @@ def test_the_default_disk_is_conforming_and_the_lattice_an_option():
     ("hanging_bar", ["bodies.0.seeding=conforming"],
      'bodies.0.seeding: "conforming" is not yet available for shape "box"'),
     ("spinning_disk", ["bodies.0.seeding=3"], "bodies.0.seeding"),
+    ("spinning_disk", ["bodies.0={shape='difference', material='disk', seeding='conforming', "
+                       "parts=[{shape='disk', center=[0, 0], radius=0.4}, "
+                       "{shape='disk', center=[0.1, 0], radius=0.1}]}"],
+     'bodies.0.seeding: "conforming" is not yet available for shape "difference" with these '
+     "parts (only for disk, sphere, cylinder"),
+    ("spinning_disk", ["bodies.0={shape='polygon', material='disk', seeding='conforming', "
+                       "vertices=[[0, 0], [0.2, 0], [0, 0.2]]}"],
+     'bodies.0.seeding: "conforming" is not yet available for shape "polygon" (only for'),
 ])
 def test_a_seeding_a_shape_lacks_is_a_one_line_error(scene, over, message):
     with pytest.raises(SceneError) as err:

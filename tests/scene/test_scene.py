@@ -185,6 +185,27 @@ def test_disk_and_sphere(tmp_path):
     assert scene.data["bodies"][0]["seeding"] == "conforming"  # shells, as the disk's rings
 
 
+@pytest.mark.parametrize("body, seeding", [
+    ('{shape = "cylinder", axis = "z", center = [0.5, -0.5, 0.5], radius = 0.3, length = 0.6, '
+     'material = "bar"}', "conforming"),
+    ('{shape = "difference", material = "bar", parts = [{shape = "cylinder", axis = "x", '
+     'center = [0.5, -0.5, 0.5], radius = 0.3, length = 0.6}, {shape = "cylinder", axis = "x", '
+     'center = [0.5, -0.5, 0.5], radius = 0.2, length = 0.6}]}', "conforming"),   # a tube
+    ('{shape = "difference", material = "bar", parts = [{shape = "cylinder", axis = "x", '
+     'center = [0.5, -0.5, 0.5], radius = 0.3, length = 0.6}, {shape = "cylinder", axis = "x", '
+     'center = [0.5, -0.4, 0.5], radius = 0.1, length = 0.6}]}', "lattice"),  # off the axis
+    ('{shape = "union", material = "bar", parts = [{shape = "sphere", center = [0.5, -0.5, 0.5], '
+     'radius = 0.3}]}', "conforming"),
+])
+def test_round_bodies_default_to_conforming_and_read_back(body, seeding, tmp_path):
+    """A cylinder, and a CSG body that is a tube or sphere, seed conforming by default; another
+    CSG body the lattice (tests/particles/test_conforming_csg.py: which are round)."""
+    scene = load_scene("hanging_bar_3d", [f"bodies.0={body}"])
+    assert scene.data["bodies"][0]["seeding"] == seeding
+    again = _round_trip(scene, tmp_path)
+    assert again.data == scene.data and again.spec == scene.spec
+
+
 # ---------------------------------------------------------------- l_cr
 
 

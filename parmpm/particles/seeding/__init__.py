@@ -13,15 +13,17 @@ An unturned box is counted per axis: the particles per patch are products of per
 so :meth:`Seeds.patch_counts` never makes a point. A turned box is its lattice turned about the
 box centre, block by block; its blocks start at multiples of :data:`ALIGN` and a last one shorter
 than that joins the one before, so each point comes out of the same BLAS call position as when
-the whole body was turned at once (the same bits). A disk or sphere is its bounding box's
+the whole body was turned at once (the same bits). On the lattice, a disk or sphere is its box's
 lattice masked by the ball, block by block (elementwise: the same bits on any block); a
 cylinder, polygon or CSG body (:class:`_Masked`) the same lattice filtered by its inside test
 (:func:`parmpm.geometry.csg.inside`; a surface body the winding number's), its particle volume
-the spacing's product as a disk's. A disk seeded "conforming" (the default) is cut in rings
-instead, so that its outer particles follow the circle (:mod:`parmpm.particles.seeding.polar`),
-a sphere in shells (:mod:`parmpm.particles.seeding.spherical`), each particle its cell's area
-or volume and domain. A mesh or particle-file body is listed point by point,
-each with its own volume (:mod:`parmpm.particles.seeding.listed`).
+the spacing's product as a disk's. A round body seeded "conforming" (the default where the
+geometry allows, :mod:`parmpm.particles.seeding.conforming`) follows its outline instead, each
+particle its cell's exact area or volume and domain: a disk or annulus (a CSG disk minus
+concentric disks) in rings (:mod:`~parmpm.particles.seeding.polar`), a sphere in shells
+(:mod:`~parmpm.particles.seeding.spherical`), a cylinder or tube in rings extruded in layers
+(:mod:`~parmpm.particles.seeding.cylindrical`). A mesh or particle-file body is listed point by
+point, each with its own volume (:mod:`parmpm.particles.seeding.listed`).
 
 The initial velocity field a body's particles start with is
 :mod:`parmpm.particles.seeding.velocity`.
@@ -34,16 +36,12 @@ from decomposition.boxes import patch_of_coordinate
 from parmpm.core.errors import SceneError, SimulationError
 from parmpm.geometry.primitives import turn as rotation
 from parmpm.particles.locate import locate_patches
+from parmpm.particles.seeding.conforming import CONFORMING, conforming_seeds
 from parmpm.particles.seeding.listed import Listed, fill, listed_seeds
-from parmpm.particles.seeding.polar import Rings
-from parmpm.particles.seeding.spherical import Shells
 from parmpm.particles.seeding.velocity import _initial_affine, _initial_velocity
 from parmpm.particles.store import Particles
 from parmpm.shapes.cpdi2 import affine_corners
 from parmpm.transfer.reach import fmt_vec
-
-#: the seedings that follow a body's outline, each cell its own volume and domain
-CONFORMING = (Rings, Shells)
 
 #: lattice points per block (a multiple of ALIGN)
 BLOCK = 1 << 16
@@ -197,8 +195,8 @@ class Seeds:
 
     def __init__(self, dim: int, chunks: list):
         self.dim = dim
-        # (points: _Lattice | _Turned | _Masked | Rings | Shells | Listed, body, spacing
-        #  (None: listed; a mean cell's for Rings and Shells),
+        # (points: _Lattice | _Turned | _Masked | Rings | Shells | Tube | Listed, body, spacing
+        #  (None: listed; a mean cell's for the CONFORMING ones),
         #  material row (-1: per particle, the file's), turn or None)
         self.chunks = chunks
         self.n = sum(len(c[0]) for c in chunks)
@@ -372,14 +370,8 @@ def seed_bodies(grid, bodies, material_rows: dict[str, int]) -> Seeds:
             if body.angle:  # the lattice turned about the box centre, domains with it
                 turn = rotation(d, body.angle)
                 pts = _Turned(pts, 0.5 * (lo + hi), turn)
-        elif body.seeding == "conforming":  # a disk's rings, a sphere's shells: outline followed
-            c, r = np.asarray(body.center, float), float(body.radius)
-            size = float(np.prod(h / ppc) ** (1.0 / d))
-            if r < 0.5 * size:
-                raise SceneError(f"bodies.{k}: a {body.shape} of radius {r:g} m is smaller than "
-                                 f"half its particle spacing ({size:.4g} m); enlarge the radius "
-                                 "or raise ppc")
-            pts = (Rings if body.shape == "disk" else Shells)(c, r, size, _block_edges)
+        elif body.seeding == "conforming":  # rings, shells, extruded rings: outline followed
+            pts = conforming_seeds(f"bodies.{k}", body, h, _block_edges)
             spacing = pts.mean_spacing()
         elif body.shape in ("disk", "sphere"):  # on a grid-aligned lattice
             c, r = np.asarray(body.center, float), float(body.radius)
