@@ -3,7 +3,8 @@ Newton's, refined.
 
 Physics. A neo-Hookean disk (R = 0.1 m, E = 1 MPa, ν = 0.3, ρ = 1000 kg/m³) rests on a
 1.2 × 0.1 m block of the same material that the grid's bottom face holds (``y_min = "fixed"``);
-gravity is tilted by θ = 30° (``g = [g sin θ, −g cos θ]``, applied at once), and the two bodies
+gravity is tilted by θ = 30° (``g = [g sin θ, −g cos θ]``, applied at once, or with ``--ramp T``
+over T seconds, the fit window then T later), and the two bodies
 are separate velocity fields (``[contact]``, Coulomb friction μ). Only the contact acts between
 them, so with ``k = I/(m R²)`` (½ for the disk, ⅖ for the sphere) the centre accelerates along
 the block at
@@ -17,7 +18,8 @@ the block at
 0.3 m deep. The acceleration is the slope of the body's mean velocity (a history probe on
 body 1, mass-weighted) fitted over 0.05–0.15 s.
 
-Cases: ``--methods`` × ``--normals`` (``[contact] normal``) × μ ∈ {0, 0.1, 0.3} × R/Δx ∈
+Cases: ``--methods`` × ``--normals`` (``[contact] normal``) × μ ∈ ``--frictions`` (default
+0, 0.1, 0.3; "stick" for no slip at all) × R/Δx ∈
 ``--resolutions`` × ``--seedings`` ("conforming": rings or shells, the outline followed;
 "lattice": the grid-aligned lattice masked by the circle, with flats). ``--quick``: cpdi,
 μ = 0, R/Δx = 5, both seedings.
@@ -47,6 +49,11 @@ G = 9.81
 THETA = math.radians(30.0)
 R = 0.1
 FIT = (0.05, 0.15)
+
+
+def fit_window(ramp: float = 0.0) -> tuple[float, float]:
+    """The fit window: ``FIT`` after gravity has come in full (at once, or after its ramp)."""
+    return ramp + FIT[0], ramp + FIT[1]
 FRICTIONS = (0.0, 0.1, 0.3)
 
 
@@ -58,10 +65,19 @@ def exact(mu: float, dim: int = 2) -> float:
     return G * (math.sin(THETA) - mu * math.cos(THETA))
 
 
+def friction_arg(text: str) -> float:
+    """A ``--frictions`` item: μ ≥ 0, or "stick" (μ = ∞: the contact keeps every node's fields
+    together while they push)."""
+    return math.inf if text == "stick" else float(text)
+
+
 def scene_text(method: str, per_radius: int, mu: float, seeding: str,
-               normal: str = "separating", dim: int = 2, gap: str = "column") -> str:
+               normal: str = "separating", dim: int = 2, gap: str = "column",
+               ramp: float = 0.0) -> str:
     h = R / per_radius
-    friction = f"friction = {mu}" if mu > 0 else ""
+    end = fit_window(ramp)[1]
+    friction = ('friction = "stick"' if math.isinf(mu) else
+                f"friction = {mu}" if mu > 0 else "")
     if dim == 2:
         grid = f"cells = [{round(1.2 / h)}, {round(0.35 / h)}]"
         block = "min = [0.0, 0.0]\nmax = [1.2, 0.1]"
@@ -97,14 +113,15 @@ seeding = "{seeding}"
 y_min = "fixed"
 [gravity]
 g = {gravity}
+ramp_time = {ramp}
 [contact]
 normal = "{normal}"
 gap = "{gap}"
 {friction}
 [time]
-end = {FIT[1]}
+end = {end}
 [output]
-every = {FIT[1]}
+every = {end}
 [output.history]
 every_steps = 5
 [[output.history.probes]]
@@ -115,7 +132,7 @@ stats = ["mean"]
 """
 
 
-def fitted_acceleration(history: Path) -> tuple[float, float]:
+def fitted_acceleration(history: Path, ramp: float = 0.0) -> tuple[float, float]:
     """The slope of the body's mean velocity over the fit window (least squares), and the
     contact's friction over its normal push on the body in that window (the change of its
     impulse along x over that along y): μ while it slides. The dropped body bounces on the block
@@ -125,7 +142,8 @@ def fitted_acceleration(history: Path) -> tuple[float, float]:
         rows = list(csv.DictReader(f))
     t = np.array([float(r["time"]) for r in rows])
     v = np.array([float(r["disk.v.x.mean"]) for r in rows])
-    keep = (t >= FIT[0]) & (t <= FIT[1])
+    lo, hi = fit_window(ramp)
+    keep = (t >= lo) & (t <= hi)
     i, j = np.flatnonzero(keep)[[0, -1]]
     jx, jy = (float(rows[j][f"contact1.impulse_{a}"]) - float(rows[i][f"contact1.impulse_{a}"])
               for a in "xy")
@@ -133,16 +151,16 @@ def fitted_acceleration(history: Path) -> tuple[float, float]:
 
 
 def run(method: str, per_radius: int, mu: float, seeding: str, runs: Path, comm,
-        normal: str = "separating", dim: int = 2, gap: str = "column") -> dict:
+        normal: str = "separating", dim: int = 2, gap: str = "column", ramp: float = 0.0) -> dict:
     from parmpm.scene.load import scene_from_toml
 
-    out = runs / f"{method}_{seeding}_{normal}_{gap}_{dim}d_R{per_radius}_mu{mu}"
-    text = scene_text(method, per_radius, mu, seeding, normal, dim, gap)
+    out = runs / f"{method}_{seeding}_{normal}_{gap}_{dim}d_R{per_radius}_mu{mu}_ramp{ramp}"
+    text = scene_text(method, per_radius, mu, seeding, normal, dim, gap, ramp)
     summary, wall = run_case(scene_from_toml(text), comm=comm, out_dir=out)
-    a, mu_eff = (fitted_acceleration(out / "history.csv") if is_root(comm)
+    a, mu_eff = (fitted_acceleration(out / "history.csv", ramp) if is_root(comm)
                  else (math.nan, math.nan))
     return {"method": method, "seeding": seeding, "normal": normal, "gap": gap, "dim": dim,
-            "R_over_dx": per_radius, "mu": mu,
+            "ramp": ramp, "R_over_dx": per_radius, "mu": mu,
             "exact": exact(mu, dim), "a": a, "ratio": a / exact(mu, dim), "mu_eff": mu_eff,
             "particles": summary["particles"], "steps": summary["steps"], "wall_s": wall}
 
@@ -174,12 +192,15 @@ def main() -> int:
     p = parser(__doc__)
     p.add_argument("--methods", nargs="+", default=["cpdi"])
     p.add_argument("--resolutions", nargs="+", type=int, default=[10, 20])
-    p.add_argument("--frictions", nargs="+", type=float, default=list(FRICTIONS))
+    p.add_argument("--frictions", nargs="+", type=friction_arg, default=list(FRICTIONS),
+                   help='Coulomb μ, or "stick"')
     p.add_argument("--seedings", nargs="+", default=["conforming", "lattice"])
     p.add_argument("--dim", type=int, choices=(2, 3), default=2)
     p.add_argument("--normals", nargs="+", default=["separating"],
                    help="[contact] normal: separating, heavy, centroids, gradient, average")
     p.add_argument("--gaps", nargs="+", default=["column"], help="[contact] gap: column, line")
+    p.add_argument("--ramp", type=float, default=0.0,
+                   help="gravity's ramp time (s; default 0: at once); the fit window follows it")
     args = p.parse_args()
     if args.quick:
         args.methods, args.resolutions, args.frictions = ["cpdi"], [5], [0.0]
@@ -190,7 +211,8 @@ def main() -> int:
              for nm in args.normals for g in args.gaps for mu in args.frictions
              for n in args.resolutions]
     for method, seeding, normal, gap, mu, n in cases:
-        rows.append(run(method, n, mu, seeding, out / "runs", comm, normal, args.dim, gap))
+        rows.append(run(method, n, mu, seeding, out / "runs", comm, normal, args.dim, gap,
+                        args.ramp))
         if is_root(comm):
             r = rows[-1]
             print(f"{method:7s} {seeding:10s} {normal:10s} {gap:6s} mu={mu:<4} R/dx={n:<3d} "
