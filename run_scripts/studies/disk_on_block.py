@@ -42,8 +42,8 @@ import numpy as np
 
 if __name__ == "__main__":
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run_scripts/: study.py
-from study import (figure, folders, is_root, main_guard, parser, run_case, save, world,  # noqa: E402
-                   write_csv, wrote)
+from study import (figure, folders, is_root, main_guard, parser, read_csv, run_case,  # noqa: E402
+                   save, world, write_csv, wrote)
 
 G = 9.81
 THETA = math.radians(30.0)
@@ -165,6 +165,12 @@ def run(method: str, per_radius: int, mu: float, seeding: str, runs: Path, comm,
             "particles": summary["particles"], "steps": summary["steps"], "wall_s": wall}
 
 
+def stored(row: dict) -> dict:
+    """A CSV row read back (strings) as :func:`run` made it, for ``--replot``."""
+    return {**row, "mu": friction_arg(row["mu"]), "dim": int(row["dim"]),
+            "R_over_dx": int(row["R_over_dx"]), "ratio": float(row["ratio"])}
+
+
 def plot(rows: list[dict], path: Path) -> Path:
     frictions = sorted({r["mu"] for r in rows})
     fig, axes = figure(1, len(frictions), size=(4.2 * len(frictions), 3.8))
@@ -180,9 +186,12 @@ def plot(rows: list[dict], path: Path) -> Path:
         ax.axhline(1.0, color="k", lw=0.8)
         ax.axhspan(0.98, 1.02, color="0.9")
         ax.set_xscale("log", base=2)
-        ax.set_xticks(sorted({r["R_over_dx"] for r in rows}), labels=None)
+        ticks = sorted({r["R_over_dx"] for r in rows})
+        ax.set_xticks(ticks, labels=[str(t) for t in ticks])
+        ax.minorticks_off()
         ax.set_xlabel("R / Δx")
-        ax.set_title(f"μ = {mu}: exact {exact(mu, rows[0]['dim']):.4g} m/s²")
+        name = "stick" if math.isinf(mu) else f"μ = {mu}"
+        ax.set_title(f"{name}: exact {exact(mu, rows[0]['dim']):.4g} m/s²")
     axes[0].set_ylabel("a / exact")
     axes[0].legend(fontsize=8)
     return save(fig, path)
@@ -199,12 +208,18 @@ def main() -> int:
     p.add_argument("--normals", nargs="+", default=["separating"],
                    help="[contact] normal: separating, heavy, centroids, gradient, average")
     p.add_argument("--gaps", nargs="+", default=["column"], help="[contact] gap: column, line")
+    p.add_argument("--replot", nargs="+", type=Path, metavar="CSV",
+                   help="no runs: the figure of these studies' CSV rows together")
     p.add_argument("--ramp", type=float, default=0.0,
                    help="gravity's ramp time (s; default 0: at once); the fit window follows it")
     args = p.parse_args()
     if args.quick:
         args.methods, args.resolutions, args.frictions = ["cpdi"], [5], [0.0]
     out, figs = folders(args, "disk_on_block")
+    if args.replot:
+        rows = [stored(r) for path in args.replot for r in read_csv(path)]
+        print(wrote(plot(rows, figs / "disk_on_block.png")))
+        return 0
     comm = world()
     rows = []
     cases = [(m, s, nm, g, mu, n) for m in args.methods for s in args.seedings
@@ -220,7 +235,8 @@ def main() -> int:
                   f"({r['particles']} particles, {r['steps']} steps, {r['wall_s']:.1f} s)",
                   flush=True)
     if is_root(comm):
-        write_csv(out / "disk_on_block.csv", rows)
+        write_csv(out / "disk_on_block.csv",
+                  [{**r, "mu": "stick" if math.isinf(r["mu"]) else r["mu"]} for r in rows])
         print(wrote(out / "disk_on_block.csv"))
         print(wrote(plot(rows, figs / "disk_on_block.png")))
     return 0

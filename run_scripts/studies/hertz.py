@@ -99,7 +99,8 @@ def span_above(t: np.ndarray, f: np.ndarray, share: float = THRESHOLD) -> float:
 
 
 def scene_text(method: str, per_radius: int, speed: float, ppc: int,
-               normal: str = "separating", gap: str = "column") -> str:
+               normal: str = "separating", gap: str = "column",
+               material: str = "neo_hookean") -> str:
     h = R / per_radius
     margin = 3 * h + 0.01
     half_x = 2 * R + GAP / 2 + margin
@@ -117,7 +118,7 @@ origin = [{-cells[0] * h / 2}, {-cells[1] * h / 2}, {-cells[2] * h / 2}]
 [method]
 interpolator = "{method}"
 [materials.rubber]
-model = "neo_hookean"
+model = "{material}"
 density = {RHO}
 youngs_modulus = {E}
 poisson_ratio = {NU}
@@ -174,14 +175,15 @@ def measured(history: Path, speed: float) -> dict:
 
 
 def run(method: str, per_radius: int, speed: float, ppc: int, runs: Path, comm,
-        normal: str = "separating", gap: str = "column") -> dict:
+        normal: str = "separating", gap: str = "column", material: str = "neo_hookean") -> dict:
     from parmpm.scene.load import scene_from_toml
 
-    out = runs / f"{method}_{normal}_{gap}_R{per_radius}_ppc{ppc}_v{speed}"
-    text = scene_text(method, per_radius, speed, ppc, normal, gap)
+    out = runs / f"{method}_{normal}_{gap}_{material}_R{per_radius}_ppc{ppc}_v{speed}"
+    text = scene_text(method, per_radius, speed, ppc, normal, gap, material)
     summary, wall = run_case(scene_from_toml(text), comm=comm, out_dir=out)
     m = measured(out / "history.csv", speed) if is_root(comm) else {}
-    return {"method": method, "normal": normal, "gap": gap, "R_over_dx": per_radius, "ppc": ppc,
+    return {"method": method, "normal": normal, "gap": gap, "material": material,
+            "R_over_dx": per_radius, "ppc": ppc,
             "speed": speed,
             **{k: v for k, v in m.items() if k not in ("t", "force")},
             "particles": summary["particles"], "steps": summary["steps"], "wall_s": wall,
@@ -195,7 +197,7 @@ def plot(rows: list[dict], speed: float, path: Path) -> Path:
     ax.plot(1e3 * (t_h + GAP / speed), f_h, "k-", lw=2, label="Hertz")
     for r in rows:
         ax.plot(1e3 * r["_t"], r["_force"], lw=1,
-                label=f"{r['method']} {r['normal']} {r['gap']} R/Δx = {r['R_over_dx']}")
+                label=f"{r['method']} {r['material']} R/Δx = {r['R_over_dx']}")
     ax.set_xlabel("t (ms)")
     ax.set_ylabel("contact force (N)")
     ax.set_title(f"two spheres, V = {speed} m/s")
@@ -211,19 +213,21 @@ def main() -> int:
     p.add_argument("--ppc", type=int, default=1)
     p.add_argument("--normals", nargs="+", default=["separating"], help="[contact] normal")
     p.add_argument("--gaps", nargs="+", default=["column"], help="[contact] gap")
+    p.add_argument("--materials", nargs="+", default=["neo_hookean"],
+                   help="the spheres' law: neo_hookean, linear_elastic (Hertz's)")
     args = p.parse_args()
     if args.quick:
         args.resolutions = [4]
     out, figs = folders(args, "hertz")
     comm = world()
     rows = []
-    cases = [(m, nm, g, n) for m in args.methods for nm in args.normals for g in args.gaps
-             for n in args.resolutions]
-    for method, normal, gap, n in cases:
-        rows.append(run(method, n, args.speed, args.ppc, out / "runs", comm, normal, gap))
+    cases = [(m, nm, g, law, n) for m in args.methods for nm in args.normals for g in args.gaps
+             for law in args.materials for n in args.resolutions]
+    for method, normal, gap, law, n in cases:
+        rows.append(run(method, n, args.speed, args.ppc, out / "runs", comm, normal, gap, law))
         if is_root(comm):
             r = rows[-1]
-            print(f"{method:7s} {normal} {gap} R/dx={n:<3d} onset={r['onset_ms']:+.2f} ms "
+            print(f"{method:7s} {normal} {gap} {law} R/dx={n:<3d} onset={r['onset_ms']:+.2f} ms "
                   f"duration/Hertz={r['duration_ratio']:.4f} "
                   f"peak/Hertz={r['peak_ratio']:.4f} impulse/mV={r['impulse_ratio']:.4f} "
                   f"restitution={r['restitution']:.4f} ({r['particles']} particles, "
