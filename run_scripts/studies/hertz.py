@@ -50,10 +50,14 @@ GAP = 0.002
 THRESHOLD = 0.05  # the duration: the span where the force exceeds this share of its peak
 
 
-def hertz_constants(speed: float) -> dict:
-    """Hertz's closed forms for two equal spheres meeting at relative ``speed`` (module doc)."""
+def hertz_constants(speed: float, against: str = "sphere") -> dict:
+    """Hertz's closed forms for two equal spheres meeting at relative ``speed``, or (``against``
+    "wall") one sphere meeting a rigid plane: ``m* = m``, ``R* = R``, ``E* = E/(1 − ν²)``."""
     m = RHO * 4.0 / 3.0 * math.pi * R ** 3
-    ms, rs, es = m / 2.0, R / 2.0, E / (2.0 * (1.0 - NU ** 2))
+    if against == "wall":
+        ms, rs, es = m, R, E / (1.0 - NU ** 2)
+    else:
+        ms, rs, es = m / 2.0, R / 2.0, E / (2.0 * (1.0 - NU ** 2))
     stiff = 4.0 / 3.0 * es * math.sqrt(rs)
     dmax = (15.0 * ms * speed ** 2 / (16.0 * es * math.sqrt(rs))) ** 0.4
     return {"mass": m, "m_star": ms, "stiffness": stiff, "delta_max": dmax,
@@ -61,10 +65,11 @@ def hertz_constants(speed: float) -> dict:
             "duration": 2.868 * (ms ** 2 / (rs * es ** 2 * speed)) ** 0.2}
 
 
-def hertz_history(speed: float, steps: int = 20000) -> tuple[np.ndarray, np.ndarray]:
+def hertz_history(speed: float, steps: int = 20000,
+                  against: str = "sphere") -> tuple[np.ndarray, np.ndarray]:
     """Time from first touch and Hertz's force, ``m* δ'' = −k δ^{3/2}`` integrated with RK4
     from ``δ = 0``, ``δ' = speed`` until the spheres part."""
-    c = hertz_constants(speed)
+    c = hertz_constants(speed, against)
     k, ms = c["stiffness"], c["m_star"]
     dt = 1.2 * c["duration"] / steps
 
@@ -100,21 +105,48 @@ def span_above(t: np.ndarray, f: np.ndarray, share: float = THRESHOLD) -> float:
 
 def scene_text(method: str, per_radius: int, speed: float, ppc: int,
                normal: str = "separating", gap: str = "column",
-               material: str = "neo_hookean") -> str:
+               material: str = "neo_hookean", against: str = "sphere") -> str:
     h = R / per_radius
     margin = 3 * h + 0.01
-    half_x = 2 * R + GAP / 2 + margin
     half_yz = R + margin
-    end = GAP / speed + 1.4 * hertz_constants(speed)["duration"]
-    cells = [math.ceil(2 * half_x / h), math.ceil(2 * half_yz / h), math.ceil(2 * half_yz / h)]
+    end = GAP / speed + 1.4 * hertz_constants(speed, against)["duration"]
     c = R + GAP / 2
+    sphere = f"""[[bodies]]
+shape = "sphere"
+material = "rubber"
+radius = {R}
+ppc = [{ppc}, {ppc}, {ppc}]
+"""
+    if against == "wall":  # one sphere moving at V onto the plane x = 0
+        lo = -(2 * R + GAP + margin)
+        cells = [math.ceil((margin - lo) / h)] + [math.ceil(2 * half_yz / h)] * 2
+        bodies = f"""{sphere}center = [{-(R + GAP)}, 0.0, 0.0]
+velocity = [{speed}, 0.0, 0.0]
+[[walls]]
+name = "plane"
+point = [0.0, 0.0, 0.0]
+normal = [-1.0, 0.0, 0.0]
+"""
+        ball = 0
+    else:
+        lo = -(2 * R + GAP / 2 + margin)
+        cells = [math.ceil(-2 * lo / h)] + [math.ceil(2 * half_yz / h)] * 2
+        bodies = f"""{sphere}center = [{-c}, 0.0, 0.0]
+velocity = [{speed / 2}, 0.0, 0.0]
+{sphere}center = [{c}, 0.0, 0.0]
+velocity = [{-speed / 2}, 0.0, 0.0]
+[contact]
+normal = "{normal}"
+gap = "{gap}"
+"""
+        ball = 1
     return f"""
 name = "hertz"
 dim = 3
 [grid]
 cell_size = {h}
 cells = {cells}
-origin = [{-cells[0] * h / 2}, {-cells[1] * h / 2}, {-cells[2] * h / 2}]
+origin = [{lo}, {-cells[1] * h / 2}, {-cells[2] * h / 2}]
 [method]
 interpolator = "{method}"
 [materials.rubber]
@@ -122,67 +154,53 @@ model = "{material}"
 density = {RHO}
 youngs_modulus = {E}
 poisson_ratio = {NU}
-[[bodies]]
-shape = "sphere"
-material = "rubber"
-center = [{-c}, 0.0, 0.0]
-radius = {R}
-ppc = [{ppc}, {ppc}, {ppc}]
-velocity = [{speed / 2}, 0.0, 0.0]
-[[bodies]]
-shape = "sphere"
-material = "rubber"
-center = [{c}, 0.0, 0.0]
-radius = {R}
-ppc = [{ppc}, {ppc}, {ppc}]
-velocity = [{-speed / 2}, 0.0, 0.0]
-[contact]
-normal = "{normal}"
-gap = "{gap}"
-[time]
+{bodies}[time]
 end = {end}
 [output]
 every = {end}
 [output.history]
 every_steps = 1
 [[output.history.probes]]
-name = "right"
-body = 1
+name = "ball"
+body = {ball}
 field = "v.x"
 stats = ["mean"]
 """
 
 
-def measured(history: Path, speed: float) -> dict:
+def measured(history: Path, speed: float, against: str = "sphere") -> dict:
     """Peak force, duration, impulse and restitution from a run's history (module doc)."""
     with open(history) as f:
         rows = list(csv.DictReader(f))
+    column = "plane" if against == "wall" else "contact1"
     t = np.array([float(r["time"]) for r in rows])
-    force = np.array([float(r["contact1.force_x"]) for r in rows])
-    v = np.array([float(r["right.v.x.mean"]) for r in rows])
-    c = hertz_constants(speed)
-    t_h, f_h = hertz_history(speed)
+    force = np.abs([float(r[f"{column}.force_x"]) for r in rows])
+    v = np.array([float(r["ball.v.x.mean"]) for r in rows])
+    c = hertz_constants(speed, against)
+    t_h, f_h = hertz_history(speed, against=against)
     duration = span_above(t, force)
-    impulse = float(rows[-1]["contact1.impulse_x"])
+    impulse = abs(float(rows[-1][f"{column}.impulse_x"]))
     pushed = np.flatnonzero(force > 0.0)
     onset = float(t[pushed[0]]) - GAP / speed if pushed.size else math.nan
     return {"onset_ms": 1e3 * onset,
             "duration": duration, "duration_ratio": duration / span_above(t_h, f_h),
             "peak": float(force.max()), "peak_ratio": float(force.max()) / c["force_max"],
-            "impulse_ratio": impulse / (c["mass"] * speed),
+            "impulse_ratio": impulse / (2.0 * c["m_star"] * speed),
             "restitution": float(-v[-1] / v[0]) if v[0] else math.nan,
             "t": t, "force": force}
 
 
 def run(method: str, per_radius: int, speed: float, ppc: int, runs: Path, comm,
-        normal: str = "separating", gap: str = "column", material: str = "neo_hookean") -> dict:
+        normal: str = "separating", gap: str = "column", material: str = "neo_hookean",
+        against: str = "sphere") -> dict:
     from parmpm.scene.load import scene_from_toml
 
-    out = runs / f"{method}_{normal}_{gap}_{material}_R{per_radius}_ppc{ppc}_v{speed}"
-    text = scene_text(method, per_radius, speed, ppc, normal, gap, material)
+    out = runs / f"{method}_{against}_{normal}_{gap}_{material}_R{per_radius}_ppc{ppc}_v{speed}"
+    text = scene_text(method, per_radius, speed, ppc, normal, gap, material, against)
     summary, wall = run_case(scene_from_toml(text), comm=comm, out_dir=out)
-    m = measured(out / "history.csv", speed) if is_root(comm) else {}
-    return {"method": method, "normal": normal, "gap": gap, "material": material,
+    m = measured(out / "history.csv", speed, against) if is_root(comm) else {}
+    return {"method": method, "against": against, "normal": normal, "gap": gap,
+            "material": material,
             "R_over_dx": per_radius, "ppc": ppc,
             "speed": speed,
             **{k: v for k, v in m.items() if k not in ("t", "force")},
@@ -190,17 +208,18 @@ def run(method: str, per_radius: int, speed: float, ppc: int, runs: Path, comm,
             "_t": m.get("t"), "_force": m.get("force")}
 
 
-def plot(rows: list[dict], speed: float, path: Path) -> Path:
+def plot(rows: list[dict], speed: float, against: str, path: Path) -> Path:
     fig, axes = figure(1, 1, size=(6.4, 4.2))
     ax = axes[0, 0]
-    t_h, f_h = hertz_history(speed)
+    t_h, f_h = hertz_history(speed, against=against)
     ax.plot(1e3 * (t_h + GAP / speed), f_h, "k-", lw=2, label="Hertz")
     for r in rows:
         ax.plot(1e3 * r["_t"], r["_force"], lw=1,
                 label=f"{r['method']} {r['material']} R/Δx = {r['R_over_dx']}")
     ax.set_xlabel("t (ms)")
     ax.set_ylabel("contact force (N)")
-    ax.set_title(f"two spheres, V = {speed} m/s")
+    ax.set_title(f"a sphere on a rigid wall, V = {speed} m/s" if against == "wall" else
+                 f"two spheres, V = {speed} m/s")
     ax.legend(fontsize=8)
     return save(fig, path)
 
@@ -215,6 +234,8 @@ def main() -> int:
     p.add_argument("--gaps", nargs="+", default=["column"], help="[contact] gap")
     p.add_argument("--materials", nargs="+", default=["neo_hookean"],
                    help="the spheres' law: neo_hookean, linear_elastic (Hertz's)")
+    p.add_argument("--against", choices=("sphere", "wall"), default="sphere",
+                   help='"wall": one sphere onto a rigid frictionless [[walls]] plane')
     args = p.parse_args()
     if args.quick:
         args.resolutions = [4]
@@ -224,19 +245,20 @@ def main() -> int:
     cases = [(m, nm, g, law, n) for m in args.methods for nm in args.normals for g in args.gaps
              for law in args.materials for n in args.resolutions]
     for method, normal, gap, law, n in cases:
-        rows.append(run(method, n, args.speed, args.ppc, out / "runs", comm, normal, gap, law))
+        rows.append(run(method, n, args.speed, args.ppc, out / "runs", comm, normal, gap, law,
+                        args.against))
         if is_root(comm):
             r = rows[-1]
             print(f"{method:7s} {normal} {gap} {law} R/dx={n:<3d} onset={r['onset_ms']:+.2f} ms "
                   f"duration/Hertz={r['duration_ratio']:.4f} "
-                  f"peak/Hertz={r['peak_ratio']:.4f} impulse/mV={r['impulse_ratio']:.4f} "
+                  f"peak/Hertz={r['peak_ratio']:.4f} impulse/2m*V={r['impulse_ratio']:.4f} "
                   f"restitution={r['restitution']:.4f} ({r['particles']} particles, "
                   f"{r['steps']} steps, {r['wall_s']:.1f} s)", flush=True)
     if is_root(comm):
         write_csv(out / "hertz.csv", [{k: v for k, v in r.items() if not k.startswith("_")}
                                       for r in rows])
         print(wrote(out / "hertz.csv"))
-        print(wrote(plot(rows, args.speed, figs / "hertz.png")))
+        print(wrote(plot(rows, args.speed, args.against, figs / "hertz.png")))
     return 0
 
 
