@@ -196,7 +196,8 @@ class Checkpoints:
         state = {"metrics": s.metrics.state() if s.metrics is not None else None,
                  "next_output": sim.out_schedule.next_time if sim.out_schedule else None,
                  "energy": s.energy.state(),
-                 "run": {"id": s.run_id}}
+                 "run": {"id": s.run_id},
+                 "bodies": s.body_records}
         attrs = {"scene": s.scene.to_toml(), "step": clock.nstep, "time": clock.t,
                  "dt": clock.last_dt, "vmax": clock.vmax, "method": s.interp.name,
                  "lcr": s.lcr if s.lcr is not None else float("nan"), "ranks": s.size,

@@ -7,17 +7,16 @@ import numpy as np
 from parmpm.core.errors import SceneError
 from parmpm.loads.external import (BODY_FORCE, KIND_CODES, POINT, PRESSURE, LoadSet,
                                    surface_faces)
-from parmpm.output.history import body_ranges
 from parmpm.particles.store import Particles
 from parmpm.scene.records import SceneSpec
 
 
-def external_loads(spec: SceneSpec, comm, P: Particles, material_rows: dict,
+def external_loads(spec: SceneSpec, comm, P: Particles, ranges: list,
                    n_total: int) -> LoadSet:
     """The scene's ``[[loads]]`` as a :class:`~parmpm.loads.external.LoadSet` (collective: the
-    particles each load acts on are gathered from every rank, in global-id order)."""
+    particles each load acts on are gathered from every rank, in global-id order; ``ranges``:
+    every body's global ids ``[first, last)``, as seeded or as the checkpoint records them)."""
     d = spec.dim
-    ranges = body_ranges(spec.grid, spec.bodies, material_rows)
     loads = LoadSet(d)
     for k, load in enumerate(spec.loads):
         code = KIND_CODES[load.kind]
@@ -34,10 +33,13 @@ def external_loads(spec: SceneSpec, comm, P: Particles, material_rows: dict,
                                  "so its surface faces are unknown; use a body_force or point load")
             lo, hi = ranges[load.body]
             mine = np.flatnonzero((P.gid >= lo) & (P.gid < hi))
-            vec, area = surface_faces(d, P.x0[mine], P.r0[mine],
-                                      lambda x, b=body: b.inside(d, x),
-                                      None if load.region is None else
-                                      (load.region.min, load.region.max))
+            try:
+                vec, area = surface_faces(d, P.x0[mine], P.r0[mine],
+                                          lambda x, b=body: b.inside(d, x),
+                                          None if load.region is None else
+                                          (load.region.min, load.region.max))
+            except SceneError as exc:  # a restart whose surface file is gone: its faces
+                raise SceneError(f"loads.{k}: {exc}") from None
             on = area > 0
             parts = comm.allgather((P.gid[mine][on], vec[on], area[on]))
             gids = np.concatenate([p[0] for p in parts])

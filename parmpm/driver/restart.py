@@ -3,6 +3,9 @@
 :func:`open_checkpoint` reads the scene a checkpoint stores, applies the ``--set`` overrides a
 restart allows (:mod:`parmpm.driver.restart_keys`) and makes sure every rank continues the same
 checkpoint with the same scene; :func:`parmpm.driver.set_up.set_up` then reads the particles back.
+The checkpoint owns the run's state: the bodies' global-id ranges and what the body files gave
+come from its records (:mod:`parmpm.scene.recorded_files`), so a restart works with those files
+changed, moved or deleted.
 """
 from __future__ import annotations
 
@@ -12,6 +15,7 @@ from parmpm.driver.restart_keys import check_restart
 from parmpm.io.checkpoint import CheckpointReader, attrs_digest
 from parmpm.scene.agreement import check_same_scene
 from parmpm.scene.load import scene_from_toml
+from parmpm.scene.recorded_files import remember
 
 
 def open_checkpoint(path, overrides, comm):
@@ -23,6 +27,11 @@ def open_checkpoint(path, overrides, comm):
     reader, scene, problem = None, None, None
     try:
         reader = CheckpointReader(path, warn=comm is None or comm.Get_rank() == 0)
+        try:  # what the run read from its body files: the restart needs none of them
+            remember(reader.state.get("bodies"))
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise ParmpmError(f"checkpoint '{path}': damaged: its body records do not read "
+                              f"({type(exc).__name__}: {exc})") from None
         text = str(reader.attrs["scene"])
         stored = scene_from_toml(text, f"{path}")
         scene = scene_from_toml(text, f"{path}", overrides)

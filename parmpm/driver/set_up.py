@@ -42,6 +42,7 @@ from parmpm.scene.patch_size import (TARGET_PATCHES, auto_patch_size, covered_pa
                                idle_ranks_warning)
 from parmpm.transfer.reach import fmt_vec
 from parmpm.scene.records import Boundary, Grid, Method, SceneSpec
+from parmpm.scene.recorded_files import body_records, remember
 from parmpm.scene.schema import DEFAULT_PATCH_SIZE
 from parmpm.driver.schedule import Clock
 from parmpm.particles.seeding import seed_bodies
@@ -80,6 +81,8 @@ class RankState:
     restart: bool             # continued from a checkpoint
     continues: dict | None    # the run a restart continues: its id and the checkpoint
     next_output: float | None  # the output schedule's next time, as checkpointed
+    body_ranges: list          # every body's global ids [first, last): seeded or checkpointed
+    body_records: list         # what the checkpoints record of them (scene.recorded_files)
 
     @property
     def spec(self) -> SceneSpec:
@@ -137,7 +140,7 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
         raise SceneError(f"scene '{scene.source}': {cut}")
     params, names = material_table(spec.materials)
     rows = {n: i for i, n in enumerate(names)}
-    P, patches, n_total, metrics = _particles(spec, comm, D, params, rows, checkpoint)
+    P, patches, n_total, metrics, ranges = _particles(spec, comm, D, params, rows, checkpoint)
     had = P.optional
     P.carry(carried_fields(spec.method))  # a checkpoint of an older format may lack one: zeros
     if "corners" in P.optional and "corners" not in had:  # e.g. a cpdi run continued as cpdi2
@@ -155,9 +158,9 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     if spec.walls:
         stepper.walls = WallPhase(spec.walls, spec.dim)
     if spec.contact:
-        stepper.use_contact(_contact(spec, rows))
+        stepper.use_contact(_contact(spec, ranges))
     if spec.loads:
-        stepper.forcing = external_loads(spec, comm, P, rows, n_total)
+        stepper.forcing = external_loads(spec, comm, P, ranges, n_total)
         stepper.load_work = True
     limit = spec.time.max_energy_growth
     driven = stepper.forcing is not None or (stepper.walls is not None and stepper.walls.moves)
@@ -169,12 +172,11 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
                                            checkpoint)
     return RankState(scene, comm, interp, lcr, update, D, params, rows, patches, P, stepper,
                      n_total, metrics, energy, clock, run_id, checkpoint is not None, continues,
-                     next_output)
+                     next_output, ranges, body_records(spec.bodies, ranges))
 
 
-def _contact(spec: SceneSpec, rows: dict) -> ContactPhase:
+def _contact(spec: SceneSpec, ranges: list) -> ContactPhase:
     """The contact phase of ``[contact]``: every body's field and first global id."""
-    ranges = body_ranges(spec.grid, spec.bodies, rows)
     body_start = [first for first, _ in ranges] + [ranges[-1][1]]
     reach = 1.5 if spec.method.interpolator == "bspline" else 1.0  # support past the domain
     c = spec.contact
@@ -249,11 +251,26 @@ def _check_memory(comm, spec: SceneSpec, ghost: int) -> None:
 
 
 def _particles(spec, comm, D, params, rows, checkpoint):
-    """(this rank's particles, the patch set, particles in all, metrics): seeded from the scene
-    (:func:`_seeded`) or read back from a checkpoint (:func:`_restored`)."""
+    """(this rank's particles, the patch set, particles in all, metrics, every body's global-id
+    range): seeded from the scene (:func:`_seeded`) or read back from a checkpoint
+    (:func:`_restored`), whose ranges are its own, not the input files' of today."""
     if checkpoint is None:
         return _seeded(spec, comm, D, params, rows)
-    return _restored(spec, comm, D, params, checkpoint)
+    out = _restored(spec, comm, D, params, checkpoint)
+    return (*out, _stored_ranges(spec, rows, checkpoint, out[2]))
+
+
+def _stored_ranges(spec: SceneSpec, rows: dict, checkpoint, n: int) -> list:
+    """The bodies' global-id ranges a checkpoint records (:mod:`parmpm.scene.recorded_files`);
+    one written before it recorded them: found by seeding the scene again, as then."""
+    ranges = remember(checkpoint.state.get("bodies"))
+    if ranges is None:
+        return body_ranges(spec.grid, spec.bodies, rows)
+    if len(ranges) != len(spec.bodies) or ranges[-1][1] != n:
+        raise SimulationError(f"checkpoint '{checkpoint.path}': damaged: its body records give "
+                              f"{len(ranges)} bodies and {ranges[-1][1]} particles, the run "
+                              f"{len(spec.bodies)} and {n}")
+    return ranges
 
 
 def _patch_set(spec: SceneSpec, comm, layout, counts) -> PatchSet:
@@ -285,7 +302,9 @@ def _seeded(spec: SceneSpec, comm, D, params, rows):
     locate_patches(d, P.x, D.origin3, D.inv_h3, layout.cells3, layout.psize3,
                    layout.patches_per_axis, P.patch, P.patch)
     metrics = make_metrics(spec, P.x0, P.mass, comm, P.gid)
-    return P, patches, seeds.n, metrics
+    ends = np.cumsum([len(chunk[0]) for chunk in seeds.chunks])
+    ranges = [(int(e - len(c[0])), int(e)) for e, c in zip(ends, seeds.chunks)]
+    return P, patches, seeds.n, metrics, ranges
 
 
 def _restored(spec: SceneSpec, comm, D, params, checkpoint):

@@ -268,7 +268,9 @@ class History:
 def body_ranges(grid, bodies, material_rows: dict) -> list[tuple[int, int]]:
     """Global-id range ``[first, last)`` of every body (``grid``, ``bodies``: the scene's
     records): particles are numbered body by body, in the order of ``[[bodies]]``
-    (:func:`parmpm.particles.seeding.seed_bodies`, one chunk per body)."""
+    (:func:`parmpm.particles.seeding.seed_bodies`, one chunk per body). Seeds the scene again:
+    only for a checkpoint written before checkpoints recorded the ranges
+    (:mod:`parmpm.scene.recorded_files`)."""
     from parmpm.particles.seeding import seed_bodies
 
     ends = np.cumsum([len(chunk[0]) for chunk in seed_bodies(grid, bodies, material_rows).chunks])
@@ -283,8 +285,7 @@ class HistoryOutput:
     def __init__(self, sim):
         spec, rows = sim.state.spec, sim.state.material_rows
         probes = spec.output.history.probes
-        bodies = (body_ranges(spec.grid, spec.bodies, rows)
-                  if any(p.body is not None for p in probes) else [])
+        bodies = sim.state.body_ranges  # seeded, or as the checkpoint records them
         self.history = History(sim.dim, [Probe(p, bodies, rows) for p in probes],
                                tuple(w.name for w in spec.walls), bool(spec.loads),
                                held(spec.boundary),

@@ -16,6 +16,7 @@ from parmpm.geometry import csg
 from parmpm.geometry.circular import round_form
 from parmpm.geometry.primitives import rotated_box_bounds
 from parmpm.scene.body_files import FILE_DIMS, FILE_KEYS, check_file_body, listed
+from parmpm.scene.recorded_files import detached
 from parmpm.scene.check import AXIS_NAMES, Checker, show
 from parmpm.scene.parts import PART_DIMS, PART_KEYS, check_part, csg_bounds
 from parmpm.scene.records import Part, build
@@ -24,12 +25,12 @@ SHAPE_DIMS = {"box": (1, 2, 3), "disk": (2,), "sphere": (3,),
               **{s: d for s, d in PART_DIMS.items() if s != "half_space"}, **FILE_DIMS}
 BODY_KEYS = ("shape", "min", "max", "center", "radius", "material", "ppc", "velocity", "vibration",
              "angular_velocity", "angle", "velocity_gradient", "axis", "length", "vertices",
-             "parts", "file", "groups", "split", "step", "seeding")
+             "parts", "file", "groups", "split", "step", "file_size", "file_sha256", "seeding")
 SHAPE_KEYS = {"box": ("min", "max"), "disk": ("center", "radius"), "sphere": ("center", "radius"),
               **{s: k for s, k in PART_KEYS.items() if s not in ("box", "half_space")},
               **FILE_KEYS}
 _SHAPE_ONLY_KEYS = ("min", "max", "center", "radius", "axis", "length", "vertices", "parts",
-                    "file", "groups", "split", "step")
+                    "file", "groups", "split", "step", "file_size", "file_sha256")
 #: the key a body outside the grid is blamed on, by shape
 _PLACED_BY = {"disk": "center", "sphere": "center", "cylinder": "center", "polygon": "vertices",
               "mesh": "file", "surface": "file", "particles": "file"}
@@ -118,8 +119,11 @@ def _material(c: Checker, key: str, t: dict, out: dict, dim: int, materials: dic
     (then None: each particle's is the file's, checked by :mod:`parmpm.scene.body_files`)."""
     names = None
     if out["shape"] == "particles":
-        names = listed(SimpleNamespace(shape="particles", file=out["file"], step=out["step"]),
-                       dim).material
+        view = SimpleNamespace(shape="particles", file=out["file"], step=out["step"],
+                               file_sha256=out.get("file_sha256"))
+        if detached(view) and t.get("material") is None:
+            return None  # a restart without the file: the checkpoint's particles name theirs
+        names = None if detached(view) else listed(view, dim).material
     if names is not None:
         if t.get("material") is not None:
             c.fail(f"{key}.material", f"the particle file '{out['file']}' names each particle's "

@@ -24,13 +24,17 @@ import numpy as np
 
 from parmpm.core.errors import SceneError
 from parmpm.core.log import get_logger
+from parmpm.scene import recorded_files
 from parmpm.scene.check import Checker, show
 
 log = get_logger(__name__)
 
 #: each file shape's own keys, and the dimensions it exists in
-FILE_KEYS = {"mesh": ("file", "groups", "split"), "surface": ("file",),
-             "particles": ("file", "step")}
+#: (``file_size``, ``file_sha256``: what the resolved scene records of the file,
+#: :mod:`parmpm.scene.recorded_files`)
+FILE_KEYS = {"mesh": ("file", "groups", "split", "file_size", "file_sha256"),
+             "surface": ("file", "file_size", "file_sha256"),
+             "particles": ("file", "step", "file_size", "file_sha256")}
 FILE_DIMS = {"mesh": (2, 3), "surface": (3,), "particles": (1, 2, 3)}
 #: the most sub-divisions per element edge (split^d times the particles of each element)
 MAX_SPLIT = 16
@@ -95,6 +99,8 @@ def count(body, dim: int) -> int:
     """How many particles a mesh or particle body makes, without making them."""
     from parmpm.geometry.mesh import particles_per_element
 
+    if recorded_files.detached(body):
+        return recorded_files.recorded(body).count
     if body.shape == "particles":
         return int(listed(body, dim).x.shape[0])
     mesh = _mesh_file(_stamp(body.file), dim, _groups_of(body))[0]
@@ -120,8 +126,17 @@ def _particles(stamp: tuple, dim: int, step: int | None) -> tuple[Listed, tuple]
     return listed, (p.x.min(axis=0).tolist(), p.x.max(axis=0).tolist())
 
 
+def _attached(body, needs: str) -> None:
+    """Refuse to read a detached body's file (:func:`parmpm.scene.recorded_files.detached`)."""
+    if recorded_files.detached(body):
+        raise SceneError(f"the file '{body.file}' is gone or changed since the checkpoint this "
+                         f"run continues (it had sha256 {body.file_sha256}); {needs} needs its "
+                         "contents: put that file back")
+
+
 def listed(body, dim: int) -> Listed:
     """A mesh's or particle file's points (read once per process)."""
+    _attached(body, "reading its points")
     if body.shape == "mesh":
         return _mesh(_stamp(body.file), dim, _groups_of(body), int(body.split))
     return _particles(_stamp(body.file), dim, body.step)[0]
@@ -129,11 +144,16 @@ def listed(body, dim: int) -> Listed:
 
 def surface(body):
     """A surface body's ``(vertices, triangles, summary)`` (read once per process)."""
+    _attached(body, "the surface's inside")
     return _surface(_stamp(body.file))
 
 
 def bounds(body, dim: int) -> tuple[list, list]:
-    """Axis-aligned bounds of a file body: a mesh's nodes, a surface's triangles, the points."""
+    """Axis-aligned bounds of a file body: a mesh's nodes, a surface's triangles, the points (a
+    detached body's: as recorded)."""
+    if recorded_files.detached(body):
+        rec = recorded_files.recorded(body)
+        return list(rec.lo), list(rec.hi)
     if body.shape == "surface":
         s = surface(body)[2]
         return list(s.lo), list(s.hi)
@@ -179,6 +199,22 @@ def check_file_body(c: Checker, key: str, t: dict, dim: int, shape: str,
         out["step"] = None if step is None else c.integer(f"{key}.step", step,
                                                           "an integer >= 0 (a run's step)",
                                                           lambda s: s >= 0)
+    now = recorded_files.digest(out["file"])
+    sha = _claimed(c, key, t)
+    if sha is not None and (now is None or now[1] != sha):
+        rec = recorded_files.recorded(_view(shape, {**out, "file_sha256": sha}))
+        if rec is not None:  # a restart: the checkpoint holds what the file gave
+            _warn_once(f"{key}.file: '{out['file']}' is {'gone' if now is None else 'changed'} "
+                       "since the checkpoint this run continues: its particles, bounds and "
+                       "count are the checkpoint's")
+            if "file_size" in t:
+                out["file_size"] = t["file_size"]
+            out["file_sha256"] = sha
+            return out, list(rec.lo), list(rec.hi)
+        if now is not None:
+            _warn_once(f"{key}.file: '{out['file']}' changed since this scene was recorded "
+                       f"(sha256 {sha[:16]}…, {t.get('file_size', '?')} bytes; now "
+                       f"{now[1][:16]}…, {now[0]} bytes): the run reads it as it is now")
     view = _view(shape, out)
     try:
         lo, hi = _check_surface(key, view) if shape == "surface" else bounds(view, dim)
@@ -203,13 +239,29 @@ def check_file_body(c: Checker, key: str, t: dict, dim: int, shape: str,
                 c.fail(fkey, f"particle file '{out['file']}' names material {show(str(name))}, "
                              "which the scene does not define (defined: "
                              + ", ".join(show(m) for m in materials) + ")")
+    if now is not None:  # what the run read, recorded (recorded_files)
+        out.update(file_size=now[0], file_sha256=now[1])
     return out, lo, hi
+
+
+def _claimed(c: Checker, key: str, t: dict) -> str | None:
+    """A recorded scene's ``file_sha256`` (and its ``file_size``, checked for form only)."""
+    if "file_size" in t:
+        c.integer(f"{key}.file_size", t["file_size"], "an integer >= 0 (the file's bytes)",
+                  lambda n: n >= 0)
+    if "file_sha256" not in t:
+        return None
+    sha = c.string(f"{key}.file_sha256", t["file_sha256"])
+    if not re.fullmatch(r"[0-9a-f]{64}", sha):
+        c.expected(f"{key}.file_sha256", "64 lower-case hex digits (the file's SHA-256)", sha)
+    return sha
 
 
 def _view(shape: str, keys: dict) -> SimpleNamespace:
     """The few fields of a body the loaders read, before its record exists."""
     return SimpleNamespace(shape=shape, file=keys["file"], groups=keys.get("groups"),
-                           split=keys.get("split", 1), step=keys.get("step"))
+                           split=keys.get("split", 1), step=keys.get("step"),
+                           file_sha256=keys.get("file_sha256"))
 
 
 def _groups(c: Checker, key: str, raw: Any) -> list | None:

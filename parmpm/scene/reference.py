@@ -68,7 +68,11 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   ``file`` (STL, OBJ or PLY), seeded as a CSG body on the lattice the winding number keeps;
   "particles": ``file`` (.csv, .npz, .h5 or a parmpm snapshot or checkpoint), ``step``
   (optional: which step of a snapshot series), no ``ppc``; ``material`` may be left out when
-  the file names each particle's material.
+  the file names each particle's material. Every file body's resolved form records what the run
+  read: ``file_size`` (bytes) and ``file_sha256`` (64 lower-case hex digits); given in a scene
+  (a recorded ``scene.toml`` run again) a file whose digest differs is read as it is now, with a
+  warning; a restart whose file is gone or changed continues from its checkpoint's records
+  (:mod:`parmpm.scene.recorded_files`).
 * ``[method]``: ``interpolator`` ("mpm" | "ugimp" | "cpgimp" | "cpdi" | "bspline" | "cpdi2",
   default "cpdi"), ``lcr``
   (CPDI domain-scaling length: metres, "<k>dx", "<k>dx/<n>" or "none", at most the largest

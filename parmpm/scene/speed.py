@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from parmpm.scene.check import Checker, show
+from parmpm.scene.recorded_files import detached
 
 #: the largest kinetic energy a body may start with (J, or J per m^(3 - dim)): far below the
 #: largest double, so that the sums of a run (energies, work over many steps) stay finite
@@ -66,6 +67,8 @@ def _file_terms(body, terms: dict, materials: dict) -> float:
     """The density to bound the energy with; a particle file's velocities into ``terms``."""
     if body.shape != "particles":
         return materials[body.material].density
+    if detached(body):  # a restart without the file: checked when the run began
+        return max(m.density for m in materials.values())
     data = body.listed(len(body.velocity))
     if data.velocity is not None:
         top = float(np.max(np.abs(data.velocity))) if data.velocity.size else 0.0

@@ -150,6 +150,8 @@ class Body:
     groups: tuple[str | int, ...] | None = None
     split: int | None = None
     step: int | None = None
+    file_size: int | None = None     # what the run read: parmpm.scene.recorded_files
+    file_sha256: str | None = None
     seeding: str | None = None   # "conforming" | "lattice"; None: listed (mesh, particles)
 
     @property
