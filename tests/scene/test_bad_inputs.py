@@ -278,6 +278,7 @@ LONG = "x" * 300
     ("mesh", f"{LONG}.msh", "a name in the path is 304 bytes long; expected at most 255"),
     ("surface", f"{LONG}.stl", "a name in the path is 304 bytes long; expected at most 255"),
     ("particles", f"{LONG}.csv", "a name in the path is 304 bytes long; expected at most 255"),
+    ("mesh", "/".join(["d" * 200] * 21) + ".msh", "bytes long; expected under 4096"),
     # before: a directory or device read as a body's file
     ("mesh", ".", "is a directory, not a regular file"),
     ("mesh", "/dev/null", "is a character device, not a regular file"),
