@@ -8,6 +8,12 @@ the file, what was found and what is accepted. meshio is imported only when a me
 
 Groups are Gmsh physical tags (cell data ``gmsh:physical``, their names in ``field_data``) or,
 when a file has none, its named cell sets (Abaqus ``*ELSET``, ...), numbered in file order.
+
+A cell is its set of nodes: one listed again (in any node order) is the same cell, seeded once.
+Gmsh 2.2 writes a cell once per physical group it belongs to, and meshio reads each line as a
+cell, so a square in two groups would otherwise weigh what its cells in both groups weigh; the
+copies' groups are merged, the first copy keeps its place, and :attr:`VolumeMesh.repeats` counts
+what was dropped (the scene says so in one warning).
 """
 from __future__ import annotations
 
@@ -38,10 +44,13 @@ class MeshBlock(NamedTuple):
 @dataclass(frozen=True)
 class VolumeMesh:
     """A mesh's nodes ``points`` (n_nodes, dim) float64, its blocks of cells of the scene's
-    dimension (file order) and ``group_names``: name -> group id (empty if the file names none)."""
+    dimension (file order) and ``group_names``: name -> group id (empty if the file names none).
+    ``repeats``: per cell (counting through the blocks) how many more times the file lists it
+    among the selected groups, dropped here; None when no cell is listed twice."""
     points: np.ndarray
     blocks: tuple[MeshBlock, ...]
     group_names: dict = field(default_factory=dict)
+    repeats: np.ndarray | None = None
 
     @property
     def n_cells(self) -> int:
@@ -59,6 +68,9 @@ def _load(path: Path, where: str):
         raise SceneError(f"{where}: no such file; expected a mesh file (Gmsh .msh, .vtu, .xdmf, ...)")
     if path.is_dir():
         raise SceneError(f"{where}: is a directory; expected a mesh file")
+    if not path.is_file():  # a FIFO would block open() until something writes to it
+        raise SceneError(f"{where}: is not a regular file (a FIFO, device or socket); expected a "
+                         "mesh file")
     try:
         with open(path, "rb") as f:
             f.read(1)
@@ -192,7 +204,7 @@ def read_volume_mesh(path, dim: int, groups=None) -> VolumeMesh:
     present = [g for g, h in zip(ids, np.atleast_1d(held)) if h] if len(ids) else []
     names = {n: i for n, i in names.items() if i in present}
     wanted = None if groups is None else _selected(groups, names, present, where)
-    blocks = []
+    volume = []
     for c, mask in zip(mesh.cells, masks):
         tdim = c.dim
         if tdim is not None and tdim < dim:
@@ -201,18 +213,74 @@ def read_volume_mesh(path, dim: int, groups=None) -> VolumeMesh:
             kind = f"{tdim}D " if tdim is not None else ""
             raise SceneError(f"{where}: has {kind}cells of type '{c.type}'; a {dim}D body accepts only "
                              f"{' and '.join(VOLUME_CELLS[dim])} cells (linear, no mid-side nodes)")
-        cells = _check_block(c.type, c.data, len(points), where)
-        keep, group = _cell_groups(mask, ids, ids if wanted is None else wanted)
-        if wanted is not None:
-            cells, group = cells[keep], group[keep]
-        if len(cells):
-            blocks.append(MeshBlock(c.type, np.ascontiguousarray(cells), np.ascontiguousarray(group)))
+        volume.append((c.type, _check_block(c.type, c.data, len(points), where), mask))
+    order = ids if wanted is None else wanted
+    column = {g: k for k, g in enumerate(ids)}
+
+    def chosen(mask: np.ndarray) -> np.ndarray:
+        """Which cells the groups select (all of them without ``groups``)."""
+        if wanted is None:
+            return np.ones(len(mask), bool)
+        return mask[:, [column[g] for g in wanted]].any(axis=1)
+
+    blocks, repeats = [], []
+    for (cell_type, cells, _), (mask, copies) in zip(volume, _merge_repeats(volume, chosen)):
+        keep = chosen(mask) if copies is None else copies > 0
+        group = _cell_groups(mask, ids, order)[1]
+        if keep.any():
+            blocks.append(MeshBlock(cell_type, np.ascontiguousarray(cells[keep]),
+                                    np.ascontiguousarray(group[keep])))
+            repeats.append(np.zeros(int(keep.sum()), np.int64) if copies is None
+                           else copies[keep] - 1)
     if not blocks:
         kinds = ", ".join(dict.fromkeys(found)) or "no cells at all"
         picked = "" if groups is None else f" in groups {groups!r}"
         raise SceneError(f"{where}: no {dim}D cells{picked} (found {kinds}); expected "
                          f"{' or '.join(VOLUME_CELLS[dim])} cells")
-    return VolumeMesh(points, tuple(blocks), names)
+    dropped = np.concatenate(repeats) if repeats else None
+    return VolumeMesh(points, tuple(blocks), names,
+                      dropped if dropped is not None and dropped.any() else None)
+
+
+def _may_repeat(cells: np.ndarray) -> bool:
+    """Whether two rows might hold the same nodes: an order-free hash of each row (the sum of its
+    nodes' splitmix64), sorted. Equal node sets hash alike, so False is certain; True (a repeat or
+    a rare collision) sends the rows to the exact comparison, which costs seconds per million."""
+    with np.errstate(over="ignore"):
+        z = cells.astype(np.uint64) + np.uint64(0x9E3779B97F4A7C15)
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        h = np.sort((z ^ (z >> np.uint64(31))).sum(axis=1))
+    return bool(np.any(h[1:] == h[:-1]))
+
+
+def _merge_repeats(volume: list, chosen) -> list:
+    """Per block ``(cell_type, cells, mask)``: its group mask and, where a cell of that type is
+    listed more than once, ``copies`` (n,): for a cell's first listing, how many of its listings
+    ``chosen`` selects (0 for the later listings, which are dropped); None for a block of a type
+    listed once each (left as read). A cell's mask is the union of its listings' masks."""
+    out = [(mask, None) for _, _, mask in volume]
+    for cell_type in dict.fromkeys(t for t, _, _ in volume):
+        ks = [k for k, (t, _, _) in enumerate(volume) if t == cell_type]
+        cells = np.concatenate([volume[k][1] for k in ks])
+        if not _may_repeat(cells):
+            continue
+        _, first, inverse = np.unique(np.sort(cells, axis=1), axis=0, return_index=True,
+                                      return_inverse=True)
+        if len(first) == len(cells):
+            continue
+        inverse = inverse.reshape(-1)
+        mask = np.concatenate([volume[k][2] for k in ks])
+        merged = np.zeros((len(first), mask.shape[1]), bool)
+        np.logical_or.at(merged, inverse, mask)
+        count = np.bincount(inverse, weights=chosen(mask), minlength=len(first)).astype(np.int64)
+        copies = np.zeros(len(cells), np.int64)
+        copies[first] = count
+        at = np.cumsum([0] + [len(volume[k][1]) for k in ks])
+        for j, k in enumerate(ks):
+            rows = slice(at[j], at[j + 1])
+            out[k] = (merged[inverse[rows]], copies[rows])
+    return out
 
 
 __all__ = ["MeshBlock", "VolumeMesh", "read_volume_mesh", "VOLUME_CELLS"]

@@ -23,6 +23,8 @@ import numpy as np
 from parmpm.core.errors import SceneError
 
 FORMATS = {".stl": "stl", ".obj": "obj", ".ply": "ply"}
+#: an OBJ index at least this large fits no int64 array (and no file's vertex count)
+INDEX_LIMIT = 2**63
 
 
 def read_surface(path) -> tuple[np.ndarray, np.ndarray]:
@@ -45,6 +47,9 @@ def _format(path: Path) -> str:
         raise _fail(path, "not found; expected an existing STL, OBJ or PLY file")
     if path.is_dir():
         raise _fail(path, "is a directory; expected an STL, OBJ or PLY file")
+    if not path.is_file():  # a FIFO would block open() until something writes to it
+        raise _fail(path, "is not a regular file (a FIFO, device or socket); expected an STL, "
+                    "OBJ or PLY file")
     fmt = FORMATS.get(path.suffix.lower())
     if fmt is None:
         raise _fail(path, f"unknown extension {path.suffix!r}; expected .stl, .obj or .ply")
@@ -108,7 +113,7 @@ def _read_obj(path: Path) -> tuple[np.ndarray, list[np.ndarray]]:
                     raise ValueError(f"{len(words) - 1} coordinates, expected 3")
                 points.append([float(w) for w in words[1:4]])
             else:
-                index = [int(w.split("/", 1)[0]) for w in words[1:]]
+                index = [_index(path, number, w.split("/", 1)[0], len(points)) for w in words[1:]]
                 if len(index) < 3 or 0 in index:
                     raise ValueError("a face needs 3 or more nonzero indices")
                 faces.append([i - 1 if i > 0 else len(points) + i for i in index])
@@ -119,6 +124,20 @@ def _read_obj(path: Path) -> tuple[np.ndarray, list[np.ndarray]]:
     for f in faces:
         blocks.setdefault(len(f), []).append(f)
     return np.asarray(points, float).reshape(-1, 3), [np.asarray(b) for b in blocks.values()]
+
+
+def _index(path: Path, number: int, word: str, seen: int) -> int:
+    """A face's vertex index; one that fits no int64 (no file has that many vertices) is refused
+    naming the line and the value, its middle cut when long (a line may hold 10,000 digits,
+    more than ``int()`` converts)."""
+    digits = word.lstrip("+-")
+    significant = digits.lstrip("0") if digits.isascii() and digits.isdigit() else ""
+    if len(significant) <= 19 and (not significant or int(significant) < INDEX_LIMIT):
+        return int(word)  # not a plain integer: int's ValueError, said with the line
+    shown = word if len(word) <= 40 else f"{word[:20]}...{word[-8:]} ({len(digits)} digits)"
+    raise _fail(path, f"line {number}: face index {shown} is beyond any vertex count (at most "
+                f"2^63 - 1); expected an index of one of its {seen} vertices so far (1..n, or "
+                "-n..-1 from the last)")
 
 
 def _fan(faces: list[np.ndarray]) -> np.ndarray:

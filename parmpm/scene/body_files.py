@@ -16,6 +16,7 @@ import functools
 import math
 import os
 import re
+import stat
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any, NamedTuple
@@ -40,6 +41,14 @@ FILE_DIMS = {"mesh": (2, 3), "surface": (3,), "particles": (1, 2, 3)}
 MAX_SPLIT = 16
 #: the most particles a meshed body may make (as a particle file may hold)
 MAX_MESH_PARTICLES = 2**31
+#: the longest name in a path and the longest path, in bytes (Linux's NAME_MAX and PATH_MAX)
+NAME_MAX, PATH_MAX = 255, 4096
+#: how each file shape's errors name its file
+LABELS = {"mesh": "mesh", "surface": "surface file", "particles": "particle file"}
+#: what a path that is not a regular file is
+KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+         (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
+         (stat.S_ISSOCK, "a socket"))
 
 
 class Listed(NamedTuple):
@@ -186,10 +195,13 @@ def check_file_body(c: Checker, key: str, t: dict, dim: int, shape: str,
                                                      "folder)"))
     if not name.strip():
         c.expected(fkey, "a path to a file", name)
+    if "\0" in name:
+        c.fail(fkey, f"{show(name)} holds a NUL byte; expected a path to a file")
     path = Path(os.path.expanduser(name))
     if not path.is_absolute():
         path = scene_folder(c.where) / path
     out: dict[str, Any] = {"file": os.path.abspath(path)}
+    _regular(c, fkey, shape, out["file"])
     if shape == "mesh":
         out["groups"] = _groups(c, f"{key}.groups", t.get("groups"))
         out["split"] = c.integer(f"{key}.split", t.get("split", 1),
@@ -221,6 +233,7 @@ def check_file_body(c: Checker, key: str, t: dict, dim: int, shape: str,
         n = count(view, dim) if shape == "mesh" else 0
         if shape == "mesh" and n <= MAX_MESH_PARTICLES:  # its elements' checks (split 1: the same)
             _mesh(_stamp(view.file), dim, _groups_of(view), 1)
+            _warn_repeats(fkey, view, dim)
         data = listed(view, dim) if shape == "particles" else None
     except SceneError as exc:
         c.fail(fkey, str(exc))
@@ -255,6 +268,57 @@ def _claimed(c: Checker, key: str, t: dict) -> str | None:
     if not re.fullmatch(r"[0-9a-f]{64}", sha):
         c.expected(f"{key}.file_sha256", "64 lower-case hex digits (the file's SHA-256)", sha)
     return sha
+
+
+def _regular(c: Checker, fkey: str, shape: str, path: str) -> None:
+    """Refuse, before anything opens it, a path no file can have (a name over NAME_MAX bytes, the
+    whole over PATH_MAX) and one that is there but is no regular file: a FIFO blocks ``open()``
+    until something writes to it; a directory, device or socket holds no body. A missing file is
+    the reader's to report (it names the formats it expects). A particle ``.xdmf`` is read through
+    its ``.h5``, which is checked too."""
+    raw = os.fsencode(path)
+    longest = max(raw.split(b"/"), key=len)
+    if len(longest) > NAME_MAX:
+        c.fail(fkey, f"{LABELS[shape]} {show(path)}: a name in the path is {len(longest)} bytes "
+                     f"long; expected at most {NAME_MAX} bytes per name")
+    if len(raw) >= PATH_MAX:
+        c.fail(fkey, f"{LABELS[shape]} {show(path)}: the path is {len(raw)} bytes long; "
+                     f"expected under {PATH_MAX}")
+    paths = [path] + ([str(Path(path).with_suffix(".h5"))]
+                      if shape == "particles" and path.lower().endswith(".xdmf") else [])
+    for each in paths:
+        try:
+            mode = os.stat(each).st_mode
+        except FileNotFoundError:
+            continue
+        except OSError as exc:
+            c.fail(fkey, f"{LABELS[shape]} '{each}': cannot be read ({exc.strerror or exc})")
+        if not stat.S_ISREG(mode):
+            kind = next((k for test, k in KINDS if test(mode)), "not a file")
+            c.fail(fkey, f"{LABELS[shape]} '{each}': is {kind}, not a regular file; expected "
+                         f"a {LABELS[shape]}")
+
+
+def _warn_repeats(fkey: str, body, dim: int) -> None:
+    """One warning for the cells a mesh lists more than once (seeded once each): how many
+    listings were dropped and the volume they would have added."""
+    from parmpm.geometry.mesh import particles_per_element
+
+    mesh = _mesh_file(_stamp(body.file), dim, _groups_of(body))[0]
+    if mesh.repeats is None:
+        return
+    vol = _mesh(_stamp(body.file), dim, _groups_of(body), 1).vol
+    per = np.concatenate([np.full(len(b.cells), particles_per_element(b.cell_type, 1))
+                          for b in mesh.blocks])
+    cell_vol = np.add.reduceat(vol, np.concatenate([[0], np.cumsum(per)[:-1]]))
+    dropped = math.fsum(cell_vol * mesh.repeats)
+    n, cells = int(mesh.repeats.sum()), int(np.count_nonzero(mesh.repeats))
+    noun = "area" if dim == 2 else "volume"
+    why = ("; Gmsh 2.2 writes a cell once per physical group"
+           if body.file.lower().endswith(".msh") else "")
+    _warn_once(f"{fkey}: mesh '{body.file}' lists {cells} cells more than once (the same nodes in "
+               f"any order{why}): each is seeded once, dropping {n} repeated listings of {noun} "
+               f"{dropped:.6g} m^{dim}")
 
 
 def _view(shape: str, keys: dict) -> SimpleNamespace:

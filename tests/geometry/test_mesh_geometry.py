@@ -6,11 +6,15 @@ nothing with the module's quadrature (``tests/harness/mesh_harness.py``: simplex
 Green's theorem for quads, exact polynomial algebra on the trilinear map for hexahedra). Meshes
 are numpy triangulations written with meshio into ``tmp_path``.
 """
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from mesh_harness import (TRI_MESHES, analytic_ring, assert_same_moments, cube_grid, gauss_2x2x2,
                           hex_moments, kuhn_tets, particle_moments, polar, polar_tri, polygon_moments,
-                          rel_errors, simplex_moments, square_tri, write)
+                          rel_errors, simplex_moments, square_tri, write, write_gmsh22_per_group)
 
 from parmpm.core.errors import SceneError
 from parmpm.geometry.mesh import element_particles, mesh_particles, particles_per_element
@@ -222,6 +226,33 @@ def test_cell_sets_select_cells(tmp_path):
     assert read_volume_mesh(path, 2, groups=["low", "all"]).n_cells == 8
 
 
+def test_a_cell_listed_again_is_read_once(tmp_path):
+    """Issue 41: a cell is its node set. Repeats in a later block of the same type, their nodes
+    rotated, are dropped and counted; the first listings keep their blocks and order."""
+    pts, quads, _ = polar(0.5, 1.5, 4, 24)
+    again = np.roll(quads[3:8], 2, axis=1)
+    mesh = read_volume_mesh(write(tmp_path, "q.vtu", pts, [("quad", quads), ("quad", again)]), 2)
+    assert len(mesh.blocks) == 1 and np.array_equal(mesh.blocks[0].cells, quads)
+    assert mesh.repeats.tolist() == [0] * 3 + [1] * 5 + [0] * (len(quads) - 8)
+    once = read_volume_mesh(write(tmp_path, "once.vtu", pts, [("quad", quads)]), 2)
+    assert once.repeats is None and np.array_equal(once.blocks[0].cells, quads)
+
+
+def test_gmsh22_listings_per_group_merge_their_groups(tmp_path):
+    """Gmsh 2.2 lists a cell once per physical group: read once, in the first selected group."""
+    pts, tris = square_tri(2)
+    low = np.arange(len(tris)) < 3
+    path = write_gmsh22_per_group(tmp_path / "g.msh", pts, tris,
+                                  {"all": np.ones(len(tris), bool), "low": low})
+    for groups, tag in ((None, np.ones(len(tris))), (["low", "all"], np.where(low, 2, 1)),
+                        (["all", "low"], np.ones(len(tris)))):
+        mesh = read_volume_mesh(path, 2, groups)
+        assert mesh.n_cells == len(tris) and np.array_equal(mesh.blocks[0].cells, tris)
+        assert np.array_equal(mesh.blocks[0].group, tag) and mesh.repeats.sum() == 3, groups
+    only = read_volume_mesh(path, 2, ["low"])
+    assert only.n_cells == 3 and only.repeats is None  # each listed once among the selected
+
+
 # ---------------------------------------------------------------- errors: one line, naming the problem
 
 
@@ -258,6 +289,16 @@ def test_file_errors(tmp_path):
     with pytest.raises(SceneError) as e:
         read_volume_mesh(tmp_path / "mesh.foo", 4)
     one_line(e, "dimension 4", "expected 2 or 3")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+def test_a_fifo_is_refused_without_opening_it(tmp_path):
+    """Before: open() blocked until something wrote to the pipe (a subprocess: a hang fails)."""
+    os.mkfifo(tmp_path / "pipe.msh")
+    code = ("from parmpm.io.mesh_file import read_volume_mesh\n"
+            f"read_volume_mesh({str(tmp_path / 'pipe.msh')!r}, 2)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert "is not a regular file (a FIFO, device or socket)" in proc.stderr.splitlines()[-1]
 
 
 def test_content_errors(tmp_path):

@@ -4,6 +4,9 @@ test, the divergence-theorem volume as Σ x n_x A, the octant's solid angle 4π/
 the module's own output.
 """
 import math
+import os
+import subprocess
+import sys
 
 import meshio
 import numpy as np
@@ -151,6 +154,11 @@ BAD_FILES = [
     ("range.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", "triangle 0 refers to vertices [0, 1, 6]"),
     ("before.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -4\n", "out of range"),
     ("range.ply", PLY_HEAD + b"0 0 0\n1 0 0\n0 1 0\n3 0 1 9\n", "expected indices 0..2"),
+    # issue 41: before, OverflowError (a traceback); the 10,000-digit one filled the screen
+    ("int64.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 %d\n" % 2**70,
+     "line 4: face index 1180591620717411303424 is beyond any vertex count"),
+    ("digits.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 -2 1" + b"0" * 9999 + b"\n",
+     "line 4: face index 10000000000000000000...00000000 (10000 digits) is beyond"),
     ("mesh.vtk", b"# vtk\n", "unknown extension '.vtk'"),
 ]
 
@@ -168,6 +176,16 @@ def test_a_directory_is_refused(tmp_path):
     (tmp_path / "dir.stl").mkdir()
     with pytest.raises(SceneError, match="is a directory"):
         read_surface(tmp_path / "dir.stl")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+def test_a_fifo_is_refused_without_opening_it(tmp_path):
+    """Before: open() blocked until something wrote to the pipe (a subprocess: a hang fails)."""
+    os.mkfifo(tmp_path / "pipe.stl")
+    code = ("from parmpm.io.surface_file import read_surface\n"
+            f"read_surface({str(tmp_path / 'pipe.stl')!r})")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert "is not a regular file (a FIFO, device or socket)" in proc.stderr.splitlines()[-1]
 
 
 # ---- winding number --------------------------------------------------------------------------

@@ -161,6 +161,21 @@ def write(tmp_path, name, pts, cells, **kw):
     return path
 
 
+def write_gmsh22_per_group(path, pts, tris, groups):
+    """A Gmsh 2.2 ASCII file as Gmsh writes one whose triangles are in several physical groups:
+    each triangle listed once per group holding it (``groups``: name -> boolean mask over
+    ``tris``), same element number each time. meshio's writer cannot make such a file."""
+    lines = ["$MeshFormat", "2.2 0 8", "$EndMeshFormat", "$PhysicalNames", str(len(groups))]
+    lines += [f'2 {k + 1} "{name}"' for k, name in enumerate(groups)]
+    lines += ["$EndPhysicalNames", "$Nodes", str(len(pts))]
+    lines += [f"{i + 1} {float(x)!r} {float(y)!r} 0" for i, (x, y) in enumerate(pts)]
+    rows = [f"{e + 1} 2 2 {k + 1} 1 " + " ".join(str(n + 1) for n in t)
+            for e, t in enumerate(tris) for k, mask in enumerate(groups.values()) if mask[e]]
+    lines += ["$EndNodes", "$Elements", str(len(rows)), *rows, "$EndElements", ""]
+    path.write_text("\n".join(lines))
+    return path
+
+
 TRI_MESHES = {"square": lambda: square_tri(), "disk": lambda: polar_tri(0.0, 1.5, 4, 24),
               "annulus": lambda: polar_tri(0.5, 1.5, 4, 24)}
 

@@ -6,7 +6,8 @@ second moments (closed forms of ``tests/harness/mesh_harness.py``, sharing nothi
 to round-off, and approach the analytic shape's as the mesh is refined; a CSG annulus agrees with
 the meshed one to its lattice's resolution; particle files written here start runs whose particles
 are the file's; a parmpm snapshot starts a new run; an icosphere's STL seeds its volume to the
-lattice's resolution; every bad input is one line naming its key.
+lattice's resolution; every bad input is one line naming its key. A cell a mesh lists twice (Gmsh
+2.2's once per physical group, a file written twice) weighs what it weighs once, with one warning.
 """
 from __future__ import annotations
 
@@ -16,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mesh_harness import (analytic_ring, particle_moments, polar, polar_tri, polygon_moments,
-                          rel_errors, simplex_moments, square_tri, write)
+                          rel_errors, simplex_moments, square_tri, write, write_gmsh22_per_group)
 
 from parmpm import Simulation
 from parmpm.core.errors import SceneError
@@ -418,3 +419,54 @@ def test_a_mesh_inside_a_box_is_counted_by_its_own_volumes(tmp_path):
     assert len(found) == 1 and found[0]["bodies"] == (0, 1), found
     assert abs(found[0]["volume"] / 2.0 - 1) < 0.05
     assert found[0]["mass"] == pytest.approx(RHO * found[0]["volume"], rel=1e-14)
+
+
+# --- cells listed more than once (issue 41) ----------------------------------------------------
+def _small_square():
+    """[0, 0.4]^2 in triangles: 160 kg at 1000 kg/m^3; ``left``: the triangles left of x = 0.2."""
+    pts, tris = square_tri(n=4)
+    pts = (pts - [1.0, -1.0]) * 0.2
+    return pts, tris, pts[tris].mean(axis=1)[:, 0] < 0.2
+
+
+def _seeded_with_warnings(caplog, body, name):
+    with caplog.at_level("WARNING"):
+        P, _ = particles(scene(body))
+    return P, [r.getMessage() for r in caplog.records if name in r.getMessage()]
+
+
+@pytest.mark.parametrize("groups", [None, '["all", "left"]', '["left", "all"]', '["left"]'])
+def test_a_gmsh22_cell_in_two_groups_is_seeded_once(tmp_path, caplog, groups):
+    """Before: 240 kg for the 160 kg square (its left half listed in both groups, seeded twice)."""
+    pts, tris, left = _small_square()
+    path = write_gmsh22_per_group(tmp_path / "sq.msh", pts, tris,
+                                  {"all": np.ones(len(tris), bool), "left": left})
+    P, said = _seeded_with_warnings(
+        caplog, mesh_body(path, "" if groups is None else f"groups = {groups}"), "sq.msh")
+    kept = left if groups == '["left"]' else np.ones(len(tris), bool)
+    area = simplex_moments(pts[tris[kept]])[0]
+    assert P.mass.sum() == pytest.approx(RHO * area, rel=1e-12)
+    assert len(P.mass) == 3 * kept.sum()
+    if groups == '["left"]':  # the "all" listing is not selected: nothing was seeded twice
+        assert said == [] and area == pytest.approx(0.08, rel=0.05)
+        return
+    assert area == pytest.approx(0.16, rel=1e-12)
+    dropped = simplex_moments(pts[tris[left]])[0]
+    assert len(said) == 1 and "\n" not in said[0], said
+    assert (f"lists {left.sum()} cells more than once" in said[0]
+            and f"dropping {left.sum()} repeated listings of area {dropped:.6g} m^2" in said[0]
+            and "Gmsh 2.2" in said[0]), said
+
+
+def test_a_vtu_with_every_cell_twice_is_seeded_once(tmp_path, caplog):
+    """Before: 320 kg for the 160 kg square. The repeats' nodes start elsewhere (rotated):
+    the same cell."""
+    pts, tris, _ = _small_square()
+    twice = np.concatenate([tris, np.roll(tris, 1, axis=1)])
+    path = write(tmp_path, "twice.vtu", pts, [("triangle", twice)])
+    P, said = _seeded_with_warnings(caplog, mesh_body(path), "twice.vtu")
+    assert P.mass.sum() == pytest.approx(RHO * 0.16, rel=1e-12)
+    once, _ = particles(scene(mesh_body(write(tmp_path, "once.vtu", pts, [("triangle", tris)]))))
+    np.testing.assert_array_equal(P.x0, once.x0)  # the first listings, in file order
+    assert len(said) == 1 and f"dropping {len(tris)} repeated listings of area 0.16 m^2" in said[0]
+    assert "Gmsh" not in said[0]

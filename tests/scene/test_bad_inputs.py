@@ -262,3 +262,55 @@ def test_any_value_resolves_or_is_a_scene_error(key, value):
     m = scene.data["materials"]["bar"]
     lam, mu = lame(m["youngs_modulus"], m["poisson_ratio"])
     assert 0 < (lam + 2 * mu) / m["density"] < math.inf  # a time step exists
+
+
+# --- issue 41, items 9 to 11: every body file key is checked before anything opens it -----------
+FILE_SCENES = {"mesh": "hanging_bar", "particles": "hanging_bar", "surface": "hanging_bar_3d"}
+LONG = "x" * 300
+
+
+@pytest.mark.parametrize("shape,name,fragment", [
+    # before: ValueError: embedded null byte (a traceback)
+    ("mesh", "a\\u0000b.msh", "holds a NUL byte"),
+    ("surface", "a\\u0000b.stl", "holds a NUL byte"),
+    ("particles", "a\\u0000b.csv", "holds a NUL byte"),
+    # before: OSError: [Errno 36] File name too long (a traceback)
+    ("mesh", f"{LONG}.msh", "a name in the path is 304 bytes long; expected at most 255"),
+    ("surface", f"{LONG}.stl", "a name in the path is 304 bytes long; expected at most 255"),
+    ("particles", f"{LONG}.csv", "a name in the path is 304 bytes long; expected at most 255"),
+    ("mesh", "/".join(["d" * 200] * 21) + ".msh", "bytes long; expected under 4096"),
+    # before: a directory or device read as a body's file
+    ("mesh", ".", "is a directory, not a regular file"),
+    ("mesh", "/dev/null", "is a character device, not a regular file"),
+])
+def test_issue41_file_names_are_one_line(tmp_path, shape, name, fragment):
+    body = f'bodies.0={{shape="{shape}", file="{name}", material="bar"}}'
+    proc = cli("run", FILE_SCENES[shape], *QUIET, "--set", body, "-o", str(tmp_path / "o"),
+               cwd=tmp_path)
+    assert_one_line_error(proc, "bodies.0.file: ", fragment)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs here")
+@pytest.mark.parametrize("shape,name,label", [("mesh", "pipe.msh", "mesh"),
+                                              ("surface", "pipe.stl", "surface file"),
+                                              ("particles", "pipe.csv", "particle file")])
+def test_issue41_a_fifo_as_body_file(tmp_path, monkeypatch, shape, name, label):
+    """Before: blocked forever in open() at the scene check (the particle file: 'is empty').
+    A subprocess, so that a hang fails on the timeout."""
+    os.mkfifo(tmp_path / name)
+    monkeypatch.setenv("PARMPM_TEST_CLI", "subprocess")
+    body = f'bodies.0={{shape="{shape}", file="{name}", material="bar"}}'
+    proc = cli("run", FILE_SCENES[shape], *QUIET, "--set", body, "-o", str(tmp_path / "o"),
+               cwd=tmp_path, timeout=60)
+    assert_one_line_error(proc, f"bodies.0.file: {label} '{tmp_path / name}': is a FIFO "
+                                "(named pipe), not a regular file")
+
+
+def test_issue41_an_obj_index_beyond_int64(tmp_path):
+    """Before: OverflowError: Python int too large to convert to C long (a traceback)."""
+    (tmp_path / "big.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n"
+                                      f"f 1 3 {2**70}\nf 2 3 4\n")
+    body = 'bodies.0={shape="surface", file="big.obj", material="bar"}'
+    proc = cli("run", "hanging_bar_3d", *QUIET, "--set", body, "-o", str(tmp_path / "o"),
+               cwd=tmp_path)
+    assert_one_line_error(proc, "big.obj': line 7: face index 1180591620717411303424 is beyond")
