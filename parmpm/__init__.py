@@ -53,7 +53,8 @@ def __getattr__(name):
 
 def run(source, overrides=(), out_dir=None, quiet=True, overwrite=False) -> dict:
     """Load a scene (built-in name or TOML path), run it on this process, return its summary.
-    ``out_dir`` holding another run is refused unless ``overwrite`` (:mod:`parmpm.io.run_folder`)."""
+    ``out_dir`` holding another run or files parmpm did not write is refused unless
+    ``overwrite`` (:mod:`parmpm.io.run_folder`)."""
     from parmpm.driver.simulation import Simulation
     return Simulation(load_scene(source, overrides), out_dir, quiet=quiet, overwrite=overwrite).run()
 

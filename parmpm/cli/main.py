@@ -17,7 +17,9 @@ rank hangs). Options before any command mean ``run``: ``parmpm --quiet`` runs th
 
 Output folders are never taken from another run (:mod:`parmpm.io.run_folder`): the default
 ``parmpm-out/<scene>`` becomes ``<scene>_2``, ``_3``, … when taken; an explicit ``--out`` that holds
-another run is refused unless ``--overwrite`` is given.
+another run, or files parmpm did not write, is refused unless ``--overwrite`` is given; a folder
+where the run would delete or replace a file it reads (its scene, its bodies' files, a restart's
+checkpoint) is refused either way.
 
 Under MPI a user error that every rank raises (a bad scene is read by every rank) is printed once,
 by rank 0, and every rank exits with 2. An error raised by some ranks only is printed by each of

@@ -97,7 +97,8 @@ def _add_run(commands) -> None:
                      help="no progress bar, no info messages (warnings and errors still show)")
     run.add_argument("--overwrite", action="store_true",
                      help="if the --out folder holds another run, delete that run's results and "
-                     "write there (without it such a folder is refused)")
+                     "write there; if it holds files parmpm did not write, write among them "
+                     "(without it such a folder is refused; a file the run reads never goes)")
     _logging_arguments(run)
 
 
@@ -116,7 +117,8 @@ def _add_restart(commands) -> None:
     restart.add_argument("-q", "--quiet", action="store_true",
                          help="no progress bar, no info messages (warnings and errors still show)")
     restart.add_argument("--overwrite", action="store_true",
-                         help="if the --out folder holds another run, delete that run's results")
+                         help="if the --out folder holds another run, delete that run's results "
+                         "(or files parmpm did not write: write among them)")
     _logging_arguments(restart)
 
 

@@ -17,15 +17,28 @@ from parmpm.core.collective import agree
 from parmpm.core.errors import ParmpmError
 from parmpm.io.checkpoint import ranks_per_file as group_size
 from parmpm.io.checkpoint import remove_stale_tmp
-from parmpm.io.run_folder import claim
+from parmpm.io.run_folder import RunInput, claim
 from parmpm.io.summary import write_summary
 from parmpm.io.xdmf import SnapshotWriter
 from parmpm.core.log import get_logger
 from parmpm.driver.snapshot_fields import field_info
+from parmpm.scene.body_files import files_read
 
 log = get_logger(__name__)
 
 SCENE_NAME = "scene.toml"
+#: a restart whose --out holds its checkpoint: where it can write instead
+RESTART_HINT = ("restart into another --out (without --out: a folder of its own beside the "
+                "checkpoint)")
+
+
+def run_inputs(scene, continues: dict | None) -> list[RunInput]:
+    """The files a run reads, which claiming its folder never deletes or replaces: a restart's
+    checkpoint (first: a restart's scene is read from it too), the scene file, the bodies'
+    files (a restart reads none, but its checkpoints and ``scene.toml`` name them)."""
+    found = [RunInput(continues["checkpoint"], "the checkpoint this restart continues from",
+                      RESTART_HINT)] if continues else []
+    return found + [RunInput(path, what) for path, what in files_read(scene)]
 
 
 def _one_line(exc: Exception, what: str) -> str:
@@ -66,7 +79,8 @@ class RunFiles:
                                     overwrite=self.overwrite, inputs=self.inputs)
                 folder = self._claim.folder
                 if folder != self.folder:
-                    log.info("%s holds another run: writing to %s", self.folder, folder)
+                    log.info("%s holds another run or files parmpm did not write: writing to %s",
+                             self.folder, folder)
                 remove_stale_tmp(folder)
             except (ParmpmError, OSError) as exc:
                 problem = _one_line(exc, f"to output folder '{self.folder}'")

@@ -31,7 +31,7 @@ from parmpm.core.log import get_logger
 from parmpm.driver.progress import Progress
 from parmpm.driver.restart import open_checkpoint
 from parmpm.driver.set_up import RankState, set_up
-from parmpm.driver.run_files import RunFiles
+from parmpm.driver.run_files import RunFiles, run_inputs
 
 log = get_logger(__name__)
 
@@ -130,9 +130,10 @@ class Simulation:
             s = self.state
             name = self.spec.name
             series = name if not s.restart else f"{name}_from_{self.nstep:08d}"
-            # a restart's checkpoint is its input: --overwrite never deletes it
+            # what the run reads (its scene file, its bodies' files, a restart's checkpoint):
+            # claiming the folder never deletes or replaces it
             self.files = RunFiles(self.comm, self.out_dir, self.out_explicit, self.overwrite,
-                                  inputs=[s.continues["checkpoint"]] if s.continues else ())
+                                  inputs=run_inputs(s.scene, s.continues))
             try:  # the claim (rank 0's lock: the run is alive) is held until the run is over
                 self.out_dir = self.files.claim({
                     "run_id": s.run_id, "continues": s.continues, "scene": name,

@@ -8,17 +8,24 @@ the OS when the process dies), so that whether the folder's run is still going c
 folder *holds a run* when it has a marker, or (runs of older parmpm versions) a
 ``summary.json``, a checkpoint or an XDMF series. The rules:
 
+* a folder is *free* when it is empty or missing (parmpm's lock and temporary files aside);
+  one that holds no run but files parmpm did not write (a user's scene, mesh, particle file,
+  folder: anything without a marker) is not;
 * the default folder (``parmpm-out/<scene>``, or ``restart_<step>`` beside a checkpoint) is used
   when free, else the first free ``<folder>_2``, ``<folder>_3``, …: repeating a command never
   overwrites the last results;
-* an explicit ``--out`` folder that holds another run is refused with one line, unless the user
-  passes ``--overwrite``, which deletes that run's outputs (its marker's files, its checkpoints
-  and snapshot series with their ``.parts`` folders, ``summary.json``; files parmpm did not write
-  are kept; the marker last) before the new run starts;
+* an explicit ``--out`` folder that holds another run, or files parmpm did not write, is refused
+  with one line naming them, unless the user passes ``--overwrite``, which deletes that run's
+  outputs (its marker's files, its checkpoints and snapshot series with their ``.parts``
+  folders, ``summary.json``; files parmpm did not write are kept, except those the new run
+  writes by name; the marker last) before the new run starts;
 * a run that is still going is never overwritten: the refusal names its folder, host and pid; a
   run that crashed or was killed (its lock free) can be;
-* ``--overwrite`` never deletes what the new run starts from: a restart into the folder of the
-  checkpoint it continues is refused (keeping that checkpoint would leave one of the old run's
+* no run deletes or replaces a file it reads (:class:`RunInput`: its scene file, its bodies'
+  mesh, surface and particle files, a restart's checkpoint; through symbolic links, and inside
+  the ``.parts`` folders ``--overwrite`` deletes): the folder is refused in one line naming the
+  file, with or without ``--overwrite``. A restart into the folder of the checkpoint it
+  continues is such a folder (keeping that checkpoint would also leave one of the old run's
   files, claimed by neither marker, in the new run's folder, for the next ``--overwrite`` to
   delete);
 * a restart is a run of its own: it writes into a folder of its own (by default
@@ -39,96 +46,22 @@ from pathlib import Path
 
 from parmpm.core.errors import ParmpmError
 from parmpm.io import run_lock
+from parmpm.io.run_contents import (MARKER, RunInput, check_inputs, describe, doomed, foreign,
+                                    holds_run, not_free, read_marker)
 
-MARKER = "parmpm-run.json"
+__all__ = ["MARKER", "MAX_SUFFIX", "Claim", "RunInput", "claim", "holds_run", "read_marker",
+           "update_marker"]
+
 #: folders tried after the default one is taken: <folder>_2 ... <folder>_MAX_SUFFIX
 MAX_SUFFIX = 999
 
 
-def read_marker(folder: Path) -> dict | None:
-    """The marker of ``folder`` ({} when it is unreadable), or None when there is none."""
-    path = Path(folder) / MARKER
-    if not path.exists():
-        return None
-    try:
-        marker = json.loads(path.read_text(encoding="utf-8"))
-        return marker if isinstance(marker, dict) else {}
-    except (OSError, ValueError, UnicodeDecodeError):
-        return {}
-
-
-def _legacy_outputs(folder: Path) -> list[Path]:
-    """parmpm outputs in a folder without a marker (runs of older versions)."""
-    found = [p for p in (folder / "summary.json",) if p.exists()]
-    found += sorted(folder.glob("checkpoint_*.h5"))
-    for xdmf in sorted(folder.glob("*.xdmf")):
-        found += [xdmf] + [p for p in (xdmf.with_suffix(".h5"), xdmf.with_suffix(".png")) if p.exists()]
-    return found
-
-
-def holds_run(folder: Path) -> bool:
-    folder = Path(folder)
-    if not folder.is_dir():
-        return False
-    return read_marker(folder) is not None or bool(_legacy_outputs(folder))
-
-
-def _describe(folder: Path) -> str:
-    marker = read_marker(folder)
-    if not marker:
-        return "another run's results"
-    return (f"the results of another run (scene '{marker.get('scene', '?')}', started "
-            f"{marker.get('started', '?')})")
-
-
-def _doomed(folder: Path) -> tuple[list[Path], list[Path]]:
-    """What ``--overwrite`` deletes in ``folder``: the files (the marker last) and the folders of
-    parts of the run there: its marker's files, its checkpoints with their ``.parts``, its
-    snapshot series with theirs, the temporary files of its writers. Files parmpm did not write
-    are kept."""
-    marker = read_marker(folder) or {}
-    files = {folder / name for name in marker.get("files", []) if isinstance(name, str)
-             and "/" not in name and name not in ("", ".", "..")}
-    files.update(_legacy_outputs(folder))
-    for pattern in ("checkpoint_*.h5.tmp", "*.xdmf.tmp", f".{MARKER}.*.tmp", ".scene.toml.tmp"):
-        files.update(folder.glob(pattern))
-    dirs = {p.with_suffix(".parts") for p in files if p.suffix in (".h5", ".xdmf")
-            and (p.name.startswith("checkpoint_") or p.suffix == ".xdmf")}
-    dirs.update(folder.glob("checkpoint_*.parts"))
-    files = sorted(p for p in files if p.name != MARKER and (p.is_file() or p.is_symlink()))
-    dirs = sorted(d for d in dirs if d.is_dir() and not d.is_symlink())
-    return files + ([folder / MARKER] if (folder / MARKER).exists() else []), dirs
-
-
-def _same(a: Path, b: Path) -> bool:
-    try:
-        return os.path.realpath(a) == os.path.realpath(b) or os.path.samefile(a, b)
-    except OSError:
-        return False
-
-
-def _check_inputs(folder: Path, inputs, files: list[Path], dirs: list[Path]) -> None:
-    """Refuse to delete a file the new run starts from (a restart's checkpoint, its parts)."""
-    for path in inputs:
-        path = Path(path)
-        parts = path.with_name(path.name[:-3] + ".parts" if path.name.endswith(".h5")
-                               else path.name + ".parts")
-        hit = any(_same(f, path) for f in files) or any(
-            _same(d, parts) or os.path.realpath(path).startswith(os.path.realpath(d) + os.sep)
-            for d in dirs)
-        if hit:
-            raise ParmpmError(
-                f"output folder '{folder}' holds the checkpoint this restart continues from "
-                f"('{path}'): --overwrite would delete it; restart into another --out (without "
-                "--out: a folder of its own beside the checkpoint)")
-
-
-def _remove_run(folder: Path, inputs=()) -> None:
-    """``--overwrite``: delete the run in ``folder`` (:func:`_doomed`), unless that would delete
-    one of ``inputs``; the marker goes last, so a failure half way leaves a folder that still
-    holds a run (and ``--overwrite`` again finishes the job), never an unclaimed half."""
-    files, dirs = _doomed(folder)
-    _check_inputs(folder, inputs, files, dirs)
+def _remove_run(folder: Path) -> None:
+    """``--overwrite``: delete the run in ``folder`` (:func:`~parmpm.io.run_contents.doomed`; the files
+    the new run reads are checked before); the marker goes last, so a failure half way leaves
+    a folder that still holds a run (and ``--overwrite`` again finishes the job), never an
+    unclaimed half."""
+    files, dirs = doomed(folder)
     marker = files.pop() if files and files[-1].name == MARKER else None
     for path in files:
         path.unlink(missing_ok=True)
@@ -198,6 +131,13 @@ def _take(candidate: Path, marker: dict, explicit: bool, overwrite: bool,
         return "taken", None
     if held and not overwrite:  # refused either way: say whether that run is still going
         return "taken", _refusal(candidate)
+    found = [] if held else foreign(candidate)
+    if found and not explicit:
+        return "taken", None
+    # a file the run reads first (--overwrite would not help), before anything is written there
+    why = check_inputs(candidate, inputs, marker, held) if held or found else None
+    if why is not None or (found and not overwrite):
+        return "taken", why or not_free(candidate, found, marker)
     _make_folder(candidate)
     lock = run_lock.take(candidate)
     if isinstance(lock, run_lock.Busy):
@@ -212,7 +152,7 @@ def _take(candidate: Path, marker: dict, explicit: bool, overwrite: bool,
 
 def _holds_runs(candidate: Path) -> ParmpmError:
     return ParmpmError(
-        f"output folder '{candidate}' holds {_describe(candidate)}; choose another --out, "
+        f"output folder '{candidate}' holds {describe(candidate)}; choose another --out, "
         "or pass --overwrite to delete them and write there")
 
 
@@ -263,8 +203,13 @@ def _mark(candidate: Path, marker: dict, held: bool, lock, inputs) -> tuple[str,
             if lock is not None:
                 lock.release()
             return "taken", _holds_runs(candidate)
+        why = check_inputs(candidate, inputs, marker, held)  # the folder changed meanwhile
+        if why is not None:
+            if lock is not None:
+                lock.release()
+            return "taken", why
         if held:
-            _remove_run(candidate, inputs)
+            _remove_run(candidate)
         _create_marker(candidate, marker, replace=False)
     except FileExistsError:  # another run (without locks) claimed it this instant
         if lock is not None:
@@ -284,8 +229,8 @@ def claim(folder, marker: dict, *, explicit: bool, overwrite: bool = False,
     :class:`Claim` holds its lock until released.
 
     ``explicit``: the user named the folder (``--out``), so it is used or refused, never renamed.
-    ``inputs``: files the run starts from (a restart's checkpoint), which ``--overwrite`` must
-    never delete. A folder whose run is still going is never taken, with or without
+    ``inputs``: the files the run reads (:class:`RunInput`, or paths), which no claim deletes or
+    replaces. A folder whose run is still going is never taken, with or without
     ``--overwrite`` (:mod:`parmpm.io.run_lock`).
     """
     folder = Path(folder)
@@ -308,8 +253,8 @@ def claim(folder, marker: dict, *, explicit: bool, overwrite: bool = False,
         where = exc.filename or folder
         raise ParmpmError(f"cannot write to output folder '{where}': "
                           f"{exc.strerror or exc}") from None
-    raise ParmpmError(f"output folders '{folder}' to '{candidates[-1].name}' all hold other runs; "
-                      "choose another --out")
+    raise ParmpmError(f"output folders '{folder}' to '{candidates[-1].name}' all hold other runs "
+                      "or files parmpm did not write; choose another --out")
 
 
 def update_marker(folder: Path, **fields) -> None:

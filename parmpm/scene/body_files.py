@@ -72,6 +72,20 @@ def scene_folder(where: str) -> Path:
     return Path.cwd()
 
 
+def files_read(scene) -> list[tuple[str, str]]:
+    """The files a run of ``scene`` reads, each with how a refusal names it: its scene file (not
+    a built-in) and its bodies' mesh, surface and particle files; a run's output folder must
+    never delete or replace one (:mod:`parmpm.io.run_folder`)."""
+    found = []
+    source = str(scene.source)
+    if not source.startswith("builtin:") and Path(source).is_file():
+        found.append((source, "the scene file this run reads"))
+    for i, body in enumerate(scene.data.get("bodies", [])):
+        if body.get("shape") in FILE_KEYS and body.get("file"):
+            found.append((body["file"], f"the {body['shape']} file of bodies.{i}"))
+    return found
+
+
 def _stamp(path: str) -> tuple:
     try:
         st = os.stat(path)

@@ -15,6 +15,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import shutil
 import socket
 import subprocess
 import sys
@@ -27,6 +28,7 @@ from test_cli import parmpm as cli
 
 from parmpm.core.errors import ParmpmError
 from parmpm.io.run_folder import MARKER, claim
+from parmpm.scene.load import load_scene
 
 REPO = Path(__file__).resolve().parents[2]
 QUIET = ["--quiet"]
@@ -226,3 +228,134 @@ def test_the_lock_file_names_its_holder(tmp_path):
     finally:
         lock.release()
     assert isinstance(run_lock.take(folder, create=False), run_lock.RunLock)
+
+
+# --- issue 41: folders of files parmpm did not write, and files the run reads ----------------------
+STEPS = ["--set", "time.steps=2"]
+NOTE = "# my scene: keep this comment\n"
+
+
+def _old_run(d: Path, cwd: Path) -> None:
+    """A finished run with its snapshot series in ``d``: the particle file of the runs below."""
+    proc = cli("run", "hanging_bar_1d", "-o", str(d), *QUIET, "--set", "output.figure=false",
+               "--set", "time.steps=4", cwd=cwd, timeout=CLI_S)
+    assert proc.returncode == 0, proc.stderr
+
+
+def _scene_file(path: Path, name: str, particles: str | None = None) -> None:
+    """A user's scene file (with a comment of theirs); its one body read from ``particles``."""
+    text = load_scene("hanging_bar_1d", [f'name="{name}"']).to_toml()
+    if particles is not None:
+        box = text[text.index("[[bodies]]"):text.index("[method]")]
+        text = text.replace(box, f'[[bodies]]\nshape = "particles"\nfile = "{particles}"\n'
+                                 'material = "bar"\n\n')
+    path.write_text(NOTE + text)
+
+
+@pytest.mark.parametrize("scene_file", ["scene.toml", "pile.toml"])
+def test_out_on_the_scene_folder_never_replaces_the_files_the_run_reads(tmp_path, scene_file):
+    """Before: 'run scene.toml --out .' exited 0 having replaced the user's scene.toml with the
+    resolved scene (its comments gone) and its particle file pile.h5 (the scene's name .h5) with
+    the run's snapshots. Now it is refused in one line naming the file, with or without
+    --overwrite, and the folder is untouched."""
+    _old_run(tmp_path / "old", tmp_path)
+    case = tmp_path / "case"
+    case.mkdir()
+    shutil.copy(tmp_path / "old" / "hanging_bar_1d.h5", case / "pile.h5")
+    _scene_file(case / scene_file, "pile", "pile.h5")
+    hit = ("the scene file this run reads ('scene.toml')" if scene_file == "scene.toml" else
+           f"the particles file of bodies.0 ('{case.resolve() / 'pile.h5'}')")
+    before = _tree(case)
+    for extra in ([], ["--overwrite"]):
+        proc = cli("run", scene_file, "--out", ".", *QUIET, *STEPS, *extra, cwd=case, timeout=CLI_S)
+        assert_one_line_error(proc, f"output folder '.' holds {hit}", "the run would replace it",
+                              "choose another --out")
+        assert _tree(case) == before
+
+
+def test_overwrite_never_deletes_the_particle_file_the_run_reads(tmp_path):
+    """Before: a body read from an old run's snapshots, run with '--out <that run> --overwrite',
+    deleted its own input, ran to the end (exit 0) and left checkpoints naming the deleted file.
+    Now it is refused in one line naming the file (also given as the series' .xdmf, whose .h5 is
+    what is read), before anything is deleted."""
+    old = tmp_path / "old"
+    _old_run(old, tmp_path)
+    before = _tree(old)
+    scene = tmp_path / "pile.toml"
+    for given in ("hanging_bar_1d.h5", "hanging_bar_1d.xdmf"):
+        _scene_file(scene, "pile", str(old / given))
+        proc = cli("run", str(scene), "-o", str(old), "--overwrite", *QUIET, *STEPS, "--set",
+                   "checkpoint.at_end=true", cwd=tmp_path, timeout=CLI_S)
+        assert_one_line_error(proc, f"output folder '{old}' holds the particles file of bodies.0 "
+                              f"('{old.resolve() / given}'", "--overwrite would delete it",
+                              "choose another --out")
+        assert _tree(old) == before
+
+
+def test_overwrite_of_an_ordinary_old_run_still_works(tmp_path):
+    """What --overwrite is for stays as it was: the old run's files go, the new run's come."""
+    old = tmp_path / "old"
+    _old_run(old, tmp_path)
+    first = json.loads((old / MARKER).read_text())["run_id"]
+    proc = cli("run", "hanging_bar_1d", "-o", str(old), "--overwrite", *QUIET, *OFF, *STEPS,
+               cwd=tmp_path, timeout=CLI_S)
+    assert proc.returncode == 0, proc.stderr
+    marker = json.loads((old / MARKER).read_text())
+    assert marker["run_id"] != first and "ended" in marker
+    assert not (old / "hanging_bar_1d.h5").exists()  # the old series (this run writes none)
+    assert json.loads((old / "summary.json").read_text())["steps"] == 2
+
+
+def test_a_folder_of_files_parmpm_did_not_write_needs_overwrite(tmp_path):
+    """Before: a folder without a marker counted as free, and a run wrote among the user's files
+    (over any of them with one of its names) without a word. Now an --out folder holding files
+    parmpm did not write is refused in one line naming them, unless --overwrite, which keeps them
+    (those of the run's names replaced); the default folder moves on to the next free one."""
+    d = tmp_path / "o"
+    d.mkdir()
+    (d / "notes.txt").write_text("mine")
+    (d / "hanging_bar_1d.png").write_text("my figure")
+    proc = cli("run", "hanging_bar_1d", "-o", str(d), *QUIET, *OFF, *STEPS, cwd=tmp_path,
+               timeout=CLI_S)
+    assert_one_line_error(proc, f"output folder '{d}' holds files parmpm did not write "
+                          "('hanging_bar_1d.png', 'notes.txt')", "choose another --out",
+                          "pass --overwrite", "replacing 'hanging_bar_1d.png'")
+    assert sorted(p.name for p in d.iterdir()) == ["hanging_bar_1d.png", "notes.txt"]
+    proc = cli("run", "hanging_bar_1d", "-o", str(d), "--overwrite", *QUIET, *OFF, *STEPS,
+               cwd=tmp_path, timeout=CLI_S)
+    assert proc.returncode == 0, proc.stderr
+    assert (d / "notes.txt").read_text() == "mine" and (d / MARKER).is_file()
+    default = tmp_path / "parmpm-out" / "hanging_bar_1d"
+    default.mkdir(parents=True)
+    (default / "mine.txt").write_text("mine")
+    proc = cli("run", "hanging_bar_1d", *QUIET, *OFF, *STEPS, cwd=tmp_path, timeout=CLI_S)
+    assert proc.returncode == 0, proc.stderr
+    assert [p.name for p in default.iterdir()] == ["mine.txt"]
+    assert (tmp_path / "parmpm-out" / "hanging_bar_1d_2" / "summary.json").is_file()
+
+
+def test_a_link_to_the_scene_folder_and_a_parent_of_the_scene(tmp_path):
+    """Before: '--out <a link to the scene's folder> --overwrite' replaced the user's scene.toml,
+    and a parent folder of the inputs was written into without a word. Now the link is refused
+    naming the scene file; the parent needs --overwrite, and then keeps every input whole."""
+    case = tmp_path / "inputs" / "case"
+    case.mkdir(parents=True)
+    _scene_file(case / "scene.toml", "bar")
+    link = tmp_path / "link"
+    link.symlink_to(case)
+    before = _tree(tmp_path / "inputs")
+    proc = cli("run", str(case / "scene.toml"), "-o", str(link), "--overwrite", *QUIET, *OFF,
+               *STEPS, cwd=tmp_path, timeout=CLI_S)
+    assert_one_line_error(proc, f"output folder '{link}' holds the scene file this run reads "
+                          f"('{case / 'scene.toml'}')", "the run would replace it")
+    parent = tmp_path / "inputs"
+    proc = cli("run", str(case / "scene.toml"), "-o", str(parent), *QUIET, *OFF, *STEPS,
+               cwd=tmp_path, timeout=CLI_S)
+    assert_one_line_error(proc, f"output folder '{parent}' holds files parmpm did not write "
+                          "('case/')", "pass --overwrite")
+    assert _tree(parent) == before
+    proc = cli("run", str(case / "scene.toml"), "-o", str(parent), "--overwrite", *QUIET, *OFF,
+               *STEPS, cwd=tmp_path, timeout=CLI_S)
+    assert proc.returncode == 0, proc.stderr
+    assert (case / "scene.toml").read_text().startswith(NOTE)
+    assert {k: v for k, v in _tree(parent).items() if k.startswith("case")} == before

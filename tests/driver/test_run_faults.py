@@ -238,12 +238,18 @@ def test_unwritable_folder_fails_before_the_run(tmp_path, monkeypatch):
 
 
 def test_leftover_temporary_files_are_removed_when_a_run_claims_its_folder(tmp_path):
-    d = tmp_path / "o"
-    d.mkdir()
-    (d / "checkpoint_00000005.h5.tmp").write_bytes(b"half a checkpoint")
-    (d / "keep.txt").write_text("not parmpm's")
-    assert main(["run", "hanging_bar_1d", "-o", str(d), *QUIET, *OFF, "--set", "time.steps=1"]) == 0
-    assert not (d / "checkpoint_00000005.h5.tmp").exists() and (d / "keep.txt").exists()
+    """A killed run's temporary files leave a folder free; a file parmpm did not write makes it
+    need --overwrite (issue 41), and stays."""
+    for extra in ([], ["--overwrite"]):
+        d = tmp_path / f"o{len(extra)}"
+        d.mkdir()
+        (d / "checkpoint_00000005.h5.tmp").write_bytes(b"half a checkpoint")
+        if extra:
+            (d / "keep.txt").write_text("not parmpm's")
+        assert main(["run", "hanging_bar_1d", "-o", str(d), *QUIET, *OFF, "--set", "time.steps=1",
+                     *extra]) == 0
+        assert not (d / "checkpoint_00000005.h5.tmp").exists()
+        assert (d / "keep.txt").exists() == bool(extra)
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root ignores folder permissions")

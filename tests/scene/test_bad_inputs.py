@@ -314,3 +314,28 @@ def test_issue41_an_obj_index_beyond_int64(tmp_path):
     proc = cli("run", "hanging_bar_3d", *QUIET, "--set", body, "-o", str(tmp_path / "o"),
                cwd=tmp_path)
     assert_one_line_error(proc, "big.obj': line 7: face index 1180591620717411303424 is beyond")
+
+
+# --- issue 41: output folders that hold the user's files -------------------------------------------
+@pytest.mark.parametrize("args,fragment", [
+    # before: exit 0, the user's scene.toml replaced by the resolved scene (its comments gone)
+    (["--out", "."], "output folder '.' holds the scene file this run reads ('scene.toml'): "
+                     "the run would replace it; choose another --out"),
+    (["--out", ".", "--overwrite"], "output folder '.' holds the scene file this run reads "
+                                    "('scene.toml'): the run would replace it"),
+    # before: exit 0, the run written among the user's files without a word
+    (["--out", "mine"], "output folder 'mine' holds files parmpm did not write ('notes.txt') and "
+                        "no parmpm run; choose another --out, or pass --overwrite"),
+])
+def test_output_folders_with_user_files_are_one_line(tmp_path, args, fragment):
+    (tmp_path / "scene.toml").write_text("# mine\n" + load_scene("hanging_bar_1d").to_toml())
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("mine")
+
+    def tree():
+        return {str(p): p.read_bytes() if p.is_file() else None for p in tmp_path.rglob("*")}
+
+    before = tree()
+    proc = cli("run", "scene.toml", *args, *QUIET, cwd=tmp_path)
+    assert_one_line_error(proc, fragment)
+    assert tree() == before  # nothing written, not even a lock file
