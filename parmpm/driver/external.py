@@ -62,8 +62,8 @@ def external_loads(spec: SceneSpec, comm, P: Particles, material_rows: dict,
             parts = comm.allgather((P.gid[mine][on], vec[on], area[on]))
             gids = np.concatenate([p[0] for p in parts])
             if gids.size == 0:
-                where = [w for w, given in (("inside its region", load.region),
-                                            (f"facing {_vec(load.normal)}", load.normal)) if given]
+                where = (["inside its region"] if load.region is not None else []) + (
+                    [f"facing {_vec(load.normal)}"] if load.normal is not None else [])
                 raise SceneError(f"loads.{k}: the {load.kind} finds no face of body "
                                  f"{load.body}'s surface" + (" " + " and ".join(where) if where
                                                              else ""))
