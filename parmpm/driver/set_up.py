@@ -23,6 +23,7 @@ from decomposition import PatchSet, allreduce_max, ranks_on_this_node
 from parmpm.loads import manufactured
 from parmpm.transfer.affine import AFFINE_TRANSFERS
 from parmpm.scene.overlaps import check_overlaps
+from parmpm.scene.wall_checks import check_walls
 from parmpm.core.collective import agree
 from parmpm.transfer.discretisation import Discretisation, exterior_cells
 from parmpm.output.energy import EnergyWatch
@@ -295,6 +296,7 @@ def _seeded(spec: SceneSpec, comm, D, params, rows):
     P = seeds.particles(params, seeds.members(D, patches.rank_of == comm.Get_rank()),
                         carried_fields(spec.method))
     check_overlaps(comm, spec, seeds, P.gid, P.x0)  # bodies seeded twice: one warning each
+    check_walls(comm, spec, seeds, P.gid, P.x0)  # walls that cut, hide or miss: one line each
     if man:
         manufactured.initialise(P, man.amplitude, params)
         if "corners" in P.optional:  # the domains of the initial F

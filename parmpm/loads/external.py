@@ -32,13 +32,15 @@ KIND_CODES = {"body_force": BODY_FORCE, "point": POINT, "traction": TRACTION,
               "pressure": PRESSURE}
 
 
-def surface_faces(dim: int, x0: np.ndarray, r0: np.ndarray, inside, region=None):
-    """Per particle (rows of ``x0`` (n, d), ``r0`` (n, d, d)): the sum of its surface faces'
-    reference area vectors ``Σ N A₀`` (n, d) and areas ``Σ A₀`` (n,). ``inside(points)`` is the
-    body's strict inside test; ``region`` ``(lo, hi)``: only faces whose centre lies in it."""
+#: how far (degrees) a face's outward normal may turn from a load's ``normal`` and still be
+#: selected: a turned box's faces, whose normal the scene writes to a few digits, are in
+NORMAL_TOLERANCE_DEG = 1.0
+
+
+def _faces(dim: int, x0: np.ndarray, r0: np.ndarray, inside, region=None, normal=None):
+    """Per face direction ``(j, sign)``: which particles have that face on the surface (inside
+    ``region``, facing ``normal`` where given), its outward unit normal (n, d) and area (n,)."""
     n = x0.shape[0]
-    area_vec = np.zeros((n, dim))
-    area = np.zeros(n)
     for j in range(dim):
         half = r0[:, :, j]                          # (n, d): the half-domain vector along j
         length = np.linalg.norm(half, axis=1)
@@ -53,9 +55,43 @@ def surface_faces(dim: int, x0: np.ndarray, r0: np.ndarray, inside, region=None)
                 centre = x0 + sign * half
                 lo, hi = (np.asarray(b, float) for b in region)
                 on &= np.all((centre >= lo) & (centre <= hi), axis=1)
-            area_vec[on] += sign * unit[on] * face[on, None]
-            area[on] += face[on]
+            if normal is not None:
+                cos = np.cos(np.radians(NORMAL_TOLERANCE_DEG))
+                on &= sign * (unit @ np.asarray(normal, float)) >= cos
+            yield on, sign * unit, face
+
+
+def surface_faces(dim: int, x0: np.ndarray, r0: np.ndarray, inside, region=None, normal=None):
+    """Per particle (rows of ``x0`` (n, d), ``r0`` (n, d, d)): the sum of its surface faces'
+    reference area vectors ``Σ N A₀`` (n, d) and areas ``Σ A₀`` (n,). ``inside(points)`` is the
+    body's strict inside test; ``region`` ``(lo, hi)``: only faces whose centre lies in it;
+    ``normal`` (unit): only faces whose outward normal is within
+    :data:`NORMAL_TOLERANCE_DEG` of it."""
+    n = x0.shape[0]
+    area_vec = np.zeros((n, dim))
+    area = np.zeros(n)
+    for on, out, face in _faces(dim, x0, r0, inside, region, normal):
+        area_vec[on] += out[on] * face[on, None]
+        area[on] += face[on]
     return area_vec, area
+
+
+def face_directions(dim: int, x0: np.ndarray, r0: np.ndarray, inside, region=None) -> dict:
+    """The surface faces :func:`surface_faces` takes, tallied by outward normal: ``{normal
+    (rounded to 1e-6): [faces, area]}``: a region that holds more than one direction loads the
+    corners' side faces too (issue 41)."""
+    out: dict = {}
+    for on, unit, face in _faces(dim, x0, r0, inside, region):
+        if not np.any(on):
+            continue
+        keys = np.round(unit[on], 6) + 0.0                  # -0.0 -> 0.0
+        uniq, inverse = np.unique(keys, axis=0, return_inverse=True)
+        for k, u in enumerate(uniq):
+            mask = inverse.reshape(-1) == k
+            tally = out.setdefault(tuple(u.tolist()), [0, 0.0])
+            tally[0] += int(np.count_nonzero(mask))
+            tally[1] += float(face[on][mask].sum())
+    return out
 
 
 class LoadSet:

@@ -252,6 +252,8 @@ def check_file_body(c: Checker, key: str, t: dict, dim: int, shape: str,
     except SceneError as exc:
         c.fail(fkey, str(exc))
     names = None if data is None else data.material
+    if data is not None:
+        _check_volumes(fkey, out["file"], data, dim)
     moving = [k for k in ("velocity", "angular_velocity", "velocity_gradient") if k in t]
     if data is not None and data.velocity is not None and moving:
         c.fail(f"{key}.{moving[0]}", f"the particle file '{out['file']}' gives every particle's "
@@ -365,6 +367,26 @@ def _check_surface(key: str, body) -> tuple[list, list]:
                    f"surface ({', '.join(problems)}); its inside is the generalised winding "
                    "number's guess near those edges")
     return list(s.lo), list(s.hi)
+
+
+#: how many times its bounding box a particle file's volumes may sum to (a file written at a
+#: compressed step holds reference volumes at current positions)
+VOLUME_SLACK = 2.0
+
+
+def _check_volumes(key: str, path: str, data, dim: int) -> None:
+    """One warning when a particle file's volumes sum to more than :data:`VOLUME_SLACK` times
+    the box of its points grown by a median particle's width (the box a lattice of them fills):
+    a volume in the wrong unit, or 1e300, which a run would take as it is (issue 41)."""
+    vol = np.asarray(data.vol, float)
+    width = float(np.median(vol)) ** (1.0 / dim) if vol.size else 0.0
+    box = float(np.prod(np.ptp(np.asarray(data.x, float).reshape(-1, dim), axis=0) + width))
+    total = float(math.fsum(vol))
+    if total > VOLUME_SLACK * box:
+        unit = {1: "m", 2: "m²", 3: "m³"}[dim]
+        _warn_once(f"{key}: the particles of '{path}' have volumes summing to {total:.4g} {unit}, "
+                   f"{total / box:.3g} times the {box:.4g} {unit} their points span (grown by a "
+                   "median particle's width): check the file's volumes and their unit")
 
 
 @functools.lru_cache(maxsize=64)

@@ -14,9 +14,11 @@ time function, checked key by key and resolved into the records :class:`Load` an
     kind = "traction"               # "body_force" | "point" | "traction" | "pressure"
     body = 0                        # index in [[bodies]] (body_force: default every body)
     region = {min = [..], max = [..]}  # traction, pressure: only the faces inside this box
+    normal = [1.0, 0.0]             # traction, pressure: only the faces facing this way
     value = [1e6, 0.0]              # body_force m/s², point N, traction Pa
     pressure = 1e5                  # pressure only: Pa, > 0 pushes into the body
     at = [0.5, 1.0]                 # point only: the particle nearest this point at the start
+                                    # (inside the grid)
     time = {function = "table", points = [[0.0, 0.0], [0.1, 1.0]]}
 
 Every problem is one line naming the full key (``loads.1.value``), the value and what was
@@ -33,7 +35,7 @@ from parmpm.loads.time_functions import FUNCTIONS, TimeFunction
 from parmpm.scene.check import Checker, show
 
 WALL_KEYS = ("name", "point", "normal", "friction", "velocity", "time")
-LOAD_KEYS = ("name", "kind", "body", "region", "value", "pressure", "at", "time")
+LOAD_KEYS = ("name", "kind", "body", "region", "normal", "value", "pressure", "at", "time")
 LOAD_KINDS = ("body_force", "point", "traction", "pressure")
 TIME_FUNCTION_KEYS = ("function", "duration", "points")
 #: the most rows of a time function's table, walls and loads in a scene
@@ -87,6 +89,7 @@ class Load:
     value: tuple[float, ...] | None = None
     pressure: float | None = None
     at: tuple[float, ...] | None = None
+    normal: tuple[float, ...] | None = None
 
 
 def check_time(c: Checker, key: str, raw: Any) -> dict:
@@ -169,14 +172,21 @@ def check_walls(c: Checker, raw: Any, dim: int, taken: set) -> list:
                             False)
         if math.hypot(*velocity) > MAX_WALL_SPEED:
             c.expected(f"{key}.velocity", f"a speed <= {MAX_WALL_SPEED:g} m/s", velocity)
+        time = check_time(c, f"{key}.time", t.get("time", {}))
+        if time["function"] != "constant" and not any(velocity):  # it would be ignored
+            c.fail(f"{key}.time", f'a fixed wall has no use for function "{time["function"]}" '
+                                  f"(a time function scales the velocity; give {key}.velocity "
+                                  "to move the wall, or leave time out)")
         out.append({"name": _name(c, key, t, f"wall{i}", taken), "point": point,
                     "normal": normal, "friction": friction, "velocity": velocity,
-                    "time": check_time(c, f"{key}.time", t.get("time", {}))})
+                    "time": time})
     return out
 
 
-def check_loads(c: Checker, raw: Any, dim: int, bodies: list, taken: set) -> list:
-    """The resolved ``[[loads]]``."""
+def check_loads(c: Checker, raw: Any, dim: int, bodies: list, taken: set,
+                grid: dict | None = None) -> list:
+    """The resolved ``[[loads]]`` (``grid``: the resolved ``[grid]``, which a point load's
+    ``at`` must lie in)."""
     if not isinstance(raw, list) or len(raw) > MAX_LOADS:
         c.expected("loads", f"an array of at most {MAX_LOADS} tables [[loads]]", raw)
     out = []
@@ -185,9 +195,9 @@ def check_loads(c: Checker, raw: Any, dim: int, bodies: list, taken: set) -> lis
         t = c.table(key, item, LOAD_KEYS)
         kind = c.choice(f"{key}.kind", c.required(key, t, "kind", "a load kind"), LOAD_KINDS)
         uses = {"body_force": ("body", "value"), "point": ("value", "at"),
-                "traction": ("body", "region", "value"),
-                "pressure": ("body", "region", "pressure")}[kind]
-        for name in ("body", "region", "value", "pressure", "at"):
+                "traction": ("body", "region", "normal", "value"),
+                "pressure": ("body", "region", "normal", "pressure")}[kind]
+        for name in ("body", "region", "normal", "value", "pressure", "at"):
             if name in t and name not in uses:
                 c.fail(f"{key}.{name}", f'not used by kind "{kind}" (expected '
                                         f"{' and '.join(uses)})")
@@ -210,6 +220,11 @@ def check_loads(c: Checker, raw: Any, dim: int, bodies: list, taken: set) -> lis
         if kind == "point":
             load["at"] = c.vector(f"{key}.at", c.required(key, t, "at", f"{dim} numbers"), dim,
                                   "float", False)
+            if grid is not None:
+                _in_grid(c, f"{key}.at", load["at"], grid)
+        if "normal" in t:  # absent when not given: older scenes resolve as they did
+            load["normal"] = _unit(c, f"{key}.normal", c.vector(f"{key}.normal", t["normal"],
+                                                                dim, "float", False))
         if "region" in t:
             r = c.table(f"{key}.region", t["region"], ("min", "max"))
             rk = f"{key}.region"
@@ -222,3 +237,13 @@ def check_loads(c: Checker, raw: Any, dim: int, bodies: list, taken: set) -> lis
             load["region"] = {"min": lo, "max": hi}
         out.append(load)
     return out
+
+
+def _in_grid(c: Checker, key: str, at: list, grid: dict) -> None:
+    """A point load's ``at`` inside the grid: from outside it the nearest particle is wherever
+    the bodies' edge is (6 m away took the nearest particle; issue 41)."""
+    lo = [float(o) for o in grid["origin"]]
+    hi = [o + n * h for o, n, h in zip(lo, grid["cells"], grid["cell_size"])]
+    if any(not a <= x <= b for x, a, b in zip(at, lo, hi)):
+        box = " to ".join("[" + ", ".join(f"{x:.6g}" for x in v) + "]" for v in (lo, hi))
+        c.expected(key, f"a point inside the grid {box}", at)

@@ -96,13 +96,15 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   :mod:`parmpm.grid.walls`): ``point`` (required), ``normal`` (required, nonzero, out of the
   wall; normalised), ``friction`` (Coulomb's μ >= 0 or "stick", default 0), ``velocity``
   (default zero: a fixed wall; m/s, |v| <= 1e6), ``time`` (a time function scaling the
-  velocity), ``name`` (default "wall<i>"; letters, digits, ``_ -``: names its history columns).
+  velocity; refused on a fixed wall, where it would be ignored), ``name`` (default "wall<i>"; letters, digits, ``_ -``: names its history columns).
 * ``[[loads]]`` (optional, at most 256; :mod:`parmpm.loads.external`): ``kind``
   "body_force" | "point" | "traction" | "pressure" (required); ``body`` (index in [[bodies]];
   required for traction and pressure, every body when a body_force leaves it out); ``value``
   (``dim`` numbers: m/s² for body_force, N for point, Pa for traction); ``pressure`` (Pa, > 0
-  pushes in; pressure only); ``at`` (point only: the particle nearest it at the start);
-  ``region`` (``{min, max}``: traction and pressure act only on the faces inside it); ``time``;
+  pushes in; pressure only); ``at`` (point only, inside the grid: the particle nearest it at the
+  start); ``region`` (``{min, max}``: traction and pressure act only on the faces inside it);
+  ``normal`` (``dim`` numbers, nonzero, normalised; traction and pressure only, default absent:
+  only the faces whose outward normal is within 1° of it); ``time``;
   ``name`` (default "load<i>"). A time function (``time`` of a wall or load) is a table
   ``function`` "constant" (default) | "ramp" | "smooth_step" (both with ``duration`` > 0 s) |
   "table" (with ``points``, up to 10,000 pairs ``[t, f]``, times increasing from >= 0)

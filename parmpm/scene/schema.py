@@ -109,7 +109,8 @@ def resolve(raw: dict, where: str, default_name: str,
     out["manufactured"] = _manufactured(c, raw.get("manufactured"), out["materials"])
     names: set = set()  # walls and loads name history columns: one namespace
     for section, check in (("walls", lambda r: check_walls(c, r, dim, names)),
-                           ("loads", lambda r: check_loads(c, r, dim, out["bodies"], names))):
+                           ("loads", lambda r: check_loads(c, r, dim, out["bodies"], names,
+                                                              out["grid"]))):
         if raw.get(section):  # absent when empty: older scenes resolve as they did
             out[section] = check(raw[section])
         elif section in raw and not isinstance(raw[section], list):

@@ -223,13 +223,19 @@ EXAMPLES = Path(__file__).resolve().parents[2] / "docs" / "examples"
 
 
 @pytest.mark.parametrize("name", ["sliding_block", "pressed_block", "kirsch_plate"])
-def test_wall_and_load_examples_run(tmp_path, name):
+def test_wall_and_load_examples_run(tmp_path, name, caplog):
+    """... and load exactly the faces meant, their walls in the grid and clear of the bodies
+    (issue 41: the Kirsch plate's region took the corner particles' top and bottom faces)."""
     from parmpm.scene.load import load_scene
 
     sc = load_scene(EXAMPLES / f"{name}.toml", ["time.steps=5", "time.end=1.0",
                                                   "output.snapshots=false", "output.figure=false"])
-    summary = Simulation(sc, tmp_path / "o", quiet=True).run()
+    with caplog.at_level("WARNING"):
+        summary = Simulation(sc, tmp_path / "o", quiet=True).run()
     assert summary["steps"] == 5, summary
+    said = [r.getMessage() for r in caplog.records
+            if r.getMessage().startswith(("loads.", "walls.", "bodies."))]
+    assert said == []
 
 
 def test_held_faces_report_their_reaction(tmp_path):
@@ -249,3 +255,70 @@ friction = "stick"
             for k in ("support", "plate")}
     weight = b["mass"] * 9.81
     assert mean["support"] == pytest.approx(-mean["plate"] + weight, rel=0.01)
+
+
+# ------------------------------------------------------------------ walls against the scene
+
+def walled_box(walls: str, time: str = "steps = 1") -> str:
+    """A box [0.3, 0.7] x [0.3, 0.5] in a 1 m grid, one step, with the given [[walls]]."""
+    return f"""
+dim = 2
+[grid]
+cell_size = 0.05
+cells = [20, 20]
+{MATERIAL}
+[[bodies]]
+shape = "box"
+material = "rock"
+ppc = 2
+min = [0.3, 0.3]
+max = [0.7, 0.5]
+{walls}
+[time]
+{time}
+"""
+
+
+@pytest.mark.parametrize("wall, said", [
+    # resting on it, and a plate coming down from above the grid (0.5 m in 0.05 s): silent
+    ("point = [0.0, 0.3]\nnormal = [0.0, 1.0]", None),
+    ("point = [0.5, 1.2]\nnormal = [0.0, -1.0]\nvelocity = [0.0, -10.0]", None),
+    ("point = [0.0, 0.4]\nnormal = [0.0, 1.0]",
+     "walls.0 (point [0, 0.4], normal [0, 1]) cuts bodies.0: 64 of its 128 particles start "
+     "behind the plane, where the wall holds them (move the wall to the body's surface)"),
+    ("point = [0.0, 0.3]\nnormal = [0.0, -1.0]",
+     "bodies.0 lies wholly behind walls.0 (point [0, 0.3], normal [0, -1]; the normal points "
+     "out of the wall, towards the bodies): the wall holds it wherever it moves against the "
+     "normal (flip the normal?)"),
+    ("point = [0.0, -0.5]\nnormal = [0.0, 1.0]",
+     "walls.0 (point [0, -0.5], normal [0, 1]) misses the grid: the whole grid lies in front "
+     "of its plane, so it can touch nothing (move its point into the grid, or leave the wall "
+     "out)"),
+    # a plate moving away from the grid
+    ("point = [0.5, 1.2]\nnormal = [0.0, -1.0]\nvelocity = [0.0, 10.0]",
+     "walls.0 (point [0.5, 1.2], normal [0, -1]) misses the grid"),
+])
+def test_walls_that_cut_hide_or_miss_are_one_warning(tmp_path, caplog, wall, said):
+    """Issue 41: a wall through a body, a body behind its wall, a wall outside the grid."""
+    with caplog.at_level("WARNING"):
+        run(tmp_path, walled_box(f"[[walls]]\n{wall}", "end = 0.05"), "walls")
+    lines = [r.getMessage() for r in caplog.records if "walls.0" in r.getMessage()]
+    if said is None:
+        assert lines == []
+    else:
+        assert len(lines) == 1 and lines[0].startswith(said), lines
+
+
+def test_a_time_function_on_a_fixed_wall_is_an_error():
+    """It would be ignored (it scales the velocity): refused, naming the key; the resolved
+    scene's own ``function = "constant"`` still reads back."""
+    with pytest.raises(SceneError) as exc:
+        scene_from_toml('name = "t"\n' + walled_box(
+            '[[walls]]\npoint = [0.0, 0.3]\nnormal = [0.0, 1.0]\n'
+            'time = {function = "ramp", duration = 0.1}'))
+    assert str(exc.value) == (
+        "scene '<string>': walls.0.time: a fixed wall has no use for function \"ramp\" (a time "
+        "function scales "
+        "the velocity; give walls.0.velocity to move the wall, or leave time out)")
+    scene_from_toml('name = "t"\n' + walled_box(
+        '[[walls]]\npoint = [0.0, 0.3]\nnormal = [0.0, 1.0]\ntime = {function = "constant"}'))

@@ -153,6 +153,7 @@ parts = [{{shape = "box", min = [0.0, 0.0], max = [0.6, 0.6]}},
 kind = "traction"
 body = 0
 region = {{min = [0.59, 0.0], max = [0.61, 0.6]}}
+normal = [1.0, 0.0]
 value = [1e3, 0.0]
 time = {{function = "smooth_step", duration = 0.1}}
 [damping]
@@ -169,7 +170,10 @@ def test_kirsch_hole_concentrates_stress_three_times(tmp_path):
     """A quarter plate (0.6 m, symmetry faces) with a hole of radius a = 0.1 m pulled by 1 kPa:
     the particle nearest the hole's top (θ = 90°) carries σ_xx → 3σ∞ (Kirsch 1898), within
     10 % at Δx = a/8 and closer than at Δx = a/4; each is within 5 % of Kirsch's σ_xx at its own
-    radius, 1 + a²/2r² + 3a⁴/2r⁴; far from the hole σ_xx = σ∞ to 1 %."""
+    radius, 1 + a²/2r² + 3a⁴/2r⁴; far from the hole, and a cell in from the loaded edge (whose
+    particles carry part of the load: docs/concepts/loads.md), σ_xx = σ∞ to 1 %. Without
+    ``normal`` the region also took the two corner faces on the symmetry line: 4.2 % (a/4) and
+    2.1 % (a/8) more load, σ_xx = 1.042 and 1.021 σ∞ there (issue 41)."""
     a, errors = 0.1, []
     for h in (0.025, 0.0125):
         sc = scene_from_toml(f'name = "k{h}"\n' + kirsch_scene(h), overrides=["output.figure=false"])
@@ -182,7 +186,88 @@ def test_kirsch_hole_concentrates_stress_three_times(tmp_path):
         q = (a / r[i]) ** 2
         assert sxx[i] == pytest.approx(1 + q / 2 + 1.5 * q * q, rel=0.05)
         errors.append(abs(sxx[i] - 3.0) / 3.0)
-        far = x[:, 0] > 0.45
+        far = (x[:, 0] > 0.45) & (x[:, 0] < 0.6 - h)
         assert np.mean(sxx[far]) == pytest.approx(1.0, rel=0.01)
     assert errors[1] < 0.10
     assert errors[1] < errors[0]
+
+
+# ------------------------------------------------------------------ which faces a load takes
+
+def pulled_block(h: float, extra: str = "", region: str = "[0.69, 0.19], max = [0.71, 0.41]",
+                 body: str = 'shape = "box"\nmin = [0.3, 0.2]\nmax = [0.7, 0.4]') -> str:
+    """A free 0.4 x 0.2 m block (no gravity, no damping) pulled by 1 kPa on its right face,
+    the region drawn around that face as the docs' examples drew it (issue 41)."""
+    n = int(round(1.0 / h))
+    return f"""
+dim = 2
+[grid]
+cell_size = {h}
+cells = [{n}, {n // 2 + 2}]
+{MATERIAL}
+[[bodies]]
+{body}
+material = "rock"
+ppc = 2
+[[loads]]
+kind = "traction"
+body = 0
+region = {{min = {region}}}
+value = [1e3, 0.0]
+{extra}
+[time]
+end = 0.05
+[output.history]
+every_steps = 1000000
+"""
+
+
+@pytest.mark.parametrize("h, extra", [(0.04, 0.2), (0.02, 0.1), (0.01, 0.1)])
+def test_a_traction_with_normal_loads_exactly_the_face_meant(tmp_path, h, extra):
+    """The traction bar (issue 41): with ``normal = [1, 0]`` the block gains momentum
+    t x 0.2 m x 0.05 s = 10 N s, to rounding, at every resolution; without it the top and
+    bottom faces of the corner particles in the region (1, 1, 2 columns of Δx/2 at x ≥ 0.69)
+    are pulled too: ``extra`` more."""
+    exact = 1e3 * 0.2 * 0.05
+    with_normal = run(tmp_path, pulled_block(h, "normal = [1.0, 0.0]"), "n")[-1]
+    assert with_normal["time"] == pytest.approx(0.05)
+    assert with_normal["momentum_x"] == pytest.approx(exact, rel=1e-6)
+    assert abs(with_normal["momentum_y"]) < 1e-9 * exact
+    without = run(tmp_path, pulled_block(h), "w")[-1]
+    assert without["momentum_x"] == pytest.approx(exact * (1 + extra), rel=1e-6)
+
+
+def test_a_region_holding_faces_facing_several_ways_is_one_warning(tmp_path, caplog):
+    """The corner faces are named: counts and lengths per direction, and the normal that keeps
+    the largest; with ``normal`` (or a region that holds only the face) no warning."""
+    warnings = []
+    for name, extra, region in (("w", "", "[0.69, 0.19], max = [0.71, 0.41]"),
+                                ("n", "normal = [1.0, 0.0]", "[0.69, 0.19], max = [0.71, 0.41]"),
+                                ("r", "", "[0.69, 0.201], max = [0.71, 0.399]")):
+        caplog.clear()
+        with caplog.at_level("WARNING"):
+            run(tmp_path, pulled_block(0.02, extra, region).replace("0.05", "0.001"), name)
+        warnings.append([r.getMessage() for r in caplog.records if "loads.0" in r.getMessage()])
+    assert warnings[0] == [
+        "loads.0: the traction's region holds faces facing 3 ways: 20 facing +x (0.2 m), "
+        "1 facing -y (0.01 m), 1 facing +y (0.01 m); each is loaded (add normal = [1, 0] to "
+        "load only the faces facing +x)"]
+    assert warnings[1] == warnings[2] == []
+
+
+@pytest.mark.parametrize("at, said", [
+    ("[0.7, 0.4]", None),   # the block's corner: its corner particle, 0.0071 m away
+    ("[0.1, 0.1]", "loads.0: the point load's nearest particle (id 0) is 0.2303 m from "
+                   "at = [0.1, 0.1], more than a cell (0.02 m): the force acts there"),
+])
+def test_a_point_load_far_from_every_particle_is_one_warning(tmp_path, caplog, at, said):
+    """Issue 41: the nearest particle more than a cell from ``at`` is named with its distance
+    (outside the grid it is an error: tests/scene/test_bad_inputs.py)."""
+    text = pulled_block(0.02).replace("0.05", "0.001")
+    text = text[:text.index("[[loads]]")] + (
+        f'[[loads]]\nkind = "point"\nat = {at}\nvalue = [1.0, 0.0]\n'
+        + text[text.index("[time]"):])
+    with caplog.at_level("WARNING"):
+        run(tmp_path, text, "point")
+    lines = [r.getMessage() for r in caplog.records if "loads.0" in r.getMessage()]
+    assert lines == ([] if said is None else [said])

@@ -470,3 +470,18 @@ def test_a_vtu_with_every_cell_twice_is_seeded_once(tmp_path, caplog):
     np.testing.assert_array_equal(P.x0, once.x0)  # the first listings, in file order
     assert len(said) == 1 and f"dropping {len(tris)} repeated listings of area 0.16 m^2" in said[0]
     assert "Gmsh" not in said[0]
+
+
+@pytest.mark.parametrize("scale, said", [(1.0, False), (1e300, True)])
+def test_particle_volumes_past_their_box_are_one_warning(tmp_path, caplog, scale, said):
+    """Issue 41: volumes of 1e300 ran as given (with cpdi, domains of 1e150 m); now one line
+    naming the file, the sum and the box its points span."""
+    x, vol, _ = _known(seed=7)
+    path = _write_csv(tmp_path / f"v{scale:g}.csv", x, vol * scale)
+    with caplog.at_level("WARNING"):
+        scene(f'shape = "particles"\nmaterial = "steel"\nfile = "{path}"', overrides=QUIET)
+    lines = [r.getMessage() for r in caplog.records if path.name in r.getMessage()]
+    assert len(lines) == int(said), lines
+    if said:
+        assert "\n" not in lines[0] and "have volumes summing to" in lines[0], lines
+        assert lines[0].startswith("bodies.0.file: the particles of "), lines

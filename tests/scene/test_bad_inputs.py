@@ -339,3 +339,24 @@ def test_output_folders_with_user_files_are_one_line(tmp_path, args, fragment):
     proc = cli("run", "scene.toml", *args, *QUIET, cwd=tmp_path)
     assert_one_line_error(proc, fragment)
     assert tree() == before  # nothing written, not even a lock file
+
+
+# issue 41, items 7 and 8: which faces a load takes, point loads and fixed walls
+@pytest.mark.parametrize("override, fragment", [
+    # before: applied to the nearest particle, 6 m away
+    ("loads=[{kind='point', at=[7, 0.5], value=[1, 0]}]",
+     "loads.0.at: expected a point inside the grid [-0.5, -3] to [1.5, 0.2], got [7.0, 0.5]"),
+    # before: ignored (a fixed wall's time function scales a zero velocity)
+    ("walls=[{point=[0, 0], normal=[0, 1], time={function='ramp', duration=1}}]",
+     'walls.0.time: a fixed wall has no use for function "ramp"'),
+    ("loads=[{kind='traction', body=0, value=[1, 0], normal=[0, 0]}]",
+     "loads.0.normal: expected a nonzero vector, got [0.0, 0.0]"),
+    ("loads=[{kind='point', at=[0.5, 0.5], value=[1, 0], normal=[1, 0]}]",
+     'loads.0.normal: not used by kind "point"'),
+    ("loads=[{kind='traction', body=0, value=[1, 0], normal=[1, 1]}]",
+     "loads.0: the traction finds no face of body 0's surface facing [0.7071, 0.7071]"),
+])
+def test_issue41_loads_and_walls_bad_input_is_one_line(tmp_path, override, fragment):
+    proc = cli("run", "hanging_bar", *QUIET, "--set", override, "-o", str(tmp_path / "o"),
+               cwd=tmp_path)
+    assert_one_line_error(proc, fragment)
