@@ -52,7 +52,8 @@ def listed_seeds(body, dim: int, material_rows: dict, edges) -> Listed:
     data = body.listed(dim)
     rows = None
     if data.material is not None:
-        rows = np.array([material_rows[str(m)] for m in data.material], np.int64)
+        names, inverse = np.unique(data.material, return_inverse=True)  # no loop per row
+        rows = np.array([material_rows[str(m)] for m in names], np.int64)[inverse.reshape(-1)]
     return Listed(data.x, data.vol, edges, data.velocity, rows, data.F)
 
 
