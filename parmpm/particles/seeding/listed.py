@@ -52,8 +52,9 @@ def listed_seeds(body, dim: int, material_rows: dict, edges) -> Listed:
     data = body.listed(dim)
     rows = None
     if data.material is not None:
-        names, inverse = np.unique(data.material, return_inverse=True)  # no loop per row
-        rows = np.array([material_rows[str(m)] for m in names], np.int64)[inverse.reshape(-1)]
+        rows = np.full(len(data.material), -1, np.int64)
+        for name, row in material_rows.items():  # a loop over the materials, not the rows
+            rows[data.material == name] = row
     return Listed(data.x, data.vol, edges, data.velocity, rows, data.F)
 
 
