@@ -2,6 +2,7 @@
 errors, bit for bit and word for word, on tables plain and damaged in every way the reader
 names; no Python string per row; rows repeating an earlier row's position noted."""
 import csv
+from decimal import Decimal, getcontext
 
 import numpy as np
 import pytest
@@ -126,10 +127,12 @@ def test_repeated_rows_are_noted(tmp_path):
 def test_csv_fast_numbers_are_float_of_their_text(tmp_path):
     """30 000 numbers of every kind the compiled conversion meets (random doubles' reprs,
     subnormals and the largest, %.1g to %.19g, 19-digit mantissas at exponents -340 .. 308,
-    decimals half-way between two doubles, 2^53 + k) read by the fast pass as ``float()`` reads
-    each text, bit for bit."""
+    decimals half-way between two doubles, 2^53 + k, exact expansions of 50+ digits and the
+    midpoints between doubles) read by the fast pass as ``float()`` reads each text, bit for
+    bit."""
     from parmpm.io.particle_file import fast_table
 
+    getcontext().prec = 900
     rng = np.random.default_rng(41)
     bits = rng.integers(0, 2**64, 6000, dtype=np.uint64, endpoint=False)
     d = bits.view(np.float64)
@@ -141,6 +144,9 @@ def test_csv_fast_numbers_are_float_of_their_text(tmp_path):
     lo = rng.uniform(1.0, 2.0, 6000)  # the decimal midpoint of lo and the next double
     texts += [repr(float(a)) + "000005" if k % 2 else f"{a:.17e}" for k, a in enumerate(lo.tolist())]
     texts += [str(2**53 + k) for k in range(-50, 50)]
+    for a in v[:500].tolist():  # > 19 digits: exact expansions, midpoints and either side
+        mid = (Decimal(a) + Decimal(float(np.nextafter(a, np.inf)))) / 2
+        texts += [f"{Decimal(a):e}", f"{mid:e}", f"{mid * (1 + Decimal(10) ** -40):e}"]
     texts += ["-" + t for t in texts[6000:8000] if not t.startswith("-")]
     path = tmp_path / "n.csv"
     path.write_text("x volume\n" + "".join(f"{t} 1\n" for t in texts))

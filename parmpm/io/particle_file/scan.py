@@ -2,7 +2,8 @@
 rows and converts the numbers, so a 10⁷-row file costs seconds and its arrays once (no Python
 string per row). The number conversion is Eisel and Lemire's (the algorithm of ``fast_float``:
 a 128-bit product with a table of powers of five), exact: it gives the double Python's
-``float()`` gives. Whatever it cannot be sure of — more than 19 significant digits, a
+``float()`` gives (more than 19 significant digits: when the first 19 and the first 19 plus
+one unit in the last round alike, as ``fast_float`` does). Whatever it cannot be sure of — a
 subnormal, ``nan``, ``inf``, ``1_000``, any text that is not a plain decimal — it leaves to
 ``float()`` as a *hard* token; a byte the scan does not handle (non-ASCII, a quote, a control
 character, a lone carriage return) sends the whole file to the precise reader
@@ -105,25 +106,32 @@ def _number(buf, s, e, pow5):
     if p < e and (buf[p] == 43 or buf[p] == 45):
         neg = buf[p] == 45
         p += 1
-    w, nd, exp10, digits = _ZERO, 0, 0, 0
+    w, nd, exp10, digits, cut = _ZERO, 0, 0, 0, False  # cut: a non-zero digit past the 19th
     while p < e and 48 <= buf[p] <= 57:
         d = np.uint64(buf[p] - 48)
         if nd > 0 or d != _ZERO:
-            w = w * np.uint64(10) + d
-            nd += 1
+            if nd < 19:
+                w = w * np.uint64(10) + d
+                nd += 1
+            else:
+                exp10 += 1
+                cut = cut or d != _ZERO
         digits += 1
         p += 1
     if p < e and buf[p] == 46:
         p += 1
         while p < e and 48 <= buf[p] <= 57:
             d = np.uint64(buf[p] - 48)
-            if nd > 0 or d != _ZERO:
-                w = w * np.uint64(10) + d
-                nd += 1
-            exp10 -= 1
+            if nd < 19:
+                if nd > 0 or d != _ZERO:
+                    w = w * np.uint64(10) + d
+                    nd += 1
+                exp10 -= 1
+            else:
+                cut = cut or d != _ZERO
             digits += 1
             p += 1
-    if digits == 0 or nd > 19:
+    if digits == 0:
         return False, _ZERO
     if p < e and (buf[p] == 101 or buf[p] == 69):
         p += 1
@@ -143,7 +151,11 @@ def _number(buf, s, e, pow5):
         return False, _ZERO
     if nd == 0:
         return True, (_S1 << _S63) if neg else _ZERO
-    return _to_bits(w, exp10, neg, pow5)
+    ok, bits = _to_bits(w, exp10, neg, pow5)
+    if ok and cut:  # the value lies between w·10^q and (w+1)·10^q: exact if both round alike
+        ok2, bits2 = _to_bits(w + _S1, exp10, neg, pow5)
+        ok = ok2 and bits2 == bits
+    return ok, bits
 
 
 @kernel
