@@ -14,9 +14,9 @@ times the CPU time); before: the row-by-row reader (every row a Python string), 
 compiled pass (:mod:`parmpm.io.particle_file.scan`):
 
     rows    MB     before: wall   CPU     peak RSS     after: wall   CPU    peak RSS
-    10^5     4.4           1.6 s   0.6 s     89 MB             3.0 s  0.7 s   151 MB
-    10^6    44             11 s    4.6 s    588 MB             4.3 s  1.2 s   211 MB
-    10^7   444            238 s   53 s     5487 MB             19 s   5.9 s   816 MB
+    10^5     4.4           1.6 s   0.6 s     89 MB             1.9 s  0.7 s   150 MB
+    10^6    44             11 s    4.6 s    588 MB             3.4 s  1.5 s   211 MB
+    10^7   444            238 s   53 s     5487 MB             14 s   6.4 s   816 MB
 
 (after, 10^5: the compiled reader's ~0.5 s of loading numba and its cached code.)
 

@@ -110,12 +110,13 @@ def read_fast(label: str, path, raw: bytes, dim: int):
                     f"({', '.join(head)})")
     data.check_count(label, rows, "the table (a header, no rows)")
 
-    def where(i: int) -> str:
-        return f"line {line_of(np.fromfile(path, np.uint8), pos, line_no + 1, i)}"
+    def where(i: int, buf=None) -> str:
+        buf = np.fromfile(path, np.uint8) if buf is None else buf
+        return f"line {line_of(buf, pos, line_no + 1, i)}"
 
     canonical = {k: name for name, k in index.items()}  # 'X' in the file: column 'x'
     _convert(label, raw, hard[:nh], [canonical[k] for k in range(len(head))], kinds, comps,
-             dest, where)
+             dest, lambda i: where(i, buf))
     out = {field: a[:rows].view(np.float64) for field, a in zip(fields, dest)}
     out["volume"] = out["volume"][:, 0]
     if "F" in out:
