@@ -141,12 +141,12 @@ def _surface(stamp: tuple):
 
 
 @functools.lru_cache(maxsize=8)
-def _particles(stamp: tuple, dim: int, step: int | None) -> tuple[Listed, tuple]:
+def _particles(stamp: tuple, dim: int, step: int | None) -> tuple[Listed, tuple, str]:
     from parmpm.io.particle_file import read_particle_file
 
     p = read_particle_file(stamp[0], dim, step=step)
     listed = Listed(p.x, p.reference_volume(), p.velocity, p.material, p.F)
-    return listed, (p.x.min(axis=0).tolist(), p.x.max(axis=0).tolist())
+    return listed, (p.x.min(axis=0).tolist(), p.x.max(axis=0).tolist()), p.repeats
 
 
 def _attached(body, needs: str) -> None:
@@ -251,6 +251,9 @@ def check_file_body(c: Checker, key: str, t: dict, dim: int, shape: str,
         data = listed(view, dim) if shape == "particles" else None
     except SceneError as exc:
         c.fail(fkey, str(exc))
+    note = _particles(_stamp(view.file), dim, view.step)[2] if data is not None else ""
+    if note:  # rows at one position: the body's mass counted again there
+        _warn_once(f"{fkey}: {note}")
     names = None if data is None else data.material
     if data is not None:
         _check_volumes(fkey, out["file"], data, dim)

@@ -358,3 +358,4 @@ def test_snapshot_errors(tmp_path):
     with h5py.File(tmp_path / "c.h5", "w") as f:
         f.attrs["format"] = "parmpm-checkpoint"
     _check(_error(tmp_path / "c.h5", 2), "damaged: missing scene, step")
+

@@ -485,3 +485,19 @@ def test_particle_volumes_past_their_box_are_one_warning(tmp_path, caplog, scale
     if said:
         assert "\n" not in lines[0] and "have volumes summing to" in lines[0], lines
         assert lines[0].startswith("bodies.0.file: the particles of "), lines
+
+
+def test_a_particle_file_with_repeated_rows_is_warned_once(tmp_path, caplog):
+    """Every row twice (issue 41): the scene still loads (the rows may be meant) and says so in
+    one line naming the key, the count, the first pair's lines and the volume they add (half of
+    the file's: the body's mass doubled); the seeded particles are the file's rows."""
+    x, vol, _ = _known(n=10)
+    path = _write_csv(tmp_path / "twice.csv", np.concatenate([x, x]), np.concatenate([vol, vol]))
+    with caplog.at_level("WARNING"):
+        sc = scene(f'shape = "particles"\nmaterial = "steel"\nfile = "{path}"', overrides=QUIET)
+    said = [r.getMessage() for r in caplog.records if "twice.csv" in r.getMessage()]
+    assert len(said) == 1 and "\n" not in said[0], said
+    assert said[0].startswith(f"bodies.0.file: particle file '{path}': 10 row(s) repeat an "
+                              "earlier row's position (the first: line 12 repeats line 2)"), said
+    assert f"they add volume {vol.sum():.6g}, 50 % of the file's total" in said[0], said
+    assert particles(sc)[0].n == 20

@@ -86,7 +86,7 @@ def read_particle_file(path, dim: int, *, step: int | None = None) -> ParticleDa
     p = _path(label, p)
     suffix = p.suffix.lower()
     if suffix == ".csv":
-        from parmpm.io.particle_file.table import read_csv
+        from parmpm.io.particle_file.fast_table import read_csv
 
         if step is not None:
             fail(label, f"is a CSV table (no steps), so step={step} does not apply")

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from parmpm.core.errors import SceneError
+from parmpm.core.jit import kernel
 
 #: the most particles one file may hold: global ids and row counts are int64, but MPI counts
 #: and numba loops over one rank's rows are int32 (2**31 - 1 rows of a ``count`` argument)
@@ -71,6 +72,8 @@ class ParticleData:
     material: np.ndarray | None = None
     F: np.ndarray | None = None
     source: str = ""
+    #: "" or the one line saying that rows repeat an earlier row's position (:func:`repeats`)
+    repeats: str = ""
 
     def __post_init__(self):
         for name in ("x", "volume", "velocity", "material", "F"):
@@ -108,7 +111,8 @@ class ParticleData:
 def finish(label: str, source: str, fields: dict, where: Callable[[int], str],
            names: dict[str, str]) -> ParticleData:
     """Check the fields every format shares (``x`` (N, d), ``volume`` (N,) and the optional
-    ``velocity``, ``material``, ``F``: finite, volume > 0, det F > 0) and freeze them.
+    ``velocity``, ``material``, ``F``: finite, volume > 0, det F > 0), note repeated positions
+    (:func:`repeats`) and freeze them.
     ``where(i)``: row ``i``'s place in the file; ``names``: each field's name in the file
     (``F`` may name one per component, ``names['F'](a, b)``)."""
     x = np.ascontiguousarray(fields["x"], dtype=np.float64)
@@ -139,4 +143,60 @@ def finish(label: str, source: str, fields: dict, where: Callable[[int], str],
         if empty.size:
             fail(label, f"{where(int(empty[0]))}, {names['material']}: empty material name; "
                         "expected the name of one of the scene's materials")
-    return ParticleData(x=x, volume=vol, velocity=v, material=mat, F=F, source=source)
+    return ParticleData(x=x, volume=vol, velocity=v, material=mat, F=F, source=source,
+                        repeats=repeats(label, x, vol, where))
+
+
+@kernel
+def _repeated(x, bits, vol, table):
+    """(rows that repeat an earlier row's position, their volume, the first such row, the row
+    it repeats): one pass through an open-addressing table of row numbers + 1."""
+    n, dim = x.shape
+    mask = np.uint64(table.shape[0] - 1)
+    count, added, first, orig = 0, 0.0, -1, -1
+    for i in range(n):
+        h = np.uint64(0)
+        for a in range(dim):
+            b = np.uint64(0) if x[i, a] == 0.0 else bits[i, a]  # -0.0 is 0.0
+            h = (h ^ b) * np.uint64(0x9E3779B97F4A7C15)
+        h = h ^ (h >> np.uint64(29))
+        slot = h & mask
+        while True:
+            j = np.int64(table[slot]) - 1
+            if j < 0:
+                table[slot] = i + 1
+                break
+            same = True
+            for a in range(dim):
+                if x[j, a] != x[i, a]:
+                    same = False
+                    break
+            if same:
+                if first < 0:
+                    first, orig = i, j
+                count += 1
+                added += vol[i]
+                break
+            slot = (slot + np.uint64(1)) & mask
+    return count, added, first, orig
+
+
+def repeats(label: str, x: np.ndarray, vol: np.ndarray, where: Callable[[int], str]) -> str:
+    """"" or one line: how many rows repeat an earlier row's position and the volume they add.
+    The same position alone is enough: two particles of a body at one point are one point of
+    the body seeded twice (its mass counted twice there), whatever else the rows say; a run's
+    own output never holds two at one point. One pass, a hash table of the rows (``-0.0`` is
+    ``0.0``)."""
+    n = x.shape[0]
+    if n < 2:
+        return ""
+    size = 1 << (2 * n - 1).bit_length()
+    table = np.zeros(size, np.int32 if n < 2**31 - 1 else np.int64)
+    count, added, first, orig = _repeated(x, x.view(np.uint64), vol, table)
+    if not count:
+        return ""
+    total = float(vol.sum())
+    return (f"{label}: {count} row(s) repeat an earlier row's position (the first: "
+            f"{where(first)} repeats {where(orig)}); they add volume {added:.6g}, "
+            f"{100 * added / total:.3g} % of the file's total {total:.6g} (each is one more "
+            "particle, its mass counted again); remove them unless meant")

@@ -6,6 +6,11 @@ name); ``F11``, ``F12``, ... ``Fij`` = ∂x_i/∂X_j, 1-based, all dim² of them
 are separated by commas (quoted as the csv module does), or by whitespace when the header has no
 comma; spaces around fields, blank lines and lines starting with ``#`` are ignored. Errors name
 the file's line (1-based, as an editor counts), the column and the value.
+
+A table is read by one compiled pass over its bytes (:mod:`parmpm.io.particle_file.scan`:
+seconds and its arrays once for 10⁷ rows); a file that pass does not handle (non-ASCII text,
+quoted fields, control characters, a lone carriage return) by the precise reader below, row by
+row in Python, which gives the same particles and the same errors.
 """
 from __future__ import annotations
 
@@ -26,12 +31,8 @@ def column_names(dim: int) -> dict[str, list[str]]:
             "F": [f"F{i}{j}" for i in range(1, dim + 1) for j in range(1, dim + 1)]}
 
 
-def _lines(label: str, path) -> list[tuple[int, str]]:
+def _lines(label: str, raw: bytes) -> list[tuple[int, str]]:
     """The file's meaningful lines, numbered from 1 (blank and ``#`` lines dropped)."""
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        fail(label, f"cannot read: {exc.strerror or exc}")
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
@@ -43,13 +44,13 @@ def _lines(label: str, path) -> list[tuple[int, str]]:
             if s.strip() and not s.lstrip().startswith("#")]
 
 
-def _split(line: str, comma: bool) -> list[str]:
+def split_fields(line: str, comma: bool) -> list[str]:
     if not comma:
         return line.split()
     return [f.strip() for f in next(csv.reader([line], skipinitialspace=True))]
 
 
-def _header(label: str, line_no: int, names: list[str], dim: int) -> dict[str, int]:
+def header(label: str, line_no: int, names: list[str], dim: int) -> dict[str, int]:
     """Column name (canonical) → its index; every problem of the header row named."""
     known = {c.lower(): c for cols in column_names(dim).values() for c in cols}
     other = {c.lower(): (c, d) for d in (1, 2, 3) for cols in column_names(d).values()
@@ -114,20 +115,21 @@ def _numbers(label: str, rows: list[list[str]], lines: list[int], k: int,
     return a
 
 
-def read_csv(label: str, path, dim: int):
-    """The particles of the CSV table at ``path`` (:mod:`parmpm.io.particle_file.table`)."""
-    lines = _lines(label, path)
+def read_precise(label: str, raw: bytes, dim: int):
+    """The particles of a CSV table's bytes, row by row (the reader of every file the fast
+    pass leaves, and the one that names a bad row)."""
+    lines = _lines(label, raw)
     if not lines:
         fail(label, "is empty (no header row); expected a header naming the columns "
                     f"({', '.join(column_names(dim)['x'])}, volume, ...) and one row per particle")
     comma = "," in lines[0][1]
-    head = _split(lines[0][1], comma)
-    index = _header(label, lines[0][0], head, dim)
+    head = split_fields(lines[0][1], comma)
+    index = header(label, lines[0][0], head, dim)
     if len(lines) - 1 > data.MAX_PARTICLES:
         data.check_count(label, len(lines) - 1, "the table")
     rows, numbers = [], []
     for line_no, text in lines[1:]:
-        fields = _split(text, comma)
+        fields = split_fields(text, comma)
         if len(fields) != len(head):
             fail(label, f"line {line_no}: {len(fields)} fields; expected {len(head)}, one per "
                         f"header column ({', '.join(head)})")
@@ -145,7 +147,12 @@ def read_csv(label: str, path, dim: int):
         out["F"] = out["F"].reshape(-1, dim, dim)
     if "material" in index:
         out["material"] = np.array([r[index["material"]] for r in rows], dtype=str)
-    names = {"x": "columns " + " ".join(cols["x"]), "volume": "column 'volume'",
-             "velocity": "columns " + " ".join(cols["velocity"]), "material": "column 'material'",
-             "F": "columns " + " ".join(cols["F"])}
-    return finish(label, label, out, lambda i: f"line {numbers[i]}", names)
+    return finish(label, label, out, lambda i: f"line {numbers[i]}", field_names(dim))
+
+
+def field_names(dim: int) -> dict[str, str]:
+    """How an error names each field: ``columns x y``, ``column 'volume'``."""
+    cols = column_names(dim)
+    return {"x": "columns " + " ".join(cols["x"]), "volume": "column 'volume'",
+            "velocity": "columns " + " ".join(cols["velocity"]), "material": "column 'material'",
+            "F": "columns " + " ".join(cols["F"])}

@@ -52,7 +52,9 @@ def listed_seeds(body, dim: int, material_rows: dict, edges) -> Listed:
     data = body.listed(dim)
     rows = None
     if data.material is not None:
-        rows = np.array([material_rows[str(m)] for m in data.material], np.int64)
+        rows = np.full(len(data.material), -1, np.int64)
+        for name, row in material_rows.items():  # a loop over the materials, not the rows
+            rows[data.material == name] = row
     return Listed(data.x, data.vol, edges, data.velocity, rows, data.F)
 
 
