@@ -16,9 +16,12 @@ estimate counts what dominates, from the resolved scene alone:
   slot, node box: :data:`DENSE_PATCH_BYTES`);
 * patches: those within halo reach of a body's bounding box (an upper bound of what the run
   allocates), each ``(patch_size + 2·ghost + 1)^dim`` nodes of ``(1 + 4·dim)`` doubles, times
-  :data:`PEAK_FACTOR` for the halo buffers.
+  :data:`PEAK_FACTOR` for the halo buffers;
+* with ``[contact]``, every velocity field's grids on those patches and its share of the
+  particle order (:func:`contact_bytes`; 100 default fields were estimated at 26 MiB and held
+  1 GiB before they were counted).
 
-Per rank that is ``(particles + patches) / ranks`` plus the metrics' whole-scene share; the
+Per rank that is ``(particles + patches + contact) / ranks`` plus the metrics' whole-scene share; the
 ranks on one node together must fit in ``MemAvailable`` (``/proc/meminfo``), or in the bytes
 ``PARMPM_MEMORY_LIMIT`` gives (e.g. ``8G``; for batch jobs with a memory limit, and tests). Its
 units are binary, as a batch system's (Slurm's ``--mem=8G``): K, M, G, T are KiB, MiB, GiB, TiB
@@ -32,9 +35,11 @@ import math
 import os
 
 from parmpm.core.errors import ParmpmError
+from parmpm.grid.update import row_stride
 from parmpm.output.metrics import separation_kinds
 from parmpm.scene.bodies import LISTED_SHAPES
 from parmpm.scene.body_files import count
+from parmpm.scene.contact import Contact
 from parmpm.scene.records import Body, SceneSpec
 
 #: measured peak over the bare fields (a 2D cpdi run at 1e6 particles: 360 B per particle over
@@ -70,6 +75,28 @@ def _body_particles(body: Body, h: tuple[float, ...], dim: int) -> float:
     return inscribed * math.prod(2 * body.radius / hk * p + 1 for hk, p in zip(h, ppc))
 
 
+def contact_bytes(contact: Contact | None, dim: int, particles: float, patches: float,
+                  nodes: int) -> float:
+    """What ``[contact]`` adds (:class:`parmpm.step.contact.ContactPhase`): per velocity field
+    (body fields and crack far sides) and patch slot, its grid sums (1 + 2d rows), updated
+    velocities (2d), first moments (1 + d), normal candidates (2d) and extents (4), and one
+    mask row; with cracks the first three stacked in one row per field set, and the damage
+    sums (2), maxima (1), gradient sums (d + d(d+1)/2) and crack normals (3); rows are
+    :func:`~parmpm.grid.update.row_stride` doubles apart. Per particle: its field and its place
+    in every field's order (8 bytes each), with cracks its damage gradient (3 doubles). Not
+    times :data:`PEAK_FACTOR`: allocated once and never copied (measured: 1.03–1.2× the
+    growth of the resident memory for 8 to 100 fields, 1.6× for 4)."""
+    if contact is None:
+        return 0.0
+    d, K, stride = dim, contact.velocity_fields, row_stride(nodes)
+    rows = K * (2 * d + 4) + 1  # normals, extents; the mask
+    if contact.cracks:
+        grid = (5 * d + 2) * row_stride(K * nodes) + (rows + 6 + d + d * (d + 1) // 2) * stride
+    else:
+        grid = (K * (5 * d + 2) + rows) * stride
+    return 8 * (patches * grid + particles * (K + 1 + (3 if contact.cracks else 0)))
+
+
 def estimate(spec: SceneSpec, ghost: int, ranks: int = 1) -> dict:
     """The estimate for a scene (``scene.spec``, its ``grid.patch_size`` chosen) with ``ghost``
     ghost cells on ``ranks`` ranks: particles, patches, nodes per patch and the peak bytes per
@@ -90,7 +117,8 @@ def estimate(spec: SceneSpec, ghost: int, ranks: int = 1) -> dict:
     dense = math.prod(math.ceil(n / p) for n, p in zip(cells, psize))
     patches = min(patches, dense)
     nodes = math.prod(p + 2 * ghost + 1 for p in psize)
-    per_rank = PEAK_FACTOR * (particles * field_bytes(d) + patches * nodes * 8 * (1 + 4 * d)) / ranks
+    per_rank = (PEAK_FACTOR * (particles * field_bytes(d) + patches * nodes * 8 * (1 + 4 * d))
+                + contact_bytes(spec.contact, d, particles, patches, nodes)) / ranks
     per_rank += DENSE_PATCH_BYTES * dense  # every rank indexes every patch of the bounding grid
     kind = spec.metrics.kind
     if kind != "none":  # whole-scene x0, mass and patch of every particle
@@ -143,11 +171,13 @@ def check_memory(spec: SceneSpec, ghost: int, ranks: int = 1, ranks_here: int = 
     available = available_bytes() if available is None else available
     need = est["bytes_per_rank"] * ranks_here
     if available is not None and need > available:
+        fields = (f"{spec.contact.velocity_fields} contact velocity fields, " if spec.contact
+                  else "")
         raise ParmpmError(
             f"scene '{spec.name}' needs about {_gb(est['bytes_per_rank'])} per rank "
             f"({est['particles']:.3g} particles, {est['patches']:.3g} patches of "
             f"{est['nodes_per_patch']:.3g} nodes of {est['dense_patches']:.3g} in the grid, "
-            f"ghost {ghost} cells, {ranks} rank(s)), "
+            f"ghost {ghost} cells, {fields}{ranks} rank(s)), "
             f"{_gb(need)} for the {ranks_here} rank(s) on this node, which has {_gb(available)} "
             f"available; use fewer particles or cells, a smaller ghost width or l_cr, or more "
             f"nodes ({LIMIT_VARIABLE} overrides the limit)")

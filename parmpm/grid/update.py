@@ -234,6 +234,14 @@ def _grid_loop(axes, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew
                             W[a, node] = vnew[a]
                             W[d + a, node] = vnew[a] - vold[a]
 
+
+def row_stride(nodes: int) -> int:
+    """The doubles between a grid block's rows of ``nodes`` nodes (:func:`grid_block`; the
+    memory estimate, :mod:`parmpm.driver.footprint`, counts them)."""
+    stride = (nodes + 511) // 512 * 512 + ROW_STAGGER
+    return stride - 512 if stride - 512 >= nodes else stride
+
+
 def grid_block(slots: int, rows: int, nodes: int) -> tuple[np.ndarray, np.ndarray]:
     """Zeroed storage for ``rows`` grid fields of every patch slot: ``(block, view)`` with
     ``block`` of shape ``(slots, rows, stride)`` (C order; component rows of a slot contiguous
@@ -241,8 +249,6 @@ def grid_block(slots: int, rows: int, nodes: int) -> tuple[np.ndarray, np.ndarra
     ``(slots, nodes, rows)``, the node-major shape the halo exchange and generic kernels index.
     ``stride ≥ nodes`` is padded so consecutive rows start ``ROW_STAGGER`` doubles apart modulo
     4 KiB."""
-    stride = (nodes + 511) // 512 * 512 + ROW_STAGGER
-    if stride - 512 >= nodes:
-        stride -= 512
+    stride = row_stride(nodes)
     block = np.zeros((slots, rows, stride))
     return block, block[:, :, :nodes].transpose(0, 2, 1)

@@ -47,8 +47,9 @@ from parmpm.core.jit import kernel
 from parmpm.core.log import get_logger
 from parmpm.output.energy import particle_energy
 from parmpm.output.metrics.sums import patch_sums
-from parmpm.output.reactions import (contact_columns, contact_row, held, support_columns,
-                                     support_row, wall_columns, wall_row)
+from parmpm.io.history_columns import (contact_columns, probe_columns, support_columns,
+                                       wall_columns)
+from parmpm.output.reactions import contact_row, held, support_row, wall_row
 
 log = get_logger(__name__)
 
@@ -92,9 +93,7 @@ class Probe:
         self.mat = material_rows[self.material] if self.material is not None else None
 
     def columns(self) -> list[str]:
-        if self.point is not None:
-            return [f"{self.name}.{f}" for f in self.fields]
-        return [f"{self.name}.{f}.{s}" for f in self.fields for s in self.stats]
+        return probe_columns(self.name, self.fields, self.stats)
 
     def _selected(self, P) -> np.ndarray:
         if self.region is not None:

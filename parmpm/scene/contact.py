@@ -26,6 +26,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from parmpm.io.history_columns import contact_names
 from parmpm.scene.check import Checker, show
 
 CONTACT_KEYS = ("friction", "fields", "normal", "gap", "cracks", "crack_damage", "names")
@@ -55,8 +56,7 @@ class Contact:
     def column_names(self) -> tuple[str, ...]:
         """Every velocity field's history name: its given name or ``contact<k>``, and with
         cracks each one's far side, ``<name>_far``."""
-        base = tuple(self.names) or tuple(f"contact{k}" for k in range(len(self.fields)))
-        return base + (tuple(f"{n}_far" for n in base) if self.cracks else ())
+        return contact_names(self.names, len(self.fields), self.cracks)
 
     @property
     def velocity_fields(self) -> int:
@@ -104,6 +104,11 @@ def check_contact(c: Checker, raw: Any, n_bodies: int, materials: dict, taken: s
     limit = MAX_FIELDS // 2 if cracks else MAX_FIELDS
     if "fields" not in t:
         fields = [list(range(n_bodies))] if cracks else [[b] for b in range(n_bodies)]
+        if len(fields) > limit:  # the default is held to the limit a list is
+            c.fail("contact.fields", f"not given, so each of the {n_bodies} bodies would be a "
+                                     f"field of its own: more than the {limit} a scene may have "
+                                     "(each costs a grid's memory); give contact.fields, with "
+                                     "bodies that never meet sharing a field")
     else:
         fields = _fields(c, t["fields"], n_bodies, limit)
     if len(fields) < 2 and not cracks:

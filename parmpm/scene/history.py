@@ -17,6 +17,8 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from parmpm.io.history_columns import (contact_names, probe_columns, reaction_columns,
+                                       repeated, support_columns)
 from parmpm.scene.check import Checker, show
 
 AXES = "xyz"
@@ -114,6 +116,7 @@ def _probe(c: Checker, key: str, raw: dict, dim: int, bodies: list, materials: d
     if not isinstance(fields, list) or not fields:
         c.expected(f"{key}.fields", "a non-empty list of field names", fields)
     out["fields"] = [c.choice(f"{key}.fields", f, valid) for f in fields]
+    _once(c, f"{key}.fields", out["fields"])
     if kind == "point":
         if t.get("stats", []) != []:  # [] is what a resolved scene holds
             c.fail(f"{key}.stats", "a point probe reads one particle: stats apply to region, "
@@ -124,4 +127,65 @@ def _probe(c: Checker, key: str, raw: dict, dim: int, bodies: list, materials: d
         if not isinstance(stats, list) or not stats:
             c.expected(f"{key}.stats", 'a non-empty list of "mean", "min", "max"', stats)
         out["stats"] = [c.choice(f"{key}.stats", s, PROBE_STATS) for s in stats]
+        _once(c, f"{key}.stats", out["stats"])
     return out
+
+
+def _once(c: Checker, key: str, names: list) -> None:
+    """A probe's field or statistic listed twice would write its column twice."""
+    for j, name in enumerate(names):
+        if name in names[:j]:
+            c.fail(f"{key}.{j}", f"{show(name)} is listed twice")
+
+
+def check_columns(c: Checker, scene: dict) -> None:
+    """Refuse two names that give the history the same column (a wall named ``contact1`` in a
+    scene whose contact field 1 has its default name, contact names ``["a", "a_far"]`` with
+    cracks): one line naming both. ``scene``: the resolved walls, boundary, contact and output.
+
+    Each source is (its key or None, how the blamed key's value is shown, how it is named as the
+    other one, its columns); the key blamed is the later of the two that the scene gave a name
+    (a default or derived name has no key of its own)."""
+    dim = scene["dim"]
+    sources: list[tuple[str | None, str, str, list[str]]] = []
+    for i, p in enumerate(scene["output"]["history"]["probes"]):
+        key = f"output.history.probes.{i}.name"
+        sources.append((key, show(p["name"]), f"{key} {show(p['name'])}",
+                        probe_columns(p["name"], p["fields"], p["stats"])))
+    for i, w in enumerate(scene.get("walls", [])):
+        key = f"walls.{i}.name"
+        sources.append((key, show(w["name"]), f"{key} {show(w['name'])}",
+                        reaction_columns(w["name"], dim)))
+    if _held(scene["boundary"]):
+        sources.append((None, "", "the held boundary (its reaction)", support_columns(dim)))
+    contact = scene.get("contact")
+    if contact:
+        n, given = len(contact["fields"]), contact.get("names", [])
+        for k, name in enumerate(contact_names(given, n, contact.get("cracks", False))):
+            field = k % n
+            own = (f"contact.names.{field} {show(given[field])}" if given
+                   else f"contact field {field} (its default name {show(f'contact{field}')})")
+            if k < n:
+                sources.append((f"contact.names.{k}" if given else None, show(name), own,
+                                reaction_columns(name, dim)))
+            else:
+                sources.append((None, "", f"the crack far side {show(name)} of {own}",
+                                reaction_columns(name, dim)))
+    found = repeated([s[3] for s in sources])
+    if found is None:
+        return
+    column, i, j = found
+    first, second = sources[i], sources[j]
+    if i == j:
+        c.fail(first[0] or "output.history", f"{first[2]} gives the column {show(column)} twice")
+    blamed, other = (second, first) if second[0] is not None else (first, second)
+    c.fail(blamed[0] or "output.history", f"{blamed[1]} gives the column {show(column)}, which "
+                                          f"{other[2]} writes too (each needs a name of its own)")
+
+
+def _held(boundary: dict) -> bool:
+    """Any held face or node region (as :func:`parmpm.output.reactions.held` on the record): the
+    history then has the support columns."""
+    faces = [v for k, v in boundary.items() if k.endswith(("_min", "_max"))]
+    return (any(side != "free" for side in faces) or bool(boundary["fixed_regions"])
+            or bool(boundary["slip_regions"]))

@@ -113,9 +113,10 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   become separate velocity fields that meet through frictional contact instead of sharing one
   grid velocity. ``friction`` (Coulomb's μ >= 0 between fields, or "stick"; default 0),
   ``fields`` (a list of lists of body indices, every body in exactly one, at least two fields,
-  at most 16; default: every body its own field), ``names`` (optional: one per field, 1 to 40
-  letters, digits, ``_ -``, unused by any wall or load; they name the field's history columns,
-  default "contact<k>"), ``normal`` (how a node's contact normal is
+  at most 16; default: every body its own field, held to the same 16), ``names`` (optional:
+  one per field, 1 to 40 letters, digits, ``_ -``, unused by any wall or load; they name the
+  field's history columns, default "contact<k>"; no wall, probe, field or far side
+  ``<name>_far`` may give a column another gives, nor ``support`` with held faces), ``normal`` (how a node's contact normal is
   found from the fields' first moments about the node: "separating", the default, the better
   separating, by the gap below, of the normal out of the field with the most mass there and
   the line between the fields' local centres of mass; "heavy" and "centroids", each of those

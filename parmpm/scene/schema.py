@@ -29,7 +29,7 @@ from parmpm.scene.bodies import (  # noqa: F401
     check_bodies,
 )
 from parmpm.scene.check import AXIS_NAMES, LCR_INTERPOLATORS, Checker, lcr_length, show
-from parmpm.scene.history import history
+from parmpm.scene.history import check_columns, history
 from parmpm.scene.contact import check_contact
 from parmpm.scene.loads import check_loads, check_walls
 from parmpm.scene.materials import DAMAGE_KEYS, MATERIAL_KEYS, check_materials  # noqa: F401
@@ -122,6 +122,7 @@ def resolve(raw: dict, where: str, default_name: str,
         c.fail("loads", "expected no [[loads]] with [manufactured] (its body force is the load)")
     out["time"] = _time(c, raw.get("time", {}))
     out["output"] = _output(c, raw.get("output", {}), out)
+    check_columns(c, out)
     out["metrics"] = _metrics(c, raw.get("metrics", {}), dim, out["bodies"])
     out["decomposition"] = _decomposition(c, raw.get("decomposition", {}))
     out["checkpoint"] = _checkpoint(c, raw.get("checkpoint", {}))

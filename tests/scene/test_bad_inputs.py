@@ -414,3 +414,87 @@ def test_issue41_particle_csv(tmp_path, caplog, row, fragment):
     assert len(said) == 1 and ("1500 row(s) repeat an earlier row's position (the first: line "
                                "1503 repeats line 3); they add volume 0.15, 50 % of the file's "
                                "total 0.3") in said[0], said
+
+
+#: 17 boxes of tension_bar's material in its grid: one more body than velocity fields a scene may
+#: have (parmpm.scene.contact.MAX_FIELDS)
+SEVENTEEN = "bodies=[" + ", ".join(f"{{min=[{-0.55 + 0.06 * i:.2f}, -0.05], max=[{-0.5 + 0.06 * i:.2f}, "
+                                   "0.05], material='bar'}" for i in range(17)) + "]"
+
+
+@pytest.mark.parametrize("sets,fragment", [
+    # issue 41, item 5: before, history.csv had these columns twice, the HDF5 history one of each
+    (["contact={}", "walls=[{name='contact1', point=[0, -0.1], normal=[0, 1]}]"],
+     'walls.0.name: "contact1" gives the column "contact1.force_x", which contact field 1 (its '
+     'default name "contact1") writes too'),
+    (["contact={cracks=true, fields=[[0, 1, 2], [3, 4]], names=['a', 'a_far']}"],
+     'contact.names.1: "a_far" gives the column "a_far.force_x", which the crack far side "a_far" '
+     'of contact.names.0 "a" writes too'),
+    (["contact={cracks=true}", "walls=[{name='contact0_far', point=[0, -0.1], normal=[0, 1]}]"],
+     'walls.0.name: "contact0_far" gives the column "contact0_far.force_x", which the crack far '
+     'side "contact0_far" of contact field 0'),
+    (["boundary.x_min='fixed'", "walls=[{name='support', point=[0, -0.1], normal=[0, 1]}]"],
+     'walls.0.name: "support" gives the column "support.force_x", which the held boundary'),
+    (["boundary.x_min='fixed'", "contact={names=['a', 'b', 'support', 'c', 'd']}"],
+     'contact.names.2: "support" gives the column "support.force_x", which the held boundary'),
+    (["output.history.probes=[{name='p', point=[0, 0], fields=['u.x', 'v.x', 'u.x']}]"],
+     'output.history.probes.0.fields.2: "u.x" is listed twice'),
+    (["output.history.probes=[{name='p', body=0, field='u.x', stats=['max', 'max']}]"],
+     'output.history.probes.0.stats.1: "max" is listed twice'),
+    # issue 41, item 6: before, 17 default fields passed (an explicit list is held to 16)
+    (["metrics.kind='none'", SEVENTEEN, "contact={}"],
+     "contact.fields: not given, so each of the 17 bodies would be a field of its own: more than "
+     "the 16"),
+])
+def test_history_names_and_contact_fields_are_one_line(tmp_path, sets, fragment):
+    args = [a for s in sets for a in ("--set", s)]
+    proc = cli("run", "tension_bar", *QUIET, *args, "-o", str(tmp_path / "o"), cwd=tmp_path)
+    assert_one_line_error(proc, fragment)
+
+
+def _boxes(n: int, contact: str) -> str:
+    """``n`` 0.06 m boxes 0.02 m apart in rows of four, a damageable material, ``[contact]``
+    with ``contact`` in it; 0.005 m cells."""
+    boxes = "".join(f"[[bodies]]\nmin = [{0.04 + 0.08 * (i % 4):.2f}, {0.04 + 0.08 * (i // 4):.2f}]"
+                    f"\nmax = [{0.1 + 0.08 * (i % 4):.2f}, {0.1 + 0.08 * (i // 4):.2f}]\n"
+                    'material = "m"\n' for i in range(n))
+    return f"""name = "boxes"
+dim = 2
+[grid]
+cell_size = 0.005
+cells = [80, {16 * (n // 4 + 1)}]
+patch_size = 8
+ghost = 2
+[materials.m]
+model = "neo_hookean"
+density = 1000.0
+youngs_modulus = 1e6
+poisson_ratio = 0.3
+damage = {{ onset = 1.2, fracture = 2.0 }}
+{boxes}
+[time]
+steps = 1
+[contact]
+{contact}
+"""
+
+
+@pytest.mark.parametrize("bodies,contact", [(16, ""), (4, "cracks = true\nfields = [[0], [1], [2], [3]]")])
+def test_the_memory_estimate_counts_every_contact_field(tmp_path, bodies, contact):
+    """Issue 41, item 6: the estimate holds what a contact run allocates (every velocity field's
+    grids, with cracks the damage and crack-normal grids: parmpm.step.contact.ContactPhase; the
+    one grid; the particles), and not half as much again. Before: 16 fields estimated at 4.5 MiB
+    while their grids held 45 MiB."""
+    from parmpm import Simulation
+    from parmpm.driver.footprint import field_bytes
+    from parmpm.scene.load import scene_from_toml
+
+    sc = scene_from_toml(_boxes(bodies, contact), overrides=["output.snapshots=false",
+                                                             "output.figure=false"])
+    sim = Simulation(sc, tmp_path / "o", quiet=True)
+    stepper = sim.state.stepper
+    held = sum(a.nbytes for a in vars(stepper.contact).values() if isinstance(a, np.ndarray))
+    held += stepper.grid.gsum_block.nbytes + stepper.grid.gnew_block.nbytes
+    held += sim.particles.n * field_bytes(2)
+    need = estimate(sc.spec, ghost=2)["bytes_per_rank"]
+    assert held <= need <= 1.5 * held, (held, need)
