@@ -14,6 +14,7 @@ from cli_harness import parmpm_cli
 
 from parmpm.core.errors import SceneError
 from parmpm.scene import body_files, recorded_files
+from parmpm.scene.body_files import keys as body_file_keys
 from parmpm.scene.load import scene_from_toml
 
 SCENE = """
@@ -191,11 +192,11 @@ def test_detached_body_answers_from_the_record_and_refuses_its_contents(tmp_path
                 "groups": None, "split": None, "step": None, "lo": [0.2, 0.2], "hi": [0.4, 0.4]},
                {"ids": [n, n + 7]}]
     assert recorded_files.remember(records) == [(0, n), (n, n + 7)]
-    body = body_files._view("particles", {"file": str(csv), "file_sha256": sha})
+    body = body_file_keys._view("particles", {"file": str(csv), "file_sha256": sha})
     assert recorded_files.detached(body)
     assert body_files.bounds(body, 2) == ([0.2, 0.2], [0.4, 0.4])
     assert body_files.count(body, 2) == n
     with pytest.raises(SceneError, match="is gone or changed since the checkpoint"):
         body_files.listed(body, 2)
-    other = body_files._view("particles", {"file": str(csv), "file_sha256": "0" * 64})
+    other = body_file_keys._view("particles", {"file": str(csv), "file_sha256": "0" * 64})
     assert not recorded_files.detached(other)  # no record for that content

@@ -1,34 +1,25 @@
-"""Bodies read from files (issue 30): a volume mesh (``shape = "mesh"``), a closed surface
-(``shape = "surface"``, 3D) or listed particles (``shape = "particles"``) — their scene keys,
-and the in-process cache that reads each file once.
-
-The resolved scene holds only the file's absolute path and the body's small keys (it is written
-as ``scene.toml`` and stored in checkpoints, so it must stay TOML); whatever needs the file's
-contents — the schema's "inside the grid" check, :meth:`parmpm.scene.records.Body.bounds`, the
-overlap check, the memory estimate, seeding — asks this module, which reads the file on first
-use and keeps it keyed by path, size and modification time (a file changed between the check
-and the run is read again, not mixed up). A relative ``file`` is relative to the scene file's
-folder (a scene given as text or a built-in: the working directory).
+"""A file body's scene keys (``file``, a mesh's ``groups`` and ``split``, a particle file's
+``step``, the recorded ``file_size`` and ``file_sha256``), checked so that every problem with
+the file is one line naming ``bodies.N.file`` — before anything opens it (a FIFO, a directory,
+a name no file system holds), then by reading it (:mod:`parmpm.scene.body_files.contents`).
 """
 from __future__ import annotations
 
-import functools
 import math
 import os
 import re
 import stat
 from pathlib import Path
 from types import SimpleNamespace
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
 from parmpm.core.errors import SceneError
-from parmpm.core.log import get_logger
 from parmpm.scene import recorded_files
+from parmpm.scene.body_files.contents import (_groups_of, _mesh, _mesh_file, _particles, _stamp,
+                                              _warn_once, bounds, count, listed, surface)
 from parmpm.scene.check import Checker, show
-
-log = get_logger(__name__)
 
 #: each file shape's own keys, and the dimensions it exists in
 #: (``file_size``, ``file_sha256``: what the resolved scene records of the file,
@@ -49,17 +40,6 @@ LABELS = {"mesh": "mesh", "surface": "surface file", "particles": "particle file
 KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
          (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
          (stat.S_ISSOCK, "a socket"))
-
-
-class Listed(NamedTuple):
-    """A body given point by point, in file order: positions ``x`` (n, d), reference volumes
-    ``vol`` (n,) and, where the file gives them, ``velocity`` (n, d), material names
-    ``material`` (n,) and deformation gradients ``F`` (n, d, d)."""
-    x: np.ndarray
-    vol: np.ndarray
-    velocity: np.ndarray | None = None
-    material: np.ndarray | None = None
-    F: np.ndarray | None = None
 
 
 def scene_folder(where: str) -> Path:
@@ -84,120 +64,6 @@ def files_read(scene) -> list[tuple[str, str]]:
         if body.get("shape") in FILE_KEYS and body.get("file"):
             found.append((body["file"], f"the {body['shape']} file of bodies.{i}"))
     return found
-
-
-def _stamp(path: str) -> tuple:
-    try:
-        st = os.stat(path)
-    except OSError:
-        return (path, None, None)
-    return (path, st.st_size, st.st_mtime_ns)
-
-
-@functools.lru_cache(maxsize=8)
-def _mesh_file(stamp: tuple, dim: int, groups: tuple | None):
-    """The mesh and its bounds (the nodes of its cells)."""
-    from parmpm.io.mesh_file import read_volume_mesh
-
-    mesh = read_volume_mesh(stamp[0], dim, None if groups is None else list(groups))
-    used = np.unique(np.concatenate([b.cells.ravel() for b in mesh.blocks]))
-    nodes = mesh.points[used]
-    return mesh, (nodes.min(axis=0).tolist(), nodes.max(axis=0).tolist())
-
-
-@functools.lru_cache(maxsize=4)
-def _mesh(stamp: tuple, dim: int, groups: tuple | None, split: int) -> Listed:
-    from parmpm.geometry.mesh import mesh_particles
-
-    mesh = _mesh_file(stamp, dim, groups)[0]
-    x, vol, _ = mesh_particles(mesh.points, mesh.blocks, split, label=f"mesh '{stamp[0]}'")
-    return Listed(x, vol)
-
-
-def _groups_of(body) -> tuple | None:
-    return None if body.groups is None else tuple(body.groups)
-
-
-def count(body, dim: int) -> int:
-    """How many particles a mesh or particle body makes, without making them."""
-    from parmpm.geometry.mesh import particles_per_element
-
-    if recorded_files.detached(body):
-        return recorded_files.recorded(body).count
-    if body.shape == "particles":
-        return int(listed(body, dim).x.shape[0])
-    mesh = _mesh_file(_stamp(body.file), dim, _groups_of(body))[0]
-    return sum(len(b.cells) * particles_per_element(b.cell_type, int(body.split))
-               for b in mesh.blocks)
-
-
-@functools.lru_cache(maxsize=8)
-def _surface(stamp: tuple):
-    from parmpm.geometry.surface import check_surface
-    from parmpm.io.surface_file import read_surface
-
-    V, T = read_surface(stamp[0])
-    return V, T, check_surface(V, T, stamp[0])
-
-
-@functools.lru_cache(maxsize=8)
-def _particles(stamp: tuple, dim: int, step: int | None) -> tuple[Listed, tuple, str]:
-    from parmpm.io.particle_file import read_particle_file
-
-    p = read_particle_file(stamp[0], dim, step=step)
-    listed = Listed(p.x, p.reference_volume(), p.velocity, p.material, p.F)
-    return listed, (p.x.min(axis=0).tolist(), p.x.max(axis=0).tolist()), p.repeats
-
-
-def _attached(body, needs: str) -> None:
-    """Refuse to read a detached body's file (:func:`parmpm.scene.recorded_files.detached`)."""
-    if recorded_files.detached(body):
-        raise SceneError(f"the file '{body.file}' is gone or changed since the checkpoint this "
-                         f"run continues (it had sha256 {body.file_sha256}); {needs} needs its "
-                         "contents: put that file back")
-
-
-def listed(body, dim: int) -> Listed:
-    """A mesh's or particle file's points (read once per process)."""
-    _attached(body, "reading its points")
-    if body.shape == "mesh":
-        return _mesh(_stamp(body.file), dim, _groups_of(body), int(body.split))
-    return _particles(_stamp(body.file), dim, body.step)[0]
-
-
-def surface(body):
-    """A surface body's ``(vertices, triangles, summary)`` (read once per process)."""
-    _attached(body, "the surface's inside")
-    return _surface(_stamp(body.file))
-
-
-def bounds(body, dim: int) -> tuple[list, list]:
-    """Axis-aligned bounds of a file body: a mesh's nodes, a surface's triangles, the points (a
-    detached body's: as recorded)."""
-    if recorded_files.detached(body):
-        rec = recorded_files.recorded(body)
-        return list(rec.lo), list(rec.hi)
-    if body.shape == "surface":
-        s = surface(body)[2]
-        return list(s.lo), list(s.hi)
-    if body.shape == "mesh":
-        return _mesh_file(_stamp(body.file), dim, _groups_of(body))[1]
-    return _particles(_stamp(body.file), dim, body.step)[1]
-
-
-def inside(body, dim: int, x) -> np.ndarray:
-    """Which points lie inside a surface body (:func:`parmpm.geometry.surface.inside_surface`);
-    a mesh or particle body has no inside test here (the overlap check skips it as the outer body)."""
-    from parmpm.geometry.surface import inside_surface
-
-    x = np.asarray(x, float).reshape(-1, dim)
-    if body.shape != "surface":
-        return np.zeros(len(x), bool)
-    V, T, _ = surface(body)
-    return inside_surface(V, T, x)
-
-
-# ---------------------------------------------------------------- the scene keys
 
 
 def check_file_body(c: Checker, key: str, t: dict, dim: int, shape: str,
@@ -390,20 +256,3 @@ def _check_volumes(key: str, path: str, data, dim: int) -> None:
         _warn_once(f"{key}: the particles of '{path}' have volumes summing to {total:.4g} {unit}, "
                    f"{total / box:.3g} times the {box:.4g} {unit} their points span (grown by a "
                    "median particle's width): check the file's volumes and their unit")
-
-
-@functools.lru_cache(maxsize=64)
-def _warn_once(line: str) -> None:
-    """Logged once per process, by rank 0 only (every rank checks the scene)."""
-    try:
-        from mpi4py import MPI
-        rank = MPI.COMM_WORLD.Get_rank() if MPI.Is_initialized() else 0
-    except ImportError:  # pragma: no cover - MPI is a dependency
-        rank = 0
-    if rank == 0:
-        log.warning("%s", line)
-
-
-def listed_volume(body, dim: int) -> float:
-    """Total reference volume of a mesh's or particle file's points (the memory and speed checks)."""
-    return float(math.fsum(listed(body, dim).vol))
