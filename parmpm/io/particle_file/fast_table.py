@@ -15,8 +15,8 @@ import parmpm.io.particle_file.data as data
 from parmpm.core.errors import SceneError
 from parmpm.io.particle_file.data import fail, finish
 from parmpm.io.particle_file.scan import BAIL, FIELDS, POW5, gather, line_of, scan
-from parmpm.io.particle_file.table import (column_names, field_names, header, read_precise,
-                                           split_fields)
+from parmpm.io.particle_file.table import (column_names, field_names, finite_floats, header,
+                                           read_precise, split_fields)
 
 
 def _header_line(raw: bytes, pos: int) -> tuple[int, str, int] | None:
@@ -48,20 +48,7 @@ def _convert(label: str, raw: bytes, hard: np.ndarray, head: list[str], kinds: n
             continue
         name = head[k]
         texts = [raw[s:e].decode("ascii") for _, _, s, e in rows]
-        try:
-            values = np.array(texts, dtype=np.float64)
-        except ValueError:
-            for (r, _, _, _), s in zip(rows, texts):
-                try:
-                    float(s)
-                except ValueError:
-                    fail(label, f"{where(int(r))}, column '{name}': {s!r} is not a number")
-            raise
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            i = int(bad[0])
-            fail(label, f"{where(int(rows[i, 0]))}, column '{name}': {texts[i]!r} is not a "
-                        "finite number")
+        values = finite_floats(label, name, texts, lambda i, rows=rows: where(int(rows[i, 0])))
         dest[kinds[k]][rows[:, 0], comps[k]] = values.view(np.uint64)
 
 

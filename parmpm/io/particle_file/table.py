@@ -98,20 +98,25 @@ def header(label: str, line_no: int, names: list[str], dim: int) -> dict[str, in
 def _numbers(label: str, rows: list[list[str]], lines: list[int], k: int,
              name: str) -> np.ndarray:
     """Column ``k`` as float64; the first value that is no finite number named."""
-    values = [r[k] for r in rows]
+    return finite_floats(label, name, [r[k] for r in rows], lambda i: f"line {lines[i]}")
+
+
+def finite_floats(label: str, name: str, texts: list[str], where) -> np.ndarray:
+    """``texts`` as float64 (``float()``'s reading); the first that is no number, then the first
+    that is not finite, is one line naming ``where(i)`` (its place: "line N") and the column."""
     try:
-        a = np.array(values, dtype=np.float64)
+        a = np.array(texts, dtype=np.float64)
     except ValueError:
-        for i, s in enumerate(values):
+        for i, s in enumerate(texts):
             try:
                 float(s)
             except ValueError:
-                fail(label, f"line {lines[i]}, column '{name}': {s!r} is not a number")
+                fail(label, f"{where(i)}, column '{name}': {s!r} is not a number")
         raise
     bad = np.flatnonzero(~np.isfinite(a))
     if bad.size:
         i = int(bad[0])
-        fail(label, f"line {lines[i]}, column '{name}': {values[i]!r} is not a finite number")
+        fail(label, f"{where(i)}, column '{name}': {texts[i]!r} is not a finite number")
     return a
 
 
