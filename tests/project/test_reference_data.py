@@ -1,11 +1,12 @@
-"""Published reference data kept in ``tests/data``: the files hold what their pages say they hold.
+"""Published reference data kept in ``tests/data``: the files hold what their page says they hold.
 
 ``tests/data/bui2008_final_surface.csv`` is the digitised final surface and failure line of the
 Bui et al. (2008) column collapse (copied, with its licence, from MaterialPointSolver.jl), and
 ``docs/results/plasticity_references.md`` quotes numbers read from it: the toe, the height at the
 wall, the failure-line angle and the deposit's area. A future check of parmpm's collapse will
 compare against this file, so a truncated copy or a page whose numbers drifted from the data
-fails here, not in that check.
+fails here, not in that check. ``tests/data/taylor_bar_references.csv`` holds the Taylor-bar radii
+and lengths the same page recommends as targets (quoted from Carina.jl's benchmark).
 """
 import csv
 import math
@@ -62,3 +63,34 @@ def test_bui_numbers_on_the_page_are_the_files():
         assert text in page, text
         for got, want in zip(pairs[::2], pairs[1::2]):
             assert round(got, 4 if want < 1 else 1) == want, (text, got)
+
+
+TAYLOR = ROOT / "tests" / "data" / "taylor_bar_references.csv"
+
+
+def taylor_rows() -> list[dict]:
+    lines = [line for line in TAYLOR.read_text(encoding="utf-8").splitlines()
+             if not line.startswith("#")]
+    return list(csv.DictReader(lines))
+
+
+def test_taylor_targets_on_the_page_are_the_files():
+    """The recommended targets (R_f 7.22 mm, L_f 21.43 mm) and the published radii the page
+    quotes are rows of the data file, and the file names its source and licence."""
+    head = TAYLOR.read_text(encoding="utf-8")
+    assert "Cthonios/Carina.jl" in head and "BSD-3-Clause" in head
+    rows = taylor_rows()
+    published = sorted(float(r["value_mm"]) for r in rows if r["kind"] == "published")
+    assert published == [7.11, 7.12, 7.22]
+    finest = {r["quantity"]: float(r["value_mm"]) for r in rows
+              if r["kind"] == "fe_run" and r["h_mm"] == "0.19"}
+    assert finest == {"radius": 7.2326, "length": 21.430}
+    page = PAGE.read_text(encoding="utf-8")
+    for text in ("R_f = 7.22 mm** (Foulk et al. 2021", "L_f = 21.43 mm**, the Sierra", "7.12 mm (Simo 1992)",
+                 "7.11 mm (Zienkiewicz et al.", "| 7.2326 mm, 21.430 mm |"):
+        assert text in page, text
+    # the page's 2 % bands are 2 % of the targets, and the band contains every published radius
+    assert "(7.08–7.36 mm)" in page and "21.00–21.86 mm" in page
+    assert all(abs(r / 7.22 - 1) <= 0.02 for r in published)
+    assert (round(7.22 * 0.98, 2), round(7.22 * 1.02, 2)) == (7.08, 7.36)
+    assert (round(21.43 * 0.98, 2), round(21.43 * 1.02, 2)) == (21.0, 21.86)
