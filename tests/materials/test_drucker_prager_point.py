@@ -234,6 +234,7 @@ def test_apex_and_cutoff_with_cohesion():
     cone (``√J2 = ξ c − η p_t``), multipliers ≥ 0."""
     c = 1.0e3
     eta, xi, eta_bar, apex = cst = drucker_prager_constants(PHI, 5.0, c)
+    assert apex == pytest.approx(xi * c / eta, rel=1e-15)
     eps, tau, dg, dgt, region = ret([0.01, 0.01, 0.01], cst, c)
     assert region == APEX and tau == pytest.approx([apex] * 3, rel=1e-15)
     assert dgt == pytest.approx(0.03 - apex / K, rel=1e-14) and dg == 0.0

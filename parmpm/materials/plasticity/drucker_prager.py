@@ -30,12 +30,12 @@ MATCHINGS = ("plane_strain", "outer", "inner")
 
 def _eta_xi(angle, matching):
     """``(η, ξ)`` of an angle (radians) under a Mohr–Coulomb matching."""
-    if matching == "plane_strain":  # de Souza Neto et al. (2008) eq. (8.89); Bui et al. (2008)
+    if matching == "plane_strain":  # de Souza Neto et al. (2008) ch. 6; Bui et al. (2008)
         t = math.tan(angle)
         root = math.sqrt(9.0 + 12.0 * t * t)
         return 3.0 * t / root, 3.0 / root
     s = math.sin(angle)
-    den = math.sqrt(3.0) * (3.0 - s if matching == "outer" else 3.0 + s)  # eq. (8.86), (8.88)
+    den = math.sqrt(3.0) * (3.0 - s if matching == "outer" else 3.0 + s)
     return 6.0 * s / den, 6.0 * math.cos(angle) / den
 
 
@@ -46,7 +46,7 @@ def drucker_prager_constants(phi, psi, c, matching="plane_strain", tension_cutof
 
     * ``"plane_strain"``: ``η = 3 tan φ / √(9 + 12 tan²φ)``, ``ξ = 3 / √(9 + 12 tan²φ)`` —
       the cone inscribed in Mohr–Coulomb's hexagon, whose plane-strain limit state with
-      associated flow (ψ = φ) is Mohr–Coulomb's (de Souza Neto et al. 2008, eq. 8.89; the
+      associated flow (ψ = φ) is Mohr–Coulomb's (de Souza Neto et al. 2008, ch. 6; the
       constants of Bui et al. 2008; with ψ < φ the plane-strain limit is weaker, see the docs);
     * ``"outer"``: ``η = 6 sin φ / (√3 (3 − sin φ))``, ``ξ = 6 cos φ / (√3 (3 − sin φ))`` —
       touches Mohr–Coulomb on its compressive meridian (triaxial compression), circumscribes it;
