@@ -338,6 +338,30 @@ def test_every_plastic_state_is_consistent(psi, cut):
     assert seen == ({ELASTIC, CONE, APEX} if cut is None else {ELASTIC, CONE, CUTOFF, APEX})
 
 
+def test_return_is_continuous_across_region_boundaries():
+    """Trials along lines that cross every region boundary (elastic, cone, corner, cut-off):
+    neighbouring returned stresses differ by no more than a few times the trials' difference,
+    so no boundary is misplaced (a misplaced one jumps by a finite amount)."""
+    c = 1.0e3
+    eta, xi, eta_bar, apex = drucker_prager_constants(PHI, 5.0, c)
+    cst = drucker_prager_constants(PHI, 5.0, c, tension_cutoff=0.4 * apex)
+    crossed = set()
+    for dev0, slope in ((0.0, 0.0), (0.2, 0.0), (1.0, 0.0), (1.5, -0.5), (0.5, -0.16)):
+        prev, seen = None, []
+        for x in np.linspace(-3.0, 3.0, 4001):
+            dev = (dev0 + slope * x) * c / G
+            eps_tr = x * apex / K / 3 + np.array([dev, 0.0, -dev])
+            eps, tau, *_, region = ret(eps_tr, cst, c)
+            if not seen or seen[-1] != region:
+                seen.append(region)
+            if prev is not None:
+                assert abs(tau - prev[1]).max() <= 3 * (2 * G + 3 * K) * abs(eps_tr - prev[0]).max()
+            prev = eps_tr, tau
+        crossed |= set(zip(seen, seen[1:]))
+    assert crossed >= {
+        (ELASTIC, CONE), (ELASTIC, CUTOFF), (CONE, APEX), (APEX, CUTOFF)}
+
+
 def ledger(n):
     """Σ τ_{n+1}:Δε_p, the trapezoidal stress power ∫τ:dε and ψ(ε_e) on a curved non-associated
     path (c > 0, ψ = 10°) that yields and then slides over the cone."""
