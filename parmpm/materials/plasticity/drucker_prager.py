@@ -1,0 +1,155 @@
+"""Drucker–Prager plasticity in principal Hencky space: the granular workhorse (Drucker & Prager
+1952; de Souza Neto, Perić & Owen 2008, §8.3 and ch. 14).
+
+Sign convention everywhere: **tension positive**. ``p = tr τ / 3`` (negative in compression),
+``s = τ − p I``, ``√J2 = |s| / √2``. Perfectly plastic, cohesion ``c`` constant:
+
+* yield function ``f = √J2 + η p − ξ c`` (a cone opening towards compression, apex at
+  ``p_apex = ξ c / η``), flow potential ``g = √J2 + η̄ p`` (non-associated: ``η̄`` from the
+  dilatancy angle ψ ≤ φ; ``η̄ = η`` associated);
+* a tension cut-off ``p ≤ p_t`` with ``0 ≤ p_t ≤ p_apex`` (associated: purely volumetric
+  flow). It is what makes the return to the apex exact for ``η̄ < η``: a non-associated cone
+  alone has no volumetric flow to carry a hydrostatically stretched state back to the apex, and
+  the apex is the corner of the cone and the cut-off (Koiter's rule, two multipliers).
+
+:func:`drucker_prager_constants` turns (φ, ψ, c) and a Mohr–Coulomb matching into the
+kernel's scalars (and refuses bad values); :func:`dp_return` maps the principal trial elastic
+log strains to the updated ones; :func:`dp_dissipation` is the step's plastic work
+``τ_{n+1} : Δε_p`` for the energy ledger. docs/concepts/plasticity_drucker_prager.md derives it.
+"""
+import math
+
+from parmpm.core.errors import SceneError
+from parmpm.core.jit import helper_kernel
+from parmpm.materials.plasticity.hencky import kirchhoff_principal
+
+#: :func:`dp_return`'s region codes (the apex is the cone/cut-off corner when p_t = p_apex)
+ELASTIC, CONE, CUTOFF, APEX = 0, 1, 2, 3
+MATCHINGS = ("plane_strain", "outer", "inner")
+
+
+def _eta_xi(angle, matching):
+    """``(η, ξ)`` of an angle (radians) under a Mohr–Coulomb matching."""
+    if matching == "plane_strain":  # de Souza Neto et al. (2008) ch. 6; Bui et al. (2008)
+        t = math.tan(angle)
+        root = math.sqrt(9.0 + 12.0 * t * t)
+        return 3.0 * t / root, 3.0 / root
+    s = math.sin(angle)
+    den = math.sqrt(3.0) * (3.0 - s if matching == "outer" else 3.0 + s)
+    return 6.0 * s / den, 6.0 * math.cos(angle) / den
+
+
+def drucker_prager_constants(phi, psi, c, matching="plane_strain", tension_cutoff=None,
+                             where="drucker_prager"):
+    """``(η, ξ, η̄, p_t)`` of friction angle ``phi`` and dilatancy ``psi`` (degrees), cohesion
+    ``c`` and a Mohr–Coulomb ``matching``:
+
+    * ``"plane_strain"``: ``η = 3 tan φ / √(9 + 12 tan²φ)``, ``ξ = 3 / √(9 + 12 tan²φ)`` —
+      the cone inscribed in Mohr–Coulomb's hexagon, whose plane-strain limit state with
+      associated flow (ψ = φ) is Mohr–Coulomb's (de Souza Neto et al. 2008, ch. 6; the
+      constants of Bui et al. 2008; with ψ < φ the plane-strain limit is weaker, see the docs);
+    * ``"outer"``: ``η = 6 sin φ / (√3 (3 − sin φ))``, ``ξ = 6 cos φ / (√3 (3 − sin φ))`` —
+      touches Mohr–Coulomb on its compressive meridian (triaxial compression), circumscribes it;
+    * ``"inner"``: the same with ``3 + sin φ`` — touches on the tensile meridian (outside
+      Mohr–Coulomb between the meridians, inside on the compressive one: not the inscribed cone).
+
+    ``η̄`` is ``η``'s formula at ψ. ``p_t`` (same units as ``c``) defaults to the apex
+    ``ξ c / η`` (``inf`` for φ = 0: the von Mises-like cylinder has no apex); a given value must
+    lie in ``[0, ξ c / η]``. Bad values raise :class:`SceneError` naming ``where``.
+    """
+    if matching not in MATCHINGS:
+        raise SceneError(f"{where}: matching {matching!r} is not one of {', '.join(MATCHINGS)}")
+    if not 0.0 <= phi < 90.0:
+        raise SceneError(f"{where}: friction angle {phi} deg is outside [0, 90)")
+    if not 0.0 <= psi <= phi:
+        raise SceneError(f"{where}: dilatancy angle {psi} deg is outside [0, phi = {phi}]")
+    if not c >= 0.0 or math.isinf(c):
+        raise SceneError(f"{where}: cohesion {c} must be finite and >= 0")
+    if phi == 0.0 and c == 0.0:
+        raise SceneError(f"{where}: phi = 0 and c = 0 leave no strength at all")
+    eta, xi = _eta_xi(math.radians(phi), matching)
+    eta_bar = _eta_xi(math.radians(psi), matching)[0]
+    apex = xi * c / eta if eta > 0.0 else math.inf
+    if tension_cutoff is None:
+        return eta, xi, eta_bar, apex
+    if not 0.0 <= tension_cutoff <= apex:
+        raise SceneError(f"{where}: tension cut-off {tension_cutoff} is outside [0, apex "
+                         f"xi c / eta = {apex:.6g}]")
+    return eta, xi, eta_bar, float(tension_cutoff)
+
+
+@helper_kernel
+def dp_yield(tau, eta, xi, c):
+    """``f = √J2 + η p − ξ c`` of principal Kirchhoff stresses ``tau`` (3,), tension positive."""
+    p = (tau[0] + tau[1] + tau[2]) / 3.0
+    ss = 0.0
+    for a in range(3):
+        ss += (tau[a] - p) * (tau[a] - p)
+    return math.sqrt(0.5 * ss) + eta * p - xi * c
+
+
+@helper_kernel
+def _set_state(eps_tr, K, G, p, scale, eps_out, tau_out):
+    """The state with mean stress ``p`` and the trial deviator scaled by ``scale`` (``eps_out``
+    may be ``eps_tr``: each entry is read before it is written)."""
+    ev = eps_tr[0] + eps_tr[1] + eps_tr[2]
+    for a in range(3):
+        e = scale * (eps_tr[a] - ev / 3.0)
+        eps_out[a] = e + p / (3.0 * K)
+        tau_out[a] = p + 2.0 * G * e
+
+
+@helper_kernel
+def dp_return(eps_tr, K, G, eta, xi, eta_bar, c, p_t, eps_out, tau_out):
+    """Return map of the principal trial elastic log strains ``eps_tr`` (3,): writes the updated
+    ones ``eps_out`` and the principal Kirchhoff stresses ``tau_out``; returns
+    ``(Δγ, Δγ_t, region)``, the multipliers of the cone's potential and of the cut-off, so that
+    ``Δε_p = eps_tr − eps_out = Δγ (s / (2√J2) + η̄/3 I) + Δγ_t I/3``.
+
+    Closed forms (perfect plasticity; ``q = √J2``, trial values ``q*``, ``p*``):
+
+    * cone: ``Δγ = f* / (G + K η η̄)``, ``q = q* − G Δγ``, ``p = p* − K η̄ Δγ``, accepted when
+      ``p ≤ p_t``;
+    * cut-off: ``p = p_t``, ``s = s*``, ``Δγ_t = (p* − p_t) / K``, accepted when
+      ``q* + η p_t − ξ c ≤ 0``;
+    * corner (the apex when ``p_t = ξ c / η``): ``p = p_t``, ``q = ξ c − η p_t``,
+      ``Δγ = (q* − q) / G``, ``Δγ_t = (p* − p_t) / K − η̄ Δγ`` (both ≥ 0 whenever the cone
+      return overshoots ``p_t`` and the cut-off return leaves the cone: no third case).
+    """
+    ev = eps_tr[0] + eps_tr[1] + eps_tr[2]
+    p_tr = K * ev
+    ee = 0.0
+    for a in range(3):
+        e = eps_tr[a] - ev / 3.0
+        ee += e * e
+    q_tr = G * math.sqrt(2.0 * ee)  # √J2 of s* = 2G dev ε*
+    f_tr = q_tr + eta * p_tr - xi * c
+    if f_tr <= 0.0 and p_tr <= p_t:
+        for a in range(3):
+            eps_out[a] = eps_tr[a]
+        kirchhoff_principal(eps_out, K, G, tau_out)
+        return 0.0, 0.0, ELASTIC
+    if f_tr > 0.0:
+        dg = f_tr / (G + K * eta * eta_bar)
+        p = p_tr - K * eta_bar * dg
+        q = q_tr - G * dg
+        if p <= p_t and q >= 0.0:
+            _set_state(eps_tr, K, G, p, q / q_tr, eps_out, tau_out)
+            return dg, 0.0, CONE
+    q_t = max(xi * c - eta * p_t, 0.0)  # the cone's √J2 at the cut-off (0: the apex)
+    if q_tr < q_t:
+        _set_state(eps_tr, K, G, p_t, 1.0, eps_out, tau_out)
+        return 0.0, (p_tr - p_t) / K, CUTOFF
+    dg = (q_tr - q_t) / G
+    _set_state(eps_tr, K, G, p_t, q_t / q_tr if q_tr > 0.0 else 0.0, eps_out, tau_out)
+    return dg, (p_tr - p_t) / K - eta_bar * dg, APEX
+
+
+@helper_kernel
+def dp_dissipation(eps_tr, eps, tau):
+    """The step's plastic work per unit reference volume, ``τ_{n+1} : Δε_p`` with
+    ``Δε_p = eps_tr − eps`` (coaxial principal values): ≥ 0 for ``0 ≤ p_t`` and ``η̄ ≤ η``."""
+    w = 0.0
+    for a in range(3):
+        w += tau[a] * (eps_tr[a] - eps[a])
+    return w
