@@ -12,14 +12,17 @@
 * The hardening laws (:mod:`parmpm.materials.plasticity.hardening`) against their formulas
   written again here, their slopes (the Newton tangent) against central differences, and the
   finite slope of ``ε̄p^n`` (``n < 1``) at ``ε̄p = 0``.
+* :func:`j2_update` in a compiled particle loop: the same bits as one point at a time.
 """
 import math
 
 import numpy as np
 import pytest
-from j2_paths import LAWS, Point, hencky, sigma_y
+from j2_paths import LAWS, G, K, Point, hencky, sigma_y
 
+from parmpm.core.jit import kernel, loop_kernel
 from parmpm.materials.plasticity.hardening import EPS_FLOOR, yield_stress
+from parmpm.materials.plasticity.j2 import j2_update
 
 LEGS = (0.0, 0.3, 0.05, 0.6)
 RATE = 1e3  # dγ/dt, for Johnson–Cook's rate term
@@ -106,3 +109,38 @@ if __name__ == "__main__":  # the ledger table of the docs
             print(f"{law}, {'shear+stretch' if stretch else 'shear'}:")
             for n, work, gap in ledger_table(law, True, stretch):
                 print(f"  {n:4d} steps/unit γ  plastic work {work:.6e}  |gap|/work = {gap:.3e}")
+
+
+@loop_kernel
+def _update_all(dF, be, epsp, work, tau, hard, dt, M, V, w, t):
+    for i in range(be.shape[0]):
+        epsp[i], dw = j2_update(dF[i], be[i], epsp[i], K, G, int(hard[0]), hard[1], hard[2],
+                                hard[3], hard[4], hard[5], dt, tau[i], M, V, w, t)
+        work[i] += dw
+
+
+@kernel
+def update_all(dF, be, epsp, work, tau, hard, dt):
+    """A particle loop as the solver will write it: scratch from the ``@kernel`` wrapper, the
+    ``@loop_kernel`` (no reference counting) calling the helper on per-particle views."""
+    _update_all(dF, be, epsp, work, tau, hard, dt, np.empty((3, 3)), np.empty((3, 3)),
+                np.empty(3), np.empty(3))
+
+
+def test_particle_loop_matches_one_point_at_a_time():
+    """:func:`j2_update` compiles inside a ``@loop_kernel`` particle loop (it allocates nothing)
+    and gives there, bit for bit, what it gives called on one point."""
+    rng = np.random.default_rng(3)
+    n = 16
+    hard = np.array(LAWS["johnson_cook_rate"], dtype=float)
+    dF = np.eye(3) + 0.02 * rng.standard_normal((n, 3, 3))
+    be, epsp, work, tau = np.tile(np.eye(3), (n, 1, 1)), np.zeros(n), np.zeros(n), np.zeros((n, 3, 3))
+    points = [Point("johnson_cook_rate") for _ in range(n)]
+    for _ in range(5):
+        update_all(dF, be, epsp, work, tau, hard, 1e-4)
+        for i, p in enumerate(points):
+            p.step(dF[i], 1e-4)
+    assert np.all(epsp > 0)
+    for i, p in enumerate(points):
+        assert np.array_equal(p.be, be[i]) and np.array_equal(p.tau, tau[i])
+        assert p.epsp == epsp[i] and p.work == work[i]
