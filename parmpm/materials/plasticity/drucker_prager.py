@@ -15,7 +15,7 @@ Sign convention everywhere: **tension positive**. ``p = tr τ / 3`` (negative in
 :func:`drucker_prager_constants` turns (φ, ψ, c) and a Mohr–Coulomb matching into the
 kernel's scalars (and refuses bad values); :func:`dp_return` maps the principal trial elastic
 log strains to the updated ones; :func:`dp_dissipation` is the step's plastic work
-``τ_{n+1} : Δε_p`` for the energy ledger. docs/concepts/plasticity_drucker_prager.md derives it.
+``τ_{n+1} : Δε_p`` for the energy ledger. docs/concepts/drucker-prager.md derives it.
 """
 import math
 
