@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 from typing import NamedTuple
 
 import numpy as np
@@ -17,6 +16,7 @@ import numpy as np
 from parmpm.core.errors import SceneError
 from parmpm.core.log import get_logger
 from parmpm.scene import recorded_files
+from parmpm.scene.recorded_files import stamp as _stamp  # the readers' cache key
 
 log = get_logger(__name__)
 
@@ -30,14 +30,6 @@ class Listed(NamedTuple):
     velocity: np.ndarray | None = None
     material: np.ndarray | None = None
     F: np.ndarray | None = None
-
-
-def _stamp(path: str) -> tuple:
-    try:
-        st = os.stat(path)
-    except OSError:
-        return (path, None, None)
-    return (path, st.st_size, st.st_mtime_ns)
 
 
 @functools.lru_cache(maxsize=8)
