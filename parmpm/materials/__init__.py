@@ -37,6 +37,14 @@ LAWS = {law.name: law for law in (
 #: law name → code (the table's first column)
 MODELS = {name: law.code for name, law in LAWS.items()}
 
+J2, DRUCKER_PRAGER = 1, 2
+#: the plastic models (:mod:`parmpm.materials.plasticity`) by name → their code in the plastic
+#: table (:mod:`parmpm.materials.plasticity.table`; 0: an elastic material). A plastic material's
+#: row of the parameter table tells the fused elastic update it has no elastic response of its
+#: own (law ``linear_elastic`` with λ = μ = c² = 0: zero stress, zero wave speed); the plastic
+#: pass after G2P writes its stress and speed. So the elastic kernels compile and run unchanged.
+PLASTIC_MODELS = {"j2": J2, "drucker_prager": DRUCKER_PRAGER}
+
 NO_DAMAGE, LINEAR, EXPONENTIAL = 0, 1, 2
 #: damage softening name → code (the table's ``damage`` column; 0: no damage model)
 SOFTENING = {"linear": LINEAR, "exponential": EXPONENTIAL}
@@ -68,9 +76,12 @@ def material_table(materials: Mapping) -> tuple[np.ndarray, list[str]]:
         E, nu, rho = m.youngs_modulus, m.poisson_ratio, m.density
         lam, mu = lame(E, nu)
         r = table[row]
-        r[COL_LAW], r[COL_DENSITY] = MODELS[m.model], rho
-        r[COL_E], r[COL_NU], r[COL_LAM], r[COL_MU] = E, nu, lam, mu
-        r[COL_C2], r[COL_INV_DENSITY] = (lam + 2 * mu) / rho, 1 / rho
+        r[COL_DENSITY], r[COL_E], r[COL_NU], r[COL_INV_DENSITY] = rho, E, nu, 1 / rho
+        if m.model in PLASTIC_MODELS:  # the plastic pass's (module docstring of PLASTIC_MODELS)
+            r[COL_LAW] = LINEAR_ELASTIC
+            continue
+        r[COL_LAW], r[COL_LAM], r[COL_MU] = MODELS[m.model], lam, mu
+        r[COL_C2] = (lam + 2 * mu) / rho
         dmg = m.damage
         if dmg:
             r[COL_DAMAGE], r[COL_ONSET] = SOFTENING[dmg.softening], dmg.onset
@@ -79,4 +90,4 @@ def material_table(materials: Mapping) -> tuple[np.ndarray, list[str]]:
     return table, names
 
 
-__all__ = ["LAWS", "MODELS", "SOFTENING", "PARAM", "N_PARAMS", "Law", "lame", "material_table"]
+__all__ = ["LAWS", "MODELS", "PLASTIC_MODELS", "SOFTENING", "PARAM", "N_PARAMS", "Law", "lame", "material_table"]
