@@ -19,13 +19,32 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   coordinate must resolve a cell (``|origin|`` and the extent below 1e12 cells), ``exterior`` ("auto" or int 0..64, default
   "auto": cells kept outside the faces, the face conditions staying on the faces; "auto" gives the
   ghost width on each face a body starts within one cell of, :func:`parmpm.transfer.discretisation.exterior_cells`).
-* ``[materials.NAME]`` (at least one): ``model`` ("linear_elastic" | "neo_hookean"),
-  ``density`` (> 0), ``youngs_modulus`` (> 0), ``poisson_ratio`` (-1 < nu < 0.5); all required,
-  and together they must give a positive, finite wave speed (no subnormal moduli).
+* ``[materials.NAME]`` (at least one): ``model`` ("linear_elastic" | "neo_hookean") or a
+  plastic model ("j2" | "drucker_prager", below), ``density`` (> 0), ``youngs_modulus``
+  (> 0), ``poisson_ratio`` (-1 < nu < 0.5); all required, and together they must give a
+  positive, finite wave speed (no subnormal moduli).
   Optional ``[materials.NAME.damage]``: ``onset`` (stretch >= 1, required), ``fracture``
   (> onset, required), ``softening`` ("linear" | "exponential", default linear), ``criterion``
   ("max_principal_stretch", the only one), ``freeze`` (0 < D <= 1 or "never", default 1: the damage at which a CPDI
   domain freezes, :mod:`parmpm.shapes.freeze`).
+  The plastic models (:mod:`parmpm.materials.plasticity`, docs/concepts/plasticity.md) take the
+  same three elastic keys (the Hencky moduli K = E/(3(1 − 2ν)), G = E/(2(1 + ν))), no
+  ``damage``, and flat keys of their own; a key of another model or another hardening law is an
+  error. ``model = "j2"`` (finite-strain von Mises): ``yield_stress`` (> 0 Pa, required: the
+  initial yield stress σ_y0), ``hardening`` ("linear" | "swift" | "johnson_cook", default
+  "linear"), ``hardening_modulus`` (>= 0 Pa, default 0; linear: σ_y = σ_y0 + H ε̄p, 0 perfectly
+  plastic; Johnson–Cook's B), ``strength_coefficient`` (> 0 Pa; "swift" only, required: σ_y =
+  A (ε0 + ε̄p)^n with ε0 = (σ_y0/A)^(1/n), which must be finite and > 0),
+  ``hardening_exponent`` (0 < n <= 1; required with "swift" and "johnson_cook"),
+  ``rate_coefficient`` (>= 0, default 0: no rate term; "johnson_cook" only, its C),
+  ``reference_rate`` (> 0 1/s, default 1; "johnson_cook" only): Johnson–Cook's σ_y =
+  (σ_y0 + B ε̄p^n)(1 + C ln max(ε̄̇p/reference_rate, 1)). ``model = "drucker_prager"``:
+  ``friction_angle`` (degrees, 0 <= φ < 90, required), ``dilatancy_angle`` (degrees,
+  0 <= ψ <= φ, default 0: no dilatancy), ``cohesion`` (>= 0 Pa, default 0; φ = 0 needs c > 0),
+  ``matching`` ("plane_strain" | "outer" | "inner", default "plane_strain": which Mohr–Coulomb
+  limit the cone reproduces), ``tension_cutoff`` (Pa, from 0 to the apex ξ c / η; default
+  absent: the apex); checked by
+  :func:`parmpm.materials.plasticity.drucker_prager.drucker_prager_constants`.
 * ``[[bodies]]`` (at least one): ``shape`` ("box", "disk" in 2D, "sphere" in 3D; default "box");
   box: ``min``, ``max``; disk/sphere: ``center``, ``radius``; ``material`` (required);
   ``ppc`` (particles per cell per axis, 1 to 1000, default 2; a disk or sphere must hold at

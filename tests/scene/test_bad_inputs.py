@@ -498,3 +498,136 @@ def test_the_memory_estimate_counts_every_contact_field(tmp_path, bodies, contac
     held += sim.particles.n * field_bytes(2)
     need = estimate(sc.spec, ghost=2)["bytes_per_rank"]
     assert held <= need <= 1.5 * held, (held, need)
+
+
+# --- issue 42, item 5: the plastic materials' keys ------------------------------------------------
+def _material(model: str, **keys) -> str:
+    """``materials.bar={...}``: hanging_bar's material as ``model`` with ``keys`` (TOML text)."""
+    items = {"model": f'"{model}"', "density": "7800.0", "youngs_modulus": "2e11",
+             "poisson_ratio": "0.3", **keys}
+    return "materials.bar={" + ", ".join(f"{k} = {v}" for k, v in items.items()) + "}"
+
+
+def _j2(**keys) -> str:
+    return _material("j2", **{"yield_stress": "250e6", **keys})
+
+
+def _swift(**keys) -> str:
+    return _j2(hardening='"swift"', **{"strength_coefficient": "600e6",
+                                       "hardening_exponent": "0.2", **keys})
+
+
+def _jc(**keys) -> str:
+    return _j2(hardening='"johnson_cook"', **{"hardening_exponent": "0.5", **keys})
+
+
+def _dp(**keys) -> str:
+    return _material("drucker_prager", **{"friction_angle": "30", "cohesion": "1e4", **keys})
+
+
+_M = "materials.bar"
+
+
+@pytest.mark.parametrize("override,fragment", [
+    # j2: before, each was "unknown key 'materials.bar.yield_stress' (allowed: model, density,
+    # youngs_modulus, poisson_ratio, damage)" or 'materials.bar.model: expected one of
+    # "linear_elastic", "neo_hookean", got "j2"'
+    (_material("j2"), f"{_M}.yield_stress: required key is missing (expected a number > 0 (Pa))"),
+    (_j2(yield_stress="0"), f"{_M}.yield_stress: expected a number > 0 (Pa), got 0"),
+    (_j2(yield_stress="-1e6"), f"{_M}.yield_stress: expected a number > 0 (Pa), got -1000000.0"),
+    (_j2(yield_stress="nan"), f"{_M}.yield_stress: expected a number > 0 (Pa), got nan"),
+    (_j2(yield_stress="inf"), f"{_M}.yield_stress: expected a number > 0 (Pa), got inf"),
+    (_j2(yield_stress='"250e6"'), f'{_M}.yield_stress: expected a number > 0 (Pa), got "250e6"'),
+    (_j2(yield_stress="true"), f"{_M}.yield_stress: expected a number > 0 (Pa), got true"),
+    (_j2(yield_stress="[250e6]"), f"{_M}.yield_stress: expected a number > 0 (Pa), got [250000000.0]"),
+    (_j2(hardening='"voce"'),
+     f'{_M}.hardening: expected one of "linear", "swift", "johnson_cook", got "voce"'),
+    (_j2(hardening_modulus="-1"), f"{_M}.hardening_modulus: expected a number >= 0 (Pa), got -1"),
+    (_j2(hardening_modulus="nan"), f"{_M}.hardening_modulus: expected a number >= 0 (Pa), got nan"),
+    (_j2(hardening='"swift"', hardening_exponent="0.2"),
+     f"{_M}.strength_coefficient: required key is missing"),
+    (_swift(strength_coefficient="0"), f"{_M}.strength_coefficient: expected a number > 0 (Pa), got 0"),
+    (_swift(strength_coefficient="-inf"), f"{_M}.strength_coefficient: expected a number > 0 (Pa), got -inf"),
+    (_j2(hardening='"swift"', strength_coefficient="600e6"),
+     f"{_M}.hardening_exponent: required key is missing (expected a number 0 < n <= 1)"),
+    (_swift(hardening_exponent="0"), f"{_M}.hardening_exponent: expected a number 0 < n <= 1, got 0"),
+    (_swift(hardening_exponent="1.5"), f"{_M}.hardening_exponent: expected a number 0 < n <= 1, got 1.5"),
+    (_swift(hardening_exponent="nan"), f"{_M}.hardening_exponent: expected a number 0 < n <= 1, got nan"),
+    (_swift(yield_stress="1e10", strength_coefficient="1", hardening_exponent="0.001"),
+     f"{_M}: yield_stress 1e+10 Pa, strength_coefficient 1 Pa and hardening_exponent 0.001 give "
+     "the Swift strain offset eps0 = (yield_stress/strength_coefficient)^(1/n) = inf; expected a "
+     "finite eps0 > 0"),
+    (_swift(yield_stress="1", strength_coefficient="1e300", hardening_exponent="0.01"),
+     f"{_M}: yield_stress 1 Pa, strength_coefficient 1e+300 Pa and hardening_exponent 0.01 give "
+     "the Swift strain offset eps0 = (yield_stress/strength_coefficient)^(1/n) = 0;"),
+    (_j2(hardening='"johnson_cook"'), f"{_M}.hardening_exponent: required key is missing"),
+    (_jc(rate_coefficient="-0.1"),
+     f"{_M}.rate_coefficient: expected a number >= 0 (0: no rate term), got -0.1"),
+    (_jc(reference_rate="0"), f"{_M}.reference_rate: expected a number > 0 (1/s), got 0"),
+    (_jc(reference_rate="inf"), f"{_M}.reference_rate: expected a number > 0 (1/s), got inf"),
+    (_jc(hardening_modulus='"big"'), f'{_M}.hardening_modulus: expected a number >= 0 (Pa), got "big"'),
+    # a key of another hardening law: before, unknown to the schema
+    (_j2(strength_coefficient="600e6"),
+     f'{_M}.strength_coefficient: not used by hardening "linear" (it takes hardening_modulus)'),
+    (_j2(reference_rate="1.0"),
+     f'{_M}.reference_rate: not used by hardening "linear" (it takes hardening_modulus)'),
+    (_swift(hardening_modulus="1e9"), f'{_M}.hardening_modulus: not used by hardening "swift" '
+                                      "(it takes strength_coefficient, hardening_exponent)"),
+    (_swift(rate_coefficient="0.01"), f'{_M}.rate_coefficient: not used by hardening "swift"'),
+    (_jc(strength_coefficient="600e6"), f'{_M}.strength_coefficient: not used by hardening '
+                                        '"johnson_cook" (it takes hardening_modulus, '
+                                        "hardening_exponent, rate_coefficient, reference_rate)"),
+    # drucker_prager: the ranges are drucker_prager_constants' own
+    (_material("drucker_prager"), f"{_M}.friction_angle: required key is missing"),
+    (_dp(friction_angle="90"), f"{_M}: friction angle 90.0 deg is outside [0, 90)"),
+    (_dp(friction_angle="-5"), f"{_M}: friction angle -5.0 deg is outside [0, 90)"),
+    (_dp(friction_angle="nan"),
+     f"{_M}.friction_angle: expected an angle 0 <= phi < 90 (degrees), got nan"),
+    (_dp(friction_angle="inf"),
+     f"{_M}.friction_angle: expected an angle 0 <= phi < 90 (degrees), got inf"),
+    (_dp(friction_angle='"30"'),
+     f'{_M}.friction_angle: expected an angle 0 <= phi < 90 (degrees), got "30"'),
+    (_dp(friction_angle="false"),
+     f"{_M}.friction_angle: expected an angle 0 <= phi < 90 (degrees), got false"),
+    (_dp(dilatancy_angle="40"), f"{_M}: dilatancy angle 40.0 deg is outside [0, phi = 30.0]"),
+    (_dp(dilatancy_angle="-1"), f"{_M}: dilatancy angle -1.0 deg is outside [0, phi = 30.0]"),
+    (_dp(dilatancy_angle="[1]"), f"{_M}.dilatancy_angle: expected an angle 0 <= psi <= "
+                                 "friction_angle (degrees), got [1]"),
+    (_dp(cohesion="-1"), f"{_M}: cohesion -1.0 must be finite and >= 0"),
+    (_dp(cohesion="inf"), f"{_M}.cohesion: expected a number >= 0 (Pa), got inf"),
+    (_dp(friction_angle="0", cohesion="0"), f"{_M}: phi = 0 and c = 0 leave no strength at all"),
+    (_dp(matching='"mohr_coulomb"'),
+     f"{_M}: matching 'mohr_coulomb' is not one of plane_strain, outer, inner"),
+    (_dp(matching="3"), f"{_M}: matching 3 is not one of plane_strain, outer, inner"),
+    (_dp(tension_cutoff="1e5"),  # the plane-strain apex of φ = 30°, c = 1e4 Pa: c / tan φ
+     f"{_M}: tension cut-off 100000.0 is outside [0, apex xi c / eta = 17320.5]"),
+    (_dp(tension_cutoff="-1"), f"{_M}: tension cut-off -1.0 is outside [0, apex"),
+    (_dp(tension_cutoff="nan"), f"{_M}.tension_cutoff: expected a mean stress 0 <= p_t <= the "
+                                "apex (Pa), got nan"),
+    # a key of another model, damage on a plastic one: before, "unknown key" (allowed: ...)
+    (_material("neo_hookean", yield_stress="250e6"),
+     f"{_M}.yield_stress: not a key of model 'neo_hookean' (it takes model, density, "
+     "youngs_modulus, poisson_ratio, damage)"),
+    (_material("linear_elastic", friction_angle="30"),
+     f"{_M}.friction_angle: not a key of model 'linear_elastic'"),
+    (_j2(friction_angle="30"),
+     f"{_M}.friction_angle: not a key of model 'j2' (it takes model, density, youngs_modulus, "
+     "poisson_ratio, yield_stress, hardening, hardening_modulus"),
+    (_dp(yield_stress="250e6"), f"{_M}.yield_stress: not a key of model 'drucker_prager' (it "
+                                "takes model, density, youngs_modulus, poisson_ratio, "
+                                "friction_angle, dilatancy_angle, cohesion, matching, "
+                                "tension_cutoff)"),
+    (_j2(damage="{onset = 1.1, fracture = 2.0}"),
+     f"{_M}.damage: not available with model 'j2' (plastic materials take no damage model yet)"),
+    (_dp(damage="{onset = 1.1, fracture = 2.0}"), f"{_M}.damage: not available with model "
+                                                  "'drucker_prager' (plastic materials take no "
+                                                  "damage model yet)"),
+    (_material("plastic"), f'{_M}.model: expected one of "linear_elastic", "neo_hookean", "j2", '
+                           '"drucker_prager", got "plastic"'),
+])
+def test_issue42_plastic_keys_are_one_line(tmp_path, override, fragment):
+    proc = cli("run", "hanging_bar", *QUIET, "--set", override, "-o", str(tmp_path / "o"),
+               cwd=tmp_path)
+    assert_one_line_error(proc, "scene 'builtin:hanging_bar': " + fragment,
+                          f"(from --set {override[:20]}")
+    assert not (tmp_path / "o").exists()

@@ -75,13 +75,26 @@ class Damage:
 
 @dataclass(frozen=True, slots=True)
 class Material:
-    """``[materials.NAME]``."""
+    """``[materials.NAME]``: the elastic keys, and a plastic model's flat keys
+    (:mod:`parmpm.scene.materials`), None where the model does not use them."""
 
     model: str
     density: float
     youngs_modulus: float
     poisson_ratio: float
     damage: Damage | None = None
+    yield_stress: float | None = None            # j2: sigma_y0 (Johnson-Cook's A)
+    hardening: str | None = None                 # j2: "linear" | "swift" | "johnson_cook"
+    hardening_modulus: float | None = None       # linear H, Johnson-Cook B
+    hardening_exponent: float | None = None      # Swift, Johnson-Cook n
+    strength_coefficient: float | None = None    # Swift A
+    rate_coefficient: float | None = None        # Johnson-Cook C
+    reference_rate: float | None = None          # Johnson-Cook rate0 (1/s)
+    friction_angle: float | None = None          # drucker_prager: degrees
+    dilatancy_angle: float | None = None
+    cohesion: float | None = None
+    matching: str | None = None                  # "plane_strain" | "outer" | "inner"
+    tension_cutoff: float | None = None          # None: the apex
 
 
 @dataclass(frozen=True, slots=True)
