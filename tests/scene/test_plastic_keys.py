@@ -7,12 +7,13 @@ from pathlib import Path
 
 import pytest
 
-from parmpm.materials import PLASTIC_MODELS
+from parmpm.materials import MODELS, PLASTIC_MODELS
 from parmpm.materials.plasticity.drucker_prager import MATCHINGS
 from parmpm.materials.plasticity.hardening import HARDENING
 from parmpm.scene import reference
 from parmpm.scene.load import builtin_scenes, load_scene, scene_from_toml
-from parmpm.scene.materials import DRUCKER_PRAGER_KEYS, HARDENING_KEYS, J2_KEYS, MATERIAL_KEYS
+from parmpm.scene.materials import (DRUCKER_PRAGER_KEYS, HARDENING_KEYS, J2_KEYS, MATERIAL_KEYS,
+                                    MODEL_KEYS)
 from parmpm.scene.records import Material
 
 ELASTIC = {"density": 7800.0, "youngs_modulus": 2e11, "poisson_ratio": 0.3}
@@ -94,6 +95,7 @@ def test_an_elastic_material_is_resolved_as_before():
 
 
 def test_the_key_lists_follow_the_registries():
+    assert set(MODEL_KEYS) == set(MODELS) | set(PLASTIC_MODELS)  # a new model needs its keys
     assert set(HARDENING_KEYS) == set(HARDENING)
     assert set().union(*HARDENING_KEYS.values()) == set(J2_KEYS) - {"yield_stress", "hardening"}
     assert set(J2_KEYS) | set(DRUCKER_PRAGER_KEYS) <= set(MATERIAL_KEYS)
