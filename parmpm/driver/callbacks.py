@@ -138,7 +138,8 @@ def check_energy(sim) -> None:
     """The blow-up watch (:mod:`parmpm.output.energy`): stop when the energy balance has grown past
     ``time.max_energy_growth``."""
     s = sim.state
-    totals = energy_totals(s.comm, s.patches.local_ids, s.particles, s.params, sim.gravity(sim.t))
+    totals = energy_totals(s.comm, s.patches.local_ids, s.particles, s.params, sim.gravity(sim.t),
+                           s.stepper.plastic)
     growth = s.energy.sample(totals)
     if growth is not None:
         k, psi, work = s.energy.last

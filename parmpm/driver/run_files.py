@@ -96,7 +96,8 @@ class RunFiles:
         if held is not None:
             held.release()
 
-    def open_snapshots(self, series: str, dim: int, ranks_per_file="auto") -> None:
+    def open_snapshots(self, series: str, dim: int, ranks_per_file="auto",
+                       plastic: bool = False) -> None:
         """Open the snapshot series (collective). The ranks form writer groups by the
         checkpoints' rule (:func:`parmpm.io.checkpoint.parts.ranks_per_file`); with one group
         rank 0 writes ``<series>.xdmf`` and ``<series>.h5`` as ever, with several each group's
@@ -106,7 +107,7 @@ class RunFiles:
         per = group_size(size, ranks_per_file)
         self.n_parts = -(-size // per)
         self._group = self.comm if self.n_parts == 1 else self.comm.Split(rank // per, rank)
-        fields = field_info(dim)
+        fields = field_info(dim, plastic)
         problem = None
         if self.root:
             try:

@@ -54,6 +54,9 @@ from parmpm.step.contact import ContactPhase
 from parmpm.step.walls import WallPhase
 from parmpm.driver.external import external_loads
 from parmpm.materials.passes import max_speed
+from parmpm.materials.plasticity.state import initial_state
+from parmpm.materials.plasticity.table import plastic_table
+from parmpm.materials.plasticity.update import plastic_pass
 
 logger = get_logger(__name__)
 
@@ -108,11 +111,13 @@ class RankState:
         return self.comm.Get_size()
 
 
-def carried_fields(method: Method) -> tuple[str, ...]:
-    """The optional particle fields (:data:`parmpm.particles.store.OPTIONAL_FIELDS`) a scene's
-    ``method`` needs: ``affine`` under APIC and MLS, ``corners`` under cpdi2."""
+def carried_fields(method: Method, plastic: bool = False) -> tuple[str, ...]:
+    """The optional particle fields (:data:`parmpm.particles.store.OPTIONAL_FIELDS`) a scene
+    needs: ``affine`` under APIC and MLS, ``corners`` under cpdi2, ``plastic`` with a plastic
+    material."""
     return tuple(k for k, used in (("affine", method.transfer in AFFINE_TRANSFERS),
-                                   ("corners", INTERPOLATORS[method.interpolator].code == CPDI2))
+                                   ("corners", INTERPOLATORS[method.interpolator].code == CPDI2),
+                                   ("plastic", plastic))
                  if used)
 
 
@@ -140,12 +145,19 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     if cut is not None:
         raise SceneError(f"scene '{scene.source}': {cut}")
     params, names = material_table(spec.materials)
+    plastic = plastic_table(spec.materials, names)
     rows = {n: i for i, n in enumerate(names)}
-    P, patches, n_total, metrics, ranges = _particles(spec, comm, D, params, rows, checkpoint)
+    P, patches, n_total, metrics, ranges = _particles(spec, comm, D, params, rows, checkpoint,
+                                                      plastic is not None)
     had = P.optional
-    P.carry(carried_fields(spec.method))  # a checkpoint of an older format may lack one: zeros
+    # a checkpoint of an older format may lack one: zeros
+    P.carry(carried_fields(spec.method, plastic is not None))
     if "corners" in P.optional and "corners" not in had:  # e.g. a cpdi run continued as cpdi2
         P.corners[:] = affine_corners(P.F, P.r0)
+    vmax_plastic = 0.0
+    if plastic is not None and (checkpoint is None or "plastic" not in had):
+        P.plastic[:] = initial_state(P.n)  # virgin; the stress of the seeded F (0 at F = I)
+        vmax_plastic = plastic_pass(spec.dim, P.F, P.mat, plastic, P.plastic, P.stress, P.v, 0.0)
     if comm.Get_rank() == 0:
         for line in sparse_mls_warnings(spec):
             logger.warning(line)
@@ -156,6 +168,7 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
                       region_normal, m.transfer)
     if spec.manufactured:
         _manufactured(stepper, spec.dim, params, spec.manufactured.amplitude)
+    stepper.plastic = plastic
     if spec.walls:
         stepper.walls = WallPhase(spec.walls, spec.dim)
     if spec.contact:
@@ -170,7 +183,7 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     # touches only its own checkpoints (parmpm.io.run_folder); a restart is a run of its own
     run_id = comm.bcast(uuid.uuid4().hex if comm.Get_rank() == 0 else None, root=0)
     clock, continues, next_output = _clock(scene, comm, D, P, params, metrics, energy,
-                                           checkpoint)
+                                           checkpoint, vmax_plastic)
     return RankState(scene, comm, interp, lcr, update, D, params, rows, patches, P, stepper,
                      n_total, metrics, energy, clock, run_id, checkpoint is not None, continues,
                      next_output, ranges, body_records(spec.bodies, ranges))
@@ -200,13 +213,14 @@ def _discretisation(comm, spec: SceneSpec, interp, lcr: float | None) -> Discret
     return Discretisation.from_grid(spec.dim, interp.code, lcr, grid, ghost, exterior)
 
 
-def _clock(scene, comm, D, P, params, metrics, energy, checkpoint):
-    """(the clock, the run a restart continues, the output schedule's next time): a fresh run's,
-    or a restart's, whose metrics and energy watch are restored too."""
+def _clock(scene, comm, D, P, params, metrics, energy, checkpoint, vmax_plastic=0.0):
+    """(the clock, the run a restart continues, the output schedule's next time): a fresh run's
+    (``vmax_plastic``: the plastic particles' largest ``c + |v|``, which the elastic table
+    leaves out), or a restart's, whose metrics and energy watch are restored too."""
     tm = scene.spec.time  # the Time record: cfl, dt_max, end, steps
     h_min = float(D.h.min())
     if checkpoint is None:
-        vmax = max_speed(D.dim, P.v, P.F, P.mat, params)
+        vmax = max(max_speed(D.dim, P.v, P.F, P.mat, params), vmax_plastic)
         return Clock(tm, h_min, float(allreduce_max(comm, np.array([vmax]))[0])), None, None
     a = checkpoint.attrs
     clock = Clock(tm, h_min, float(a["vmax"]), float(a["time"]), int(a["step"]),
@@ -251,12 +265,12 @@ def _check_memory(comm, spec: SceneSpec, ghost: int) -> None:
     agree(comm, problem, root=None)
 
 
-def _particles(spec, comm, D, params, rows, checkpoint):
+def _particles(spec, comm, D, params, rows, checkpoint, plastic=False):
     """(this rank's particles, the patch set, particles in all, metrics, every body's global-id
     range): seeded from the scene (:func:`_seeded`) or read back from a checkpoint
     (:func:`_restored`), whose ranges are its own, not the input files' of today."""
     if checkpoint is None:
-        return _seeded(spec, comm, D, params, rows)
+        return _seeded(spec, comm, D, params, rows, plastic)
     out = _restored(spec, comm, D, params, checkpoint)
     return (*out, _stored_ranges(spec, rows, checkpoint, out[2]))
 
@@ -280,7 +294,7 @@ def _patch_set(spec: SceneSpec, comm, layout, counts) -> PatchSet:
                     cooldown=dec.rebalance_cooldown)
 
 
-def _seeded(spec: SceneSpec, comm, D, params, rows):
+def _seeded(spec: SceneSpec, comm, D, params, rows, plastic=False):
     """Seeded: every rank counts the particles per patch block by block (global ids = seeding
     order), deals the patches out, then builds only its own (:mod:`parmpm.particles.seeding`) and the
     metrics from them (collective): a rank holds one block of seeds and its own particles."""
@@ -294,7 +308,7 @@ def _seeded(spec: SceneSpec, comm, D, params, rows):
     patches = _patch_set(spec, comm, layout, counts)
     _warn_idle_ranks(comm, D, counts, seeds)
     P = seeds.particles(params, seeds.members(D, patches.rank_of == comm.Get_rank()),
-                        carried_fields(spec.method))
+                        carried_fields(spec.method, plastic))
     check_overlaps(comm, spec, seeds, P.gid, P.x0)  # bodies seeded twice: one warning each
     check_walls(comm, spec, seeds, P.gid, P.x0)  # walls that cut, hide or miss: one line each
     if man:

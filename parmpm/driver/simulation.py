@@ -144,7 +144,8 @@ class Simulation:
                 if self.spec.output.snapshots:
                     # the snapshots' writer groups follow the checkpoints'
                     self.files.open_snapshots(series, self.dim,
-                                              self.spec.checkpoint.ranks_per_file)
+                                              self.spec.checkpoint.ranks_per_file,
+                                              plastic=s.stepper.plastic is not None)
                 return self._run()
             finally:
                 self.files.release()

@@ -19,12 +19,28 @@ import numpy as np
 
 from parmpm.output import domains
 from parmpm.driver.measures import axial_stretch
+from parmpm.materials.plasticity.state import STATE_EPSP, STATE_WORK, plastic_volume
 
 
-def field_info(dim: int) -> dict[str, dict[str, str]]:
+def field_info(dim: int, plastic: bool = False) -> dict[str, dict[str, str]]:
     """Units and meaning of every field a run's snapshot holds (in 2D, per metre of thickness;
-    in 1D, per square metre of cross-section)."""
+    in 1D, per square metre of cross-section); ``plastic``: a run with a plastic material."""
     vol = {1: "m", 2: "m^2", 3: "m^3"}[dim]
+    return {**_elastic_info(vol), **(PLASTIC_INFO if plastic else {})}
+
+
+#: the fields of a run with a plastic material (0 on its elastic particles)
+PLASTIC_INFO = {
+    "plastic_strain": {"units": "1", "description": "equivalent plastic strain (von Mises "
+                       "equivalent of the accumulated plastic log strain)"},
+    "plastic_volume": {"units": "1", "description": "plastic volume change ln J_p = "
+                       "-1/2 ln det C_p^-1 (0: none; > 0 dilation)"},
+    "plastic_work": {"units": "J/m^3", "description": "plastic work done per unit reference "
+                     "volume so far"},
+}
+
+
+def _elastic_info(vol: str) -> dict[str, dict[str, str]]:
     return {
         "x": {"units": "m", "description": "position"},
         "velocity": {"units": "m/s", "description": "velocity"},
@@ -52,6 +68,11 @@ def snapshot_fields(sim) -> dict:
               "volume": P.vol0 * np.linalg.det(P.F) if P.n else np.zeros(0),
               "mass": P.mass, "stretch": axial_stretch(s), "damage": P.damage,
               "rank": np.full(P.n, s.rank, np.int32), "gid": P.gid.astype(np.int64)}
+    if "plastic" in P.optional:
+        S = P.plastic
+        fields["plastic_strain"] = S[:, STATE_EPSP].copy()
+        fields["plastic_volume"] = plastic_volume(S)
+        fields["plastic_work"] = S[:, STATE_WORK].copy()
     if sim.spec.output.domains:
         fields["domains"] = domains.domain_corners(d, s.disc.method, s.disc.lcr, P.x, P.F,
                                                    P.r0, P.lh0, P.corners)

@@ -34,6 +34,7 @@ from decomposition import ordered_sum
 from parmpm.grid.update import apply_bc, apply_regions, near_region, beyond_mirror
 from parmpm.core.jit import helper_kernel, kernel
 from parmpm.materials.laws import stored_energy
+from parmpm.materials.plasticity.update import plastic_energy_sums
 
 #: steps between two samples of the watch: a blow-up grows geometrically, so a sample every few
 #: steps catches it early, at a cost of one particle pass per ENERGY_EVERY steps
@@ -72,12 +73,19 @@ def energy_sums(d, start, order, mass, vol0, v, x, x0, F, mat, damage, params, g
     return out
 
 
-def energy_totals(comm, patch_ids, P, params, g) -> np.ndarray:
-    """(K, Ψ, W_g) over all ranks (collective), the same on any number of ranks."""
+def energy_totals(comm, patch_ids, P, params, g, plastic=None) -> np.ndarray:
+    """(K, Ψ, W_g) over all ranks (collective), the same on any number of ranks. With a plastic
+    table (:mod:`parmpm.materials.plasticity.table`) Ψ holds the plastic particles' stored energy
+    and the plastic work done on them: energy the body was given and keeps or has dissipated,
+    so the balance still reads ``K + Ψ ≤ K₀ + Ψ₀ + W_g``."""
     R = P.rows  # as they lie (no copy into canonical order): summed in P.order()
-    return ordered_sum(comm, patch_ids, energy_sums(
-        P.dim, P.start, P.order(), R.mass, R.vol0, R.v, R.x, R.x0, R.F, R.mat, R.damage, params,
-        np.ascontiguousarray(g[:P.dim], dtype=np.float64)))
+    sums = energy_sums(P.dim, P.start, P.order(), R.mass, R.vol0, R.v, R.x, R.x0, R.F, R.mat,
+                       R.damage, params, np.ascontiguousarray(g[:P.dim], dtype=np.float64))
+    if plastic is not None:
+        extra = plastic_energy_sums(P.dim, P.start, P.order(), R.vol0, R.F, R.mat, plastic,
+                                    R.plastic)
+        sums[:, 1] += extra[:, 0] + extra[:, 1]
+    return ordered_sum(comm, patch_ids, sums)
 
 
 @kernel
@@ -96,7 +104,7 @@ def load_work(d, start, order, mass, bforce, v_start, v, dt):
 
 
 @kernel
-def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fused):
+def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fused, keep):
     """Per patch slot: (work of internal and body forces, work of gravity, damping dissipation,
     work of the boundary constraints, the increment work, and the impulse (3) the held faces and
     regions gave the nodes: ``−m v⁺`` on each held component) of one grid update, over the
@@ -112,7 +120,15 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fu
     ``W_bc = −Σ ½m v²`` over constrained ones (the momentum a support takes out; a held node
     does not move, so the forces on it do no work). Under MLS (``fused``: the momentum rows hold
     ``mv + Δt f``, the force rows ``f`` for this account alone) ``v = (mv + Δt f − Δt f)/m``,
-    equal to the grid's up to round-off, and every node with mass takes its force."""
+    equal to the grid's up to round-off, and every node with mass takes its force.
+
+    The support's impulse is what the particles lose to it, which depends on the transfer: a
+    velocity transfer (PIC, APIC, MLS) hands them the held ``v⁺ = 0``, so they lose ``m v⁺`` of
+    the free update; FLIP hands them the increment ``0 − 0`` of a held node (the update zeroes
+    ``v`` too), so they keep the momentum ``m v`` they brought and lose only ``m (v⁺ − v)``, the
+    force the support balances. ``keep`` is the FLIP fraction of the particle update (0 for the
+    velocity transfers): the impulse is ``−m (v⁺ − keep·v)`` (an impact onto a held face under
+    FLIP read 1.66 times the stress behind its wave with ``keep = 0``)."""
     own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
     bc, regions, normal, ranges, origin, h = constraints
     out = np.zeros((gsum.shape[0], 8))
@@ -153,7 +169,7 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fu
                         vnew = (vold + dt * (fm + gvec[a])) / (1.0 + damping * dt)
                         if free[a] == 0.0:
                             wbc -= 0.5 * m * vold * vold
-                            out[p, 5 + a] -= m * vnew  # the support's impulse: v⁺ held at 0
+                            out[p, 5 + a] -= m * (vnew - keep * vold)  # the support's impulse
                             continue
                         vbar = 0.5 * (vold + vnew)
                         if heavy:
@@ -214,10 +230,11 @@ class EnergyLedger:
         ranks with the step's other agreements, :meth:`partials`, and books it, :meth:`settle`)."""
         phase = stepper.grid_phase
         nodes, constraints = phase.records()
+        keep = 0.0 if stepper.apic else stepper.transfers.flip  # see grid_work
         per_patch = None
         for grid in stepper.field_grids:  # one grid, or a contact field's each
             work = grid_work(stepper.disc.dim, nodes, constraints, dt, gravity, phase.damping,
-                             phase.mass_eps, grid.gsum_block, grid.gnew_block, stepper.mls)
+                             phase.mass_eps, grid.gsum_block, grid.gnew_block, stepper.mls, keep)
             per_patch = work if per_patch is None else per_patch + work
         blocks = [per_patch]
         walls, contact = stepper.walls, stepper.contact

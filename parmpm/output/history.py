@@ -45,6 +45,8 @@ from parmpm.core.collective import agree
 from parmpm.core.errors import ParmpmError
 from parmpm.core.jit import kernel
 from parmpm.core.log import get_logger
+from parmpm.materials.plasticity.state import STATE_EPSP, plastic_volume
+from parmpm.materials.plasticity.update import plastic_energy_sums
 from parmpm.output.energy import particle_energy
 from parmpm.output.metrics.sums import patch_sums
 from parmpm.io.history_columns import (contact_columns, probe_columns, support_columns,
@@ -69,6 +71,12 @@ def field_values(P, name: str) -> np.ndarray:
         return np.sqrt(np.linalg.eigvalsh(b)[:, -1])
     if base == "damage":
         return P.damage
+    if base in ("plastic_strain", "plastic_volume"):
+        if "plastic" not in P.optional:
+            return np.zeros(P.n)
+        if base == "plastic_strain":
+            return P.plastic[:, STATE_EPSP]
+        return plastic_volume(P.plastic)
     vec = {"x": P.x, "u": P.x - P.x0, "v": P.v}
     if base in vec:
         return vec[base][:, AXES.index(comp)]
@@ -214,8 +222,10 @@ class History:
     """The history's columns and rows; :meth:`sample` is collective and returns the new row."""
 
     def __init__(self, dim: int, probes: list[Probe], walls: tuple[str, ...] = (),
-                 loads: bool = False, supports: bool = False, contact: tuple[str, ...] = ()):
+                 loads: bool = False, supports: bool = False, contact: tuple[str, ...] = (),
+                 plastic: bool = False):
         self.dim = dim
+        self.plastic = plastic  # a plastic material: its dissipation, in a column of its own
         self.probes = probes
         self.walls = walls
         self.loads = loads
@@ -225,7 +235,8 @@ class History:
                          "damaged", "frozen"] + [c for p in probes for c in p.columns()]
                         + wall_columns(dim, walls) + (["work_loads"] if loads else [])
                         + (support_columns(dim) if supports else [])
-                        + contact_columns(dim, contact))
+                        + contact_columns(dim, contact)
+                        + (["plastic_dissipation"] if plastic else []))
 
     def sample(self, s, gravity: np.ndarray) -> list[float]:
         """One row of the run's state ``s`` (a :class:`parmpm.driver.set_up.RankState`)."""
@@ -235,14 +246,22 @@ class History:
                                  R.mat, R.damage, R.rf, s.params,
                                  np.ascontiguousarray(gravity[:d], dtype=np.float64),
                                  s.stepper.freezing, R.affine, s.stepper.inertia)
+        if self.plastic:  # Ψ of b_e and the plastic work so far, as two more columns
+            per_patch = np.concatenate([per_patch, plastic_energy_sums(
+                d, P.start, P.order(), R.vol0, R.F, R.mat, s.stepper.plastic, R.plastic)], axis=1)
         total = ordered_sum(s.comm, s.patches.local_ids, per_patch)
         k, psi, minus_ug = total[0], total[1], total[2]
+        dissipated = 0.0
+        if self.plastic:
+            psi, dissipated = psi + total[-2], total[-1]
+            total = total[:-2]
         ledger = s.energy.ledger
         if ledger.baseline is None:
             ledger.baseline = [float(k), float(psi), int(s.clock.nstep)]
         k0, psi0 = ledger.baseline[0], ledger.baseline[1]
         w = ledger.work()
-        residual = psi - psi0 + w["forces"] - w["loads"]  # the loads' work is not stored
+        # the loads' work is not stored; the internal forces' work is stored or dissipated
+        residual = psi - psi0 + dissipated + w["forces"] - w["loads"]
         transfer = (k0 - k + w["forces"] + w["gravity"] + w["boundary"] + w["walls"]
                     - w["damping"])
         if self.contact:
@@ -261,6 +280,8 @@ class History:
             row += support_row(ledger, self.dim)
         if self.contact:
             row += contact_row(ledger, self.dim, len(self.contact))
+        if self.plastic:
+            row.append(dissipated)
         return [float(v) for v in row]
 
 
@@ -288,7 +309,8 @@ class HistoryOutput:
         self.history = History(sim.dim, [Probe(p, bodies, rows) for p in probes],
                                tuple(w.name for w in spec.walls), bool(spec.loads),
                                held(spec.boundary),
-                               spec.contact.column_names() if spec.contact else ())
+                               spec.contact.column_names() if spec.contact else (),
+                               sim.state.stepper.plastic is not None)
         self.file = None
         self.last_step = -1
         self.last = None

@@ -8,7 +8,8 @@ row, ``damage`` (for damage models), ``rf`` a frozen CPDI domain in the material
 frame (zeros: not frozen; :mod:`parmpm.shapes.freeze`), ``affine`` the APIC affine velocity
 matrix ``C_p = B_p D_p⁻¹`` (Jiang et al. 2015; zeros under FLIP: :mod:`parmpm.transfer.affine`),
 ``corners`` the CPDI2 domain's corners minus the particle's position ``(2^d, d)`` (physical
-units, the bit order of :mod:`parmpm.shapes.cpdi2`; moved by the grid in G2P), ``gid`` global id (never changes: it is
+units, the bit order of :mod:`parmpm.shapes.cpdi2`; moved by the grid in G2P), ``plastic`` a
+plastic material's state row (:mod:`parmpm.materials.plasticity.state`), ``gid`` global id (never changes: it is
 how runs on different rank counts and restarts are compared), ``dx`` a scratch displacement for
 MUSL.
 """
@@ -16,14 +17,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from parmpm.materials.plasticity.state import STATE_WIDTH
 from parmpm.particles.order import LEFT, merge_order, move_runs
 
 FLOAT_FIELDS = ("x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage", "dx", "rf",
-                "affine", "corners")
+                "affine", "corners", "plastic")
 INT_FIELDS = ("gid", "mat", "patch")
 #: fields only the runs that need them carry (elsewhere zero rows, never moved or stored):
-#: ``affine`` under APIC, ``corners`` under cpdi2
-OPTIONAL_FIELDS = ("affine", "corners")
+#: ``affine`` under APIC, ``corners`` under cpdi2, ``plastic`` with a plastic material (zeros
+#: when first carried: the set-up writes the virgin state)
+OPTIONAL_FIELDS = ("affine", "corners", "plastic")
 
 
 class Particles:
@@ -75,6 +78,7 @@ class Particles:
             a[k] = np.zeros((n, d, d))
         a["affine"] = np.zeros((n if "affine" in optional else 0, d, d))
         a["corners"] = np.zeros((n if "corners" in optional else 0, 1 << d, d))
+        a["plastic"] = np.zeros((n if "plastic" in optional else 0, STATE_WIDTH))
         a["patch"] = np.zeros(n, np.int64)
         self.rows = _Rows(a)
         self.start = np.zeros(1, np.int64)

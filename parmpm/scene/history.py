@@ -33,6 +33,8 @@ PROBE_FIELDS = {
     "J": ("", "volume ratio det F"),
     "stretch": ("", "largest principal stretch √(max eig F Fᵀ)"),
     "damage": ("", "damage D"),
+    "plastic_strain": ("", "equivalent plastic strain (0 on elastic materials)"),
+    "plastic_volume": ("", "plastic volume change ln J_p (0 on elastic materials)"),
 }
 PROBE_STATS = ("mean", "min", "max")
 

@@ -22,6 +22,7 @@ from decomposition import PatchSet, accumulate, allreduce_max, fill, max_and_pat
 from parmpm.core.collective import agree
 from parmpm.core.errors import SimulationError
 from parmpm.materials import COL_DAMAGE
+from parmpm.materials.plasticity.update import plastic_pass
 from parmpm.particles.store import Particles
 from parmpm.shapes import CAPPED
 from parmpm.shapes.freeze import freeze_domains
@@ -70,6 +71,9 @@ class Stepper:
         self.ledger = None                  # an EnergyLedger fed after each force update
         self.walls = None                   # a WallPhase (parmpm.step.walls) when the scene has walls
         self.contact = None                 # a ContactPhase (parmpm.step.contact): [contact]
+        #: the plastic table (:mod:`parmpm.materials.plasticity.table`) of a scene with a plastic
+        #: material, whose pass follows G2P's deformation update; None: no pass
+        self.plastic: np.ndarray | None = None
         self.load_work = False              # the ledger counts the forcing's work (scene loads)
         self._v_start = np.zeros((0, particles.dim))
         self._bforce = np.zeros((0, particles.dim))
@@ -298,6 +302,10 @@ class Stepper:
             t = self._grid(dt, gravity, t, True, time_now + dt)
             vmax = self.g2p(G2P_MUSL_DEFORM, dt)
         self._check("g2p")
+        if self.plastic is not None:  # G2P gave the plastic particles no stress and no speed
+            R = self.P.rows
+            vmax = max(vmax, plastic_pass(self.P.dim, R.F, R.mat, self.plastic, R.plastic,
+                                          R.stress, R.v, dt))
         if counted:
             self.ledger.add_loads(self, dt, bforce, self._v_start)
         if self.freezing:

@@ -77,6 +77,22 @@ def _cases() -> dict:
     # a CSG body (box minus disk: the plate-with-hole example), seeded patch by patch
     cases["2d_csg_plate_with_hole"] = [str(ROOT / "docs" / "examples" / "plate_with_hole.toml"),
                                        OFF + ["grid.patch_size=8", "time.steps=40"]]
+    # plastic materials (the plastic pass after G2P, its state rows migrating with their
+    # particles): J2 with linear hardening on the 2D hanging bar, yielding at the top; 3D J2
+    # through the B-spline kernels; Drucker-Prager (its cone and apex returns) in 1D and 2D
+    j2 = ['materials.bar.model="j2"', "materials.bar.youngs_modulus=1e7",
+          "materials.bar.yield_stress=7e5", "materials.bar.hardening_modulus=5e6"]
+    cases["2d_cpdi_j2"] = ["hanging_bar", OFF + j2 + ["grid.patch_size=4", "time.steps=60"]]
+    cases["3d_bspline_j2"] = ["hanging_bar_3d", OFF + j2 + ["materials.bar.yield_stress=2e4",
+        "method.interpolator=bspline", "grid.patch_size=3", "bodies.0.ppc=2", "time.steps=8",
+        "boundary.slip_regions=[]", "grid.cells=[9, 15, 9]", "boundary.y_max=symmetry"]]
+    dp = ['materials.bar.model="drucker_prager"', "materials.bar.friction_angle=30",
+          "materials.bar.cohesion=2e5", "materials.bar.dilatancy_angle=10"]
+    cases["2d_cpdi_drucker_prager"] = ["hanging_bar", OFF + dp + ["grid.patch_size=4",
+                                                                  "time.steps=60"]]
+    cases["1d_mpm_drucker_prager"] = ["hanging_bar_1d", OFF + dp + [
+        "method.interpolator=mpm", "grid.patch_size=4", "time.steps=60",
+        "metrics.stop_on_separation=false"]]
     return cases
 
 

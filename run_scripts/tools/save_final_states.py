@@ -4,7 +4,7 @@ comparisons: ``tests/mpi/test_mpi_ranks.py``, ``bit_identical.py``).
     mpirun -n 3 python run_scripts/tools/save_final_states.py OUT_DIR CASES_JSON
 
 ``CASES_JSON`` maps a case name to ``[scene, [overrides...]]``. For each case, rank 0 writes
-``OUT_DIR/<case>.npz`` holding gid, x, v, F, stress, damage (and cpdi2's corners; global-id
+``OUT_DIR/<case>.npz`` holding gid, x, v, F, stress, damage (and cpdi2's corners, a plastic run's state rows; global-id
 order) and the summary as JSON.
 """
 import json
@@ -33,6 +33,8 @@ def main() -> None:
                   "damage": P.damage}
         if "corners" in P.optional:  # cpdi2's tracked corners
             fields["corners"] = P.corners
+        if "plastic" in P.optional:  # a plastic material's state rows
+            fields["plastic"] = P.plastic
         g = sim.gather(fields)
         if comm.Get_rank() == 0:
             np.savez(out / f"{name}.npz", summary=json.dumps(summary), **g)

@@ -47,7 +47,7 @@ def runs(tmp_path_factory):
 
 def _load(folder: Path, case: str):
     data = np.load(folder / f"{case}.npz")
-    extra = ("corners",) if "corners" in data else ()  # cpdi2 runs
+    extra = tuple(k for k in ("corners", "plastic") if k in data)  # cpdi2 runs, plastic ones
     return {k: data[k] for k in FIELDS + extra}, json.loads(str(data["summary"]))
 
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from parmpm.core.errors import ParmpmError
 from parmpm.io.checkpoint.digests import block_digest
-from parmpm.io.checkpoint.format import DTYPES, OPTIONAL
+from parmpm.io.checkpoint.format import DTYPES, OPTIONAL, PLASTIC_WIDTH
 
 
 class RowFile:
@@ -74,7 +74,8 @@ def check_fields(f, where: str, n: int, d: int, names) -> dict:
     """``particles/<field>`` of ``f``: every field of ``names`` there, and the optional ones
     it holds, of shape (n, ...) and its type."""
     tails = {"x": (d,), "v": (d,), "x0": (d,), "lh0": (d,), "F": (d, d), "stress": (d, d),
-             "r0": (d, d), "rf": (d, d), "affine": (d, d), "corners": (1 << d, d)}
+             "r0": (d, d), "rf": (d, d), "affine": (d, d), "corners": (1 << d, d),
+             "plastic": (PLASTIC_WIDTH,)}
     g = f.get("particles")
     if g is None:
         raise ParmpmError(f"{where}: damaged: missing particles group")

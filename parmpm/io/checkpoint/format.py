@@ -9,6 +9,8 @@ Schema of a data file (a part, format ``parmpm-checkpoint-part``, or a one-write
     /particles/F, stress, r0, rf    (n, dim, dim) float64 (rf: frozen CPDI domain, 0 = none)
     /particles/affine               (n, dim, dim) float64 (APIC's C_p; 0 under FLIP)
     /particles/corners              (n, 2^dim, dim) float64 (CPDI2's corners; cpdi2 runs only)
+    /particles/plastic              (n, 8) float64 (plastic state: C_p^-1, eps_p, W_p; runs with
+                                    a plastic material only)
     /segments                       (K+1,) int64 offsets of the digest segments
     /digests/<field>                (K, 32) uint8: SHA-256 of each segment
     part attrs: format, version, part, parts, first_row, rows, step, lineage, block_rows,
@@ -30,9 +32,12 @@ PART_FORMAT = "parmpm-checkpoint-part"
 VERSION = 5
 #: stored particle fields (``dx`` is MUSL scratch, ``patch`` is derived from ``x``)
 FIELDS = ("gid", "mat", "x", "v", "x0", "mass", "vol0", "F", "stress", "r0", "lh0", "damage",
-          "rf", "affine", "corners")
+          "rf", "affine", "corners", "plastic")
 #: fields a checkpoint holds only when the run carries them (:data:`parmpm.particles.store.OPTIONAL_FIELDS`)
-OPTIONAL = ("affine", "corners")
+OPTIONAL = ("affine", "corners", "plastic")
+#: the width of a plastic state row (:data:`parmpm.materials.plasticity.state.STATE_WIDTH`, which
+#: this layer may not import; tests/driver/test_plastic_checkpoint.py holds the two equal)
+PLASTIC_WIDTH = 8
 #: the stored type of every field (little-endian, as hashed)
 DTYPES = {name: np.dtype("<i8") if name in ("gid", "mat") else np.dtype("<f8") for name in FIELDS}
 ATTRS = ("scene", "step", "time", "dt", "vmax", "method", "lcr", "ranks", "particles", "dim", "state")

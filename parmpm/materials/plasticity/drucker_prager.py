@@ -22,6 +22,7 @@ import math
 from parmpm.core.errors import SceneError
 from parmpm.core.jit import helper_kernel
 from parmpm.materials.plasticity.hencky import kirchhoff_principal
+from parmpm.materials.plasticity.spectral import from_principal, sym_eig3
 
 #: :func:`dp_return`'s region codes (the apex is the cone/cut-off corner when p_t = p_apex)
 ELASTIC, CONE, CUTOFF, APEX = 0, 1, 2, 3
@@ -153,3 +154,36 @@ def dp_dissipation(eps_tr, eps, tau):
     for a in range(3):
         w += tau[a] * (eps_tr[a] - eps[a])
     return w
+
+
+@helper_kernel
+def dp_update(dF, be, K, G, eta, xi, eta_bar, c, p_t, tau, M, V, w, e, t):
+    """One particle's step, as :func:`parmpm.materials.plasticity.j2.j2_update`: ``b_e`` (3, 3)
+    updated in place by the increment ``dF`` (3, 3), the Kirchhoff stress ``tau`` (3, 3)
+    written. Scratch: ``M``, ``V`` (3, 3), ``w``, ``e``, ``t`` (3,). Returns ``(Δε̄p, plastic
+    work per unit reference volume)``, ``Δε̄p = √(2/3) |dev Δε_p|`` the von Mises equivalent of
+    the step's plastic log strain (what J2's ε̄p is, so one snapshot field serves both)."""
+    for i in range(3):  # M = ΔF b_e ΔFᵀ
+        for j in range(i, 3):
+            x = 0.0
+            for k in range(3):
+                fik = dF[i, k]
+                for m in range(3):
+                    x += fik * be[k, m] * dF[j, m]
+            M[i, j] = x
+            M[j, i] = x
+    sym_eig3(M, w, V)
+    for A in range(3):
+        w[A] = 0.5 * math.log(w[A]) if w[A] > 0.0 else math.nan
+    dp_return(w, K, G, eta, xi, eta_bar, c, p_t, e, t)
+    work = dp_dissipation(w, e, t)
+    dv = (w[0] - e[0] + w[1] - e[1] + w[2] - e[2]) / 3.0
+    dd = 0.0
+    for A in range(3):
+        x = w[A] - e[A] - dv
+        dd += x * x
+    from_principal(t, V, tau)
+    for A in range(3):
+        w[A] = math.exp(2.0 * e[A])
+    from_principal(w, V, be)
+    return math.sqrt(2.0 / 3.0 * dd), work
