@@ -33,6 +33,7 @@ import shutil
 import tempfile
 import time
 
+from parmpm.materials import PLASTIC_MODELS
 from parmpm.transfer.affine import AFFINE_TRANSFERS, APIC_INTERPOLATORS, TRANSFERS
 from parmpm.core.log import get_logger
 from parmpm.scene.schema import UPDATES
@@ -41,6 +42,8 @@ from parmpm.shapes import INTERPOLATORS
 log = get_logger(__name__)
 
 DIMS = (1, 2, 3)
+#: the tiny plastic run's (dim, method, update) (:func:`compile_kernels`, :func:`compile_first`)
+PLASTIC_CASE = (2, "cpdi", "usl")
 METHODS = tuple(INTERPOLATORS)
 #: the updates a tiny run is made for: "auto" is one of these two
 COMPILED_UPDATES = ("usl", "musl")
@@ -117,15 +120,8 @@ def transfers_of(method: str) -> tuple[str, ...]:
     return TRANSFERS if method in APIC_INTERPOLATORS else ("flip",)
 
 
-#: the tiny scene of :func:`tiny_scene_toml`, filled in per case
-_TINY_SCENE = """\
-name = "compile_{dim}d_{method}_{update}_{transfer}"
-dim = {dim}
-[grid]
-origin = {origin}
-cell_size = 0.1
-cells = {cells}
-patch_size = 4
+#: the tiny scene's materials: elastic (one with damage) ...
+_ELASTIC = """\
 [materials.solid]
 model = "neo_hookean"
 density = 1000.0
@@ -139,7 +135,34 @@ model = "linear_elastic"
 density = 1000.0
 youngs_modulus = 1.0e5
 poisson_ratio = 0.2
-[[bodies]]
+"""
+#: ... or plastic (the plastic pass and its sums: one compilation serves every dimension and
+#: interpolator)
+_PLASTIC = """\
+[materials.solid]
+model = "j2"
+density = 1000.0
+youngs_modulus = 1.0e6
+poisson_ratio = 0.3
+yield_stress = 1.0e-3
+[materials.soft]
+model = "drucker_prager"
+density = 1000.0
+youngs_modulus = 1.0e5
+poisson_ratio = 0.2
+friction_angle = 30.0
+cohesion = 0.0
+"""
+#: the tiny scene of :func:`tiny_scene_toml`, filled in per case
+_TINY_SCENE = """\
+name = "compile_{dim}d_{method}_{update}_{transfer}"
+dim = {dim}
+[grid]
+origin = {origin}
+cell_size = 0.1
+cells = {cells}
+patch_size = 4
+{materials}[[bodies]]
 min = {lo_a}
 max = {hi_a}
 material = "solid"
@@ -169,16 +192,18 @@ body = 0
 fields = ["v.x", "damage"]
 stats = ["mean", "max"]
 [metrics]
-kind = "hanging_bar"
+kind = "{metrics}"
 """
 
 
-def tiny_scene_toml(dim: int, method: str, update: str, transfer: str = "flip") -> str:
+def tiny_scene_toml(dim: int, method: str, update: str, transfer: str = "flip",
+                    plastic: bool = False) -> str:
     """A scene of a few hundred particles that takes every path of a step around the kernels:
     a damageable neo-Hookean block (damage never starts, but the CPDI freeze check runs) and a
     linear-elastic one, moving fast enough to cross a patch face, under gravity, between a fixed
     and a slip face (and a symmetry face in 2D and 3D), with a fixed and a slip region, hanging-bar metrics (the separation count),
-    a history with probes and snapshots with domains."""
+    a history with probes and snapshots with domains. ``plastic``: the two blocks J2 and
+    Drucker–Prager instead (yielding at once)."""
     if (dim not in DIMS or method not in METHODS or update not in UPDATES
             or transfer not in transfers_of(method)):
         raise ValueError(f"tiny scene: dim {dim}, method {method!r}, update {update!r}, "
@@ -198,6 +223,7 @@ def tiny_scene_toml(dim: int, method: str, update: str, transfer: str = "flip") 
     if transfer in AFFINE_TRANSFERS:
         lcr += f'transfer = "{transfer}"\n'
     return _TINY_SCENE.format(
+        materials=_PLASTIC if plastic else _ELASTIC, metrics="none" if plastic else "hanging_bar",
         dim=dim, method=method, update=update, transfer=transfer, lcr=lcr, faces=faces,
         regions=regions,
         origin=_vec(zeros), cells=_vec(cells), lo_a=_vec(lo_a), hi_a=_vec(hi_a),
@@ -219,9 +245,11 @@ def _only_compile_messages():
         own.setLevel(saved[1])
 
 
-def warm_up(dim: int, method: str, update: str, transfer: str = "flip") -> float:
-    """Run the tiny scene of (dim, method, update, transfer) on this process alone (two steps,
-    output in a temporary folder, removed); returns its wall time in seconds."""
+def warm_up(dim: int, method: str, update: str, transfer: str = "flip",
+            plastic: bool = False) -> float:
+    """Run the tiny scene of (dim, method, update, transfer), elastic or ``plastic``, on this
+    process alone (two steps, output in a temporary folder, removed); returns its wall time in
+    seconds."""
     from decomposition import SerialComm
     from parmpm.driver.measures import components
     from parmpm.scene.load import scene_from_toml
@@ -234,7 +262,7 @@ def warm_up(dim: int, method: str, update: str, transfer: str = "flip") -> float
         def Get_size(self) -> int:
             return 2
 
-    scene = scene_from_toml(tiny_scene_toml(dim, method, update, transfer),
+    scene = scene_from_toml(tiny_scene_toml(dim, method, update, transfer, plastic),
                             f"compile-{dim}d-{method}")
     tmp = tempfile.mkdtemp(prefix="parmpm-compile-")
     t0 = time.perf_counter()
@@ -300,6 +328,16 @@ def compile_kernels(dims=DIMS, methods=METHODS, updates=COMPILED_UPDATES,
                                  transfer, seconds,
                                  f"{rows[-1]['compiled']} kernels compiled"
                                  if rows[-1]["compiled"] else "all cached")
+        if PLASTIC_CASE[0] in dims and PLASTIC_CASE[1] in methods:
+            # the plastic pass and its sums: one compilation serves every dimension and method
+            before = notice.kernels
+            seconds = warm_up(*PLASTIC_CASE, plastic=True)
+            rows.append({"dim": PLASTIC_CASE[0], "method": PLASTIC_CASE[1],
+                         "update": PLASTIC_CASE[2], "transfer": "flip", "plastic": True,
+                         "seconds": seconds, "compiled": notice.kernels - before})
+            log.info("plastic materials  %5.1f s  %s", seconds,
+                     f"{rows[-1]['compiled']} kernels compiled" if rows[-1]["compiled"]
+                     else "all cached")
     return rows
 
 
@@ -324,13 +362,16 @@ def compile_first(spec, comm) -> None:
     compiles as before). ``spec``: the scene's records (``scene.spec``)."""
     m = spec.method
     key = (spec.dim, m.interpolator, m.update, m.transfer)
-    if comm is None or comm.Get_size() == 1 or key in _WARMED:
+    plastic = any(mat.model in PLASTIC_MODELS for mat in spec.materials.values())
+    cases = [c for c in ((key, False), (PLASTIC_CASE + ("flip",), True)) if c[1] <= plastic]
+    cases = [c for c in cases if c not in _WARMED]
+    if comm is None or comm.Get_size() == 1 or not cases:
         return
-    _WARMED.add(key)
+    _WARMED.update(cases)
     try:
         if comm.Get_rank() == 0:
             try:
-                seconds = warm_up(*key)
+                seconds = sum(warm_up(*case, plastic=p) for case, p in cases)
                 log.debug("rank 0 warmed up the kernels in %.1f s", seconds)
             except Exception as exc:  # the run itself will meet (and report) any real problem
                 log.debug("kernel warm-up failed (%s: %s); every rank compiles", type(exc).__name__,

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import subprocess
+import tempfile
 import sys
 from pathlib import Path
 from types import SimpleNamespace
@@ -59,14 +60,16 @@ class FakeComm:
 def warm_ups(monkeypatch):
     calls = []
     monkeypatch.setattr(comp, "_WARMED", set())
-    monkeypatch.setattr(comp, "warm_up", lambda *key: calls.append(key) or 0.1)
+    monkeypatch.setattr(comp, "warm_up", lambda *key, plastic=False:
+                        calls.append(key + (("plastic",) if plastic else ())) or 0.1)
     return calls
 
 
-def _data(dim=2, method="cpdi", update="auto", transfer="flip"):
+def _data(dim=2, method="cpdi", update="auto", transfer="flip", model="neo_hookean"):
     """What compile_first reads of a scene's records (``scene.spec``)."""
     return SimpleNamespace(dim=dim, method=SimpleNamespace(interpolator=method, update=update,
-                                                           transfer=transfer))
+                                                           transfer=transfer),
+                           materials={"m": SimpleNamespace(model=model)})
 
 
 def test_rank_0_compiles_first_once_per_case(warm_ups):
@@ -79,6 +82,33 @@ def test_rank_0_compiles_first_once_per_case(warm_ups):
     assert warm_ups == [(2, "cpdi", "auto", "flip"), (3, "mpm", "auto", "flip"),
                         (2, "bspline", "auto", "mls"), (2, "bspline", "auto", "flip")]
     assert comm.barriers == 4
+
+
+def test_a_plastic_scene_stages_the_plastic_pass_once(warm_ups):
+    """The plastic pass is compiled by rank 0's tiny plastic run, once for every dimension and
+    method; an elastic scene never runs it."""
+    comm = FakeComm(0)
+    comp.compile_first(_data(), comm)
+    comp.compile_first(_data(3, "bspline", model="j2"), comm)
+    comp.compile_first(_data(2, "mpm", model="drucker_prager"), comm)
+    assert warm_ups == [(2, "cpdi", "auto", "flip"), (3, "bspline", "auto", "flip"),
+                        (2, "cpdi", "usl", "flip", "plastic"), (2, "mpm", "auto", "flip")]
+    assert "j2" in comp.tiny_scene_toml(2, "cpdi", "usl", plastic=True)
+    assert "j2" not in comp.tiny_scene_toml(2, "cpdi", "usl")
+
+
+def test_the_tiny_plastic_run_runs():
+    """Its scene is valid and yields (so the return maps are compiled, not just the pass)."""
+    from parmpm.driver.simulation import Simulation
+    from parmpm.scene.load import scene_from_toml
+
+    scene = scene_from_toml(comp.tiny_scene_toml(*comp.PLASTIC_CASE, plastic=True))
+    with tempfile.TemporaryDirectory() as tmp:
+        sim = Simulation(scene, tmp, quiet=True)
+        sim.run()
+        P = sim.particles
+        for row in (0, 1):  # both models (rows in name order: soft DP, solid J2)
+            assert P.plastic[P.mat == row, 6].max() > 0.0
 
 
 def test_transfers_are_compiled_only_where_the_method_takes_them():
@@ -115,7 +145,7 @@ def test_one_rank_needs_no_staging(warm_ups):
 def test_a_failed_warm_up_still_releases_the_others(monkeypatch):
     monkeypatch.setattr(comp, "_WARMED", set())
 
-    def broken(*key):
+    def broken(*key, plastic=False):
         raise RuntimeError("no compiler today")
 
     monkeypatch.setattr(comp, "warm_up", broken)

@@ -98,7 +98,8 @@ class HangingBarMetrics(History):
                     hanging_bar_static_displacement(self.X_tip, self.L, rho, self.g, law)
                 )
             except (SceneError, ValueError) as err:
-                logger.warning("no exact static elongation: %s", err)
+                if comm.Get_rank() == 0:  # every rank builds the metric: one line, not P
+                    logger.warning("no exact static elongation: %s", err)
 
         self._begin()
         self.separation_time = None
