@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from parmpm.core.jit import helper_kernel, kernel
+from parmpm.core.jit import helper_kernel, kernel, loop_kernel
 from parmpm.materials import DRUCKER_PRAGER, J2
 from parmpm.materials.plasticity.drucker_prager import dp_update
 from parmpm.materials.plasticity.j2 import be_energy, j2_update
@@ -107,8 +107,14 @@ def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
 def plastic_pass(d, F, mat, table, state, stress, v, dt):
     """:func:`plastic_update` of every plastic particle (rows in any order: each is its own);
     returns their largest ``c_p + |v_p|`` (0 with none, ``inf`` once one is NaN)."""
-    m3 = np.empty((6, 3, 3))
-    v3 = np.empty((4, 3))
+    return _plastic_loop(d, F, mat, table, state, stress, v, dt, np.empty((6, 3, 3)),
+                         np.empty((4, 3)))
+
+
+@loop_kernel
+def _plastic_loop(d, F, mat, table, state, stress, v, dt, m3, v3):
+    """:func:`plastic_pass`'s loop, reference counting off (:mod:`parmpm.core.jit`: the per-row
+    views ``F[i]``, ``state[i]``, ``stress[i]`` cost no atomic pair each)."""
     vmax = 0.0
     for i in range(F.shape[0]):
         prm = table[mat[i]]
@@ -144,16 +150,19 @@ def stored_plastic(d, Fi, s, prm, m3, v3):
 def plastic_energy_sums(d, start, order, vol0, F, mat, table, state):
     """Per patch slot, over its particles ``order[start[p]:start[p + 1]]`` in that order: the
     plastic particles' (stored Hencky energy, plastic work done so far), ``V₀``-weighted."""
-    m3 = np.empty((6, 3, 3))
-    v3 = np.empty((4, 3))
     out = np.zeros((start.size - 1, 2))
+    _energy_loop(d, start, order, vol0, F, mat, table, state, out, np.empty((6, 3, 3)),
+                 np.empty((4, 3)))
+    return out
+
+
+@loop_kernel
+def _energy_loop(d, start, order, vol0, F, mat, table, state, out, m3, v3):
     for p in range(start.size - 1):
-        o = out[p]
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):
             i = order[kk]
             prm = table[mat[i]]
             if prm[PCOL_MODEL] == 0.0:
                 continue
-            o[0] += vol0[i] * stored_plastic(d, F[i], state[i], prm, m3, v3)
-            o[1] += vol0[i] * state[i, STATE_WORK]
-    return out
+            out[p, 0] += vol0[i] * stored_plastic(d, F[i], state[i], prm, m3, v3)
+            out[p, 1] += vol0[i] * state[i, STATE_WORK]

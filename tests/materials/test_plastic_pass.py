@@ -1,0 +1,96 @@
+"""The plastic pass (:mod:`parmpm.materials.plasticity.update`) against the return maps driven
+the way the material-point tests drive them: the pass keeps ``C_p⁻¹`` and forms
+``b_e^tr = F C_p⁻¹ Fᵀ`` from the current ``F`` alone, the reference keeps ``b_e`` and updates it by
+the increment ``ΔF = F_{n+1} F_n⁻¹`` — the same map, so the two agree to round-off along any path,
+in every dimension's embedding, for J2 and Drucker–Prager; and the pass leaves elastic rows and
+their stress alone."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from parmpm.materials.plasticity.drucker_prager import dp_update
+from parmpm.materials.plasticity.j2 import j2_update
+from parmpm.materials.plasticity.state import STATE_EPSP, STATE_WORK, initial_state, unpack
+from parmpm.materials.plasticity.table import (PCOL_COHESION, PCOL_ETA, PCOL_ETA_BAR, PCOL_G,
+                                               PCOL_K, PCOL_PT, PCOL_XI, plastic_table)
+from parmpm.materials.plasticity.update import plastic_energy_sums, plastic_pass
+
+NONE = dict(hardening_exponent=None, strength_coefficient=None, rate_coefficient=None,
+            reference_rate=None, friction_angle=None, dilatancy_angle=None, cohesion=None,
+            matching=None, tension_cutoff=None, yield_stress=None, hardening=None,
+            hardening_modulus=None)
+J2 = SimpleNamespace(**{**NONE, "model": "j2", "youngs_modulus": 117e9, "poisson_ratio": 0.35,
+                        "density": 8930.0, "yield_stress": 4e8, "hardening": "linear",
+                        "hardening_modulus": 1e8})
+DP = SimpleNamespace(**{**NONE, "model": "drucker_prager", "youngs_modulus": 5e7,
+                        "poisson_ratio": 0.3, "density": 1800.0, "friction_angle": 30.0,
+                        "dilatancy_angle": 10.0, "cohesion": 1e4})
+ELASTIC = SimpleNamespace(**{**NONE, "model": "neo_hookean", "youngs_modulus": 1e6,
+                             "poisson_ratio": 0.3, "density": 1000.0})
+
+
+def _reference(model, table, d, path, dt):
+    """``b_e`` updated by increments: (Cauchy stress, ε̄p, W_p) at the end of ``path``."""
+    p = table[0]
+    be, epsp, work = np.eye(3), 0.0, 0.0
+    tau, M, V = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
+    w, e, t = np.zeros(3), np.zeros(3), np.zeros(3)
+    F_old = np.eye(3)
+    for Fd in path:
+        F3 = np.eye(3)
+        F3[:d, :d] = Fd
+        dF = F3 @ np.linalg.inv(F_old)
+        F_old = F3
+        if model == "j2":
+            epsp, dw = j2_update(dF, be, epsp, p[PCOL_K], p[PCOL_G], 0, 4e8, 1e8, 1.0, 0.0, 1.0,
+                                 dt, tau, M, V, w, t)
+        else:
+            dl, dw = dp_update(dF, be, p[PCOL_K], p[PCOL_G], p[PCOL_ETA], p[PCOL_XI],
+                               p[PCOL_ETA_BAR], p[PCOL_COHESION], p[PCOL_PT], tau, M, V, w, e, t)
+            epsp += dl
+        work += dw
+    return tau[:d, :d] / np.linalg.det(F_old), epsp, work
+
+
+@pytest.mark.parametrize("model", ["j2", "drucker_prager"])
+@pytest.mark.parametrize("d", [1, 2, 3])
+def test_pass_is_the_incremental_return_map(model, d):
+    rng = np.random.default_rng(7 + d)
+    table = plastic_table({"m": J2 if model == "j2" else DP}, ["m"])
+    F = np.eye(d)[None].copy()
+    path = []
+    state, stress = initial_state(1), np.zeros((1, d, d))
+    mat, v = np.zeros(1, np.int64), np.zeros((1, d))
+    scale = 2e-3 if model == "j2" else 2e-3
+    for _ in range(150):
+        F[0] = (np.eye(d) + scale * rng.normal(size=(d, d))) @ F[0]
+        path.append(F[0].copy())
+        plastic_pass(d, F, mat, table, state, stress, v, 1e-6)
+    sig, epsp, work = _reference(model, table, d, path, 1e-6)
+    assert epsp > 1e-3  # the path yields
+    np.testing.assert_allclose(stress[0], sig, rtol=0, atol=1e-10 * np.abs(sig).max())
+    assert state[0, STATE_EPSP] == pytest.approx(epsp, rel=1e-10)
+    assert state[0, STATE_WORK] == pytest.approx(work, rel=1e-9)
+
+
+def test_elastic_rows_are_left_alone_and_sums_count_plastic_rows_only():
+    """Rows of an elastic material (code 0) keep their stress and state; the energy sums skip
+    them; a virgin plastic row at F = I has no stress and no energy."""
+    table = plastic_table({"a": ELASTIC, "b": J2}, ["a", "b"])
+    d, n = 2, 4
+    F = np.tile(np.eye(d), (n, 1, 1))
+    F[0] = [[1.1, 0.0], [0.0, 1.0]]
+    mat = np.array([0, 1, 0, 1])
+    state, stress = initial_state(n), np.full((n, d, d), 7.0)
+    c = plastic_pass(d, F, mat, table, state, stress, np.zeros((n, d)), 1e-6)
+    assert np.all(stress[[0, 2]] == 7.0) and np.all(stress[[1, 3]] == 0.0)
+    np.testing.assert_array_equal(unpack(state), np.tile(np.eye(3), (n, 1, 1)))
+    assert c == pytest.approx(np.sqrt(table[1, 3]))  # c0 at b_e = I
+    sums = plastic_energy_sums(d, np.array([0, n]), np.arange(n, dtype=np.uint64), np.ones(n), F,
+                               mat, table, state)
+    np.testing.assert_array_equal(sums, [[0.0, 0.0]])
+
+
+def test_no_plastic_material_no_table():
+    assert plastic_table({"a": ELASTIC}, ["a"]) is None
