@@ -40,6 +40,11 @@ def support_columns(dim: int) -> list[str]:
     return reaction_columns("support", dim)
 
 
+def mirror_columns(dim: int) -> list[str]:
+    """With symmetry or clamped faces (no damping, no loads): their reaction, all together."""
+    return reaction_columns("mirror", dim)
+
+
 def contact_names(names: Sequence[str], fields: int, cracks: bool) -> tuple[str, ...]:
     """Every velocity field's history name: its given name or ``contact<k>``, and with cracks
     each one's far side, ``<name>_far``, after them all."""

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from decomposition import ordered_sum
-from parmpm.grid.update import apply_bc, apply_regions, near_region, beyond_mirror
+from parmpm.grid.update import apply_bc, apply_regions, beyond_mirror, is_mirror, near_region
 from parmpm.core.jit import helper_kernel, kernel
 from parmpm.materials.laws import stored_energy
 from parmpm.materials.plasticity.update import plastic_energy_sums
@@ -134,6 +134,14 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fu
     out = np.zeros((gsum.shape[0], 8))
     L0, L1 = nloc[0], nloc[1]
     free = np.ones(3)
+    # the faces that hold a node of their own: a mirror's face node is held too, but a mirror's
+    # reaction comes from the momentum balance (parmpm.output.reactions.mirror_row), not here
+    bc_held = bc.copy()
+    for k in range(3):
+        for side in range(2):
+            if is_mirror(bc[k, side]):
+                bc_held[k, side] = 0  # free
+    held = np.ones(3)
     gidx = np.zeros(3, np.int64)
     nreg = ranges.shape[0]
     for p in range(gsum.shape[0]):
@@ -155,12 +163,16 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fu
                     for k in range(d):
                         if gidx[k] <= face_lo[k] or gidx[k] >= face_hi[k]:
                             edge = True
+                    for a in range(3):
+                        held[a] = 1.0
                     if edge:
                         if beyond_mirror(d, gidx, face_lo, face_hi, bc):
                             continue  # the mirror image's node (parmpm.grid.symmetry)
                         apply_bc(d, gidx, face_lo, face_hi, bc, free)
+                        apply_bc(d, gidx, face_lo, face_hi, bc_held, held)
                     if nreg and near_region(gidx[0], gidx[1], gidx[2], ranges):
                         apply_regions(d, gidx, origin, h, regions, normal, free)
+                        apply_regions(d, gidx, origin, h, regions, normal, held)
                     heavy = fused or m > mass_eps
                     for a in range(d):
                         vold = ((G[1 + a, node] - dt * G[1 + d + a, node]) / m if fused
@@ -169,7 +181,8 @@ def grid_work(d, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew, fu
                         vnew = (vold + dt * (fm + gvec[a])) / (1.0 + damping * dt)
                         if free[a] == 0.0:
                             wbc -= 0.5 * m * vold * vold
-                            out[p, 5 + a] -= m * (vnew - keep * vold)  # the support's impulse
+                            if held[a] == 0.0:  # a support's impulse (not a mirror's)
+                                out[p, 5 + a] -= m * (vnew - keep * vold)
                             continue
                         vbar = 0.5 * (vold + vnew)
                         if heavy:
@@ -220,6 +233,12 @@ class EnergyLedger:
         self.contact = np.zeros((0, 4))
         self.contact_step = np.zeros((0, 4))
         self.baseline = None   # (K₀, Ψ₀, step) where the ledger started
+        #: ∫ g dt since the start (3): the gravity impulse per unit mass
+        self.g_time = np.zeros(3)
+        #: the bodies' momentum where the ledger started, and the mirror faces' impulse at the
+        #: last history row with its time (:mod:`parmpm.output.reactions`)
+        self.momentum0 = None
+        self.mirror_last = None
         self.steps = 0
         self.power = None      # the last step's internal power −W_f/Δt
         self.estimate = 0.0    # ½ Σ Δt_k (P_k − P_{k−1}): the residual's leading term
@@ -230,6 +249,7 @@ class EnergyLedger:
         ranks with the step's other agreements, :meth:`partials`, and books it, :meth:`settle`)."""
         phase = stepper.grid_phase
         nodes, constraints = phase.records()
+        self.g_time = self.g_time + np.asarray(gravity[:3], float) * dt
         keep = 0.0 if stepper.apic else stepper.transfers.flip  # see grid_work
         per_patch = None
         for grid in stepper.field_grids:  # one grid, or a contact field's each
@@ -317,7 +337,8 @@ class EnergyLedger:
                 "walls": self.walls.tolist(), "wall_step": self.wall_step.tolist(),
                 "last_dt": self.last_dt, "support": self.support.tolist(),
                 "support_step": self.support_step.tolist(), "contact": self.contact.tolist(),
-                "contact_step": self.contact_step.tolist()}
+                "contact_step": self.contact_step.tolist(), "g_time": self.g_time.tolist(),
+                "momentum0": self.momentum0, "mirror_last": self.mirror_last}
 
     def restore(self, state: dict | None) -> None:
         if state:
@@ -334,6 +355,9 @@ class EnergyLedger:
             self.support_step = np.array(state.get("support_step", [0.0] * 3), float)
             self.contact = np.array(state.get("contact", []), float).reshape(-1, 4)
             self.contact_step = np.array(state.get("contact_step", []), float).reshape(-1, 4)
+            self.g_time = np.array(state.get("g_time", [0.0] * 3), float)
+            self.momentum0 = state.get("momentum0")
+            self.mirror_last = state.get("mirror_last")
 
 
 class EnergyWatch:

@@ -20,6 +20,10 @@ Columns (SI units; ``docs/energy.md`` derives the energy balance):
     mass, damaged, frozen             Σ m, particles with D > 0, frozen CPDI domains
     support.force_x.., .impulse_x..   with held faces or regions: their force on the bodies
                                       over the last step, their impulse since the start   N, N s
+    mirror.force_x.., .impulse_x..    with symmetry or clamped faces (no damping, no loads):
+                                      their mean force since the last row, their impulse
+                                      since the start, by momentum balance                N, N s
+    plastic_dissipation               with a plastic material: the plastic work so far    J
     work_walls, <wall>.force_x.., <wall>.impulse_x..   with [[walls]] (parmpm.grid.walls)
     work_loads                        with [[loads]]: their work, estimated at the particles J
     work_contact, <name>.force_x.., <name>.impulse_x..   with [contact]: per field, named by
@@ -49,9 +53,11 @@ from parmpm.materials.plasticity.state import STATE_EPSP, plastic_volume
 from parmpm.materials.plasticity.update import plastic_energy_sums
 from parmpm.output.energy import particle_energy
 from parmpm.output.metrics.sums import patch_sums
-from parmpm.io.history_columns import (contact_columns, probe_columns, support_columns,
+from parmpm.io.history_columns import (contact_columns, mirror_columns, probe_columns,
+                                       support_columns,
                                        wall_columns)
-from parmpm.output.reactions import contact_row, held, support_row, wall_row
+from parmpm.output.reactions import (contact_row, held, mirror_row, mirrors, support_row,
+                                    wall_row)
 
 log = get_logger(__name__)
 
@@ -223,8 +229,9 @@ class History:
 
     def __init__(self, dim: int, probes: list[Probe], walls: tuple[str, ...] = (),
                  loads: bool = False, supports: bool = False, contact: tuple[str, ...] = (),
-                 plastic: bool = False):
+                 plastic: bool = False, mirrors: bool = False):
         self.dim = dim
+        self.mirrors = mirrors  # symmetry or clamped faces: their reaction by momentum balance
         self.plastic = plastic  # a plastic material: its dissipation, in a column of its own
         self.probes = probes
         self.walls = walls
@@ -236,6 +243,7 @@ class History:
                         + wall_columns(dim, walls) + (["work_loads"] if loads else [])
                         + (support_columns(dim) if supports else [])
                         + contact_columns(dim, contact)
+                        + (mirror_columns(dim) if mirrors else [])
                         + (["plastic_dissipation"] if plastic else []))
 
     def sample(self, s, gravity: np.ndarray) -> list[float]:
@@ -280,6 +288,10 @@ class History:
             row += support_row(ledger, self.dim)
         if self.contact:
             row += contact_row(ledger, self.dim, len(self.contact))
+        if self.mirrors:
+            spin = 1 if self.dim == 2 else (3 if self.dim == 3 else 0)
+            row += mirror_row(ledger, self.dim, s.clock.t, total[3:3 + self.dim],
+                              float(total[3 + self.dim + spin]))
         if self.plastic:
             row.append(dissipated)
         return [float(v) for v in row]
@@ -310,7 +322,7 @@ class HistoryOutput:
                                tuple(w.name for w in spec.walls), bool(spec.loads),
                                held(spec.boundary),
                                spec.contact.column_names() if spec.contact else (),
-                               sim.state.stepper.plastic is not None)
+                               sim.state.stepper.plastic is not None, mirrors(spec))
         self.file = None
         self.last_step = -1
         self.last = None

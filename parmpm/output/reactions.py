@@ -8,9 +8,42 @@ import numpy as np
 
 
 def held(boundary) -> bool:
-    """Any held face or node region: the history reports their reaction."""
-    return (any(side != "free" for pair in boundary.faces for side in pair)
+    """Any held face (fixed or slip; a mirror's reaction has columns of its own) or node
+    region: the history reports their reaction."""
+    return (any(side in ("fixed", "slip") for pair in boundary.faces for side in pair)
             or bool(boundary.fixed_regions) or bool(boundary.slip_regions))
+
+
+def mirrors(spec) -> bool:
+    """Whether the history has the mirror faces' columns: a symmetry or clamped face, in a
+    scene without damping or loads, whose momentum the balance below would also hold."""
+    return (any(side in ("symmetry", "clamped") for pair in spec.boundary.faces for side in pair)
+            and spec.damping.coefficient == 0.0 and not spec.loads)
+
+
+def mirror_row(ledger, dim: int, t: float, momentum, mass: float) -> list[float]:
+    """The mirror columns (:func:`~parmpm.io.history_columns.mirror_columns`): the mean force
+    since the last row and the impulse since the start of every mirror face together.
+
+    A mirror acts through the folded grid, not through held nodes of its own, so its impulse is
+    what the momentum balance leaves: the bodies' momentum change less gravity's impulse
+    ``M ∫g dt``, the held faces' and regions', the walls' and the contact fields' (the ledger's
+    sums). Exact up to round-off (without a mirror it reads 1e-13 of the momentum), first known
+    at a history row, hence a mean force between rows."""
+    p = np.asarray(momentum, float)[:dim]
+    if ledger.momentum0 is None:
+        ledger.momentum0 = [float(v) for v in p]
+    other = ledger.support[:dim] + mass * ledger.g_time[:dim]
+    if ledger.walls.shape[0]:
+        other = other + ledger.walls[:, :dim].sum(axis=0)
+    if ledger.contact.shape[0]:
+        other = other + ledger.contact[:, :dim].sum(axis=0)
+    impulse = p - np.asarray(ledger.momentum0) - other
+    force = np.zeros(dim)
+    if ledger.mirror_last is not None and t > ledger.mirror_last[0]:
+        force = (impulse - np.asarray(ledger.mirror_last[1:])) / (t - ledger.mirror_last[0])
+    ledger.mirror_last = [float(t)] + [float(v) for v in impulse]
+    return [float(v) for v in force] + [float(v) for v in impulse]
 
 
 def wall_row(ledger, dim: int, n: int) -> list[float]:

@@ -17,8 +17,8 @@ from __future__ import annotations
 import re
 from typing import Any
 
-from parmpm.io.history_columns import (contact_names, probe_columns, reaction_columns,
-                                       repeated, support_columns)
+from parmpm.io.history_columns import (contact_names, mirror_columns, probe_columns,
+                                       reaction_columns, repeated, support_columns)
 from parmpm.scene.check import Checker, show
 
 AXES = "xyz"
@@ -160,6 +160,8 @@ def check_columns(c: Checker, scene: dict) -> None:
                         reaction_columns(w["name"], dim)))
     if _held(scene["boundary"]):
         sources.append((None, "", "the held boundary (its reaction)", support_columns(dim)))
+    if _mirrored(scene):
+        sources.append((None, "", "the mirror faces (their reaction)", mirror_columns(dim)))
     contact = scene.get("contact")
     if contact:
         n, given = len(contact["fields"]), contact.get("names", [])
@@ -185,9 +187,18 @@ def check_columns(c: Checker, scene: dict) -> None:
                                           f"{other[2]} writes too (each needs a name of its own)")
 
 
+def _mirrored(scene: dict) -> bool:
+    """Symmetry or clamped faces without damping or loads (as
+    :func:`parmpm.output.reactions.mirrors` on the records): the mirror columns."""
+    faces = [v for k, v in scene["boundary"].items() if k.endswith(("_min", "_max"))]
+    return (any(side in ("symmetry", "clamped") for side in faces)
+            and scene.get("damping", {}).get("coefficient", 0.0) == 0.0
+            and not scene.get("loads"))
+
+
 def _held(boundary: dict) -> bool:
     """Any held face or node region (as :func:`parmpm.output.reactions.held` on the record): the
     history then has the support columns."""
     faces = [v for k, v in boundary.items() if k.endswith(("_min", "_max"))]
-    return (any(side != "free" for side in faces) or bool(boundary["fixed_regions"])
+    return (any(side in ("fixed", "slip") for side in faces) or bool(boundary["fixed_regions"])
             or bool(boundary["slip_regions"]))

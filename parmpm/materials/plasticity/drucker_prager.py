@@ -177,13 +177,21 @@ def dp_update(dF, be, K, G, eta, xi, eta_bar, c, p_t, tau, M, V, w, e, t):
         w[A] = 0.5 * math.log(w[A]) if w[A] > 0.0 else math.nan
     dp_return(w, K, G, eta, xi, eta_bar, c, p_t, e, t)
     work = dp_dissipation(w, e, t)
-    dv = (w[0] - e[0] + w[1] - e[1] + w[2] - e[2]) / 3.0
-    dd = 0.0
-    for A in range(3):
-        x = w[A] - e[A] - dv
-        dd += x * x
+    dl = dp_equivalent(w, e)
     from_principal(t, V, tau)
     for A in range(3):
         w[A] = math.exp(2.0 * e[A])
     from_principal(w, V, be)
-    return math.sqrt(2.0 / 3.0 * dd), work
+    return dl, work
+
+
+@helper_kernel
+def dp_equivalent(eps_tr, eps):
+    """``√(2/3) |dev Δε_p|`` of the step's plastic log strain ``Δε_p = eps_tr − eps``
+    (principal values): the increment of the equivalent plastic strain."""
+    dv = (eps_tr[0] - eps[0] + eps_tr[1] - eps[1] + eps_tr[2] - eps[2]) / 3.0
+    dd = 0.0
+    for A in range(3):
+        x = eps_tr[A] - eps[A] - dv
+        dd += x * x
+    return math.sqrt(2.0 / 3.0 * dd)

@@ -19,8 +19,10 @@ import numpy as np
 
 from parmpm.core.jit import helper_kernel, kernel, loop_kernel
 from parmpm.materials import DRUCKER_PRAGER, J2
-from parmpm.materials.plasticity.drucker_prager import dp_update
-from parmpm.materials.plasticity.j2 import be_energy, j2_update
+from parmpm.materials.plasticity.drucker_prager import (ELASTIC, dp_dissipation, dp_equivalent,
+                                                        dp_return)
+from parmpm.materials.plasticity.j2 import be_energy, j2_return
+from parmpm.materials.plasticity.spectral import from_principal, sym_eig3
 from parmpm.materials.plasticity.state import STATE_EPSP, STATE_WORK, SYM
 from parmpm.materials.plasticity.table import (PCOL_A, PCOL_B, PCOL_C, PCOL_C2, PCOL_COHESION,
                                                PCOL_ETA, PCOL_ETA_BAR, PCOL_G, PCOL_HARDENING,
@@ -51,6 +53,13 @@ def _det_inverse(F3, Finv):
 
 
 @helper_kernel
+def _det(F3):
+    return (F3[0, 0] * (F3[1, 1] * F3[2, 2] - F3[1, 2] * F3[2, 1])
+            - F3[0, 1] * (F3[1, 0] * F3[2, 2] - F3[1, 2] * F3[2, 0])
+            + F3[0, 2] * (F3[1, 0] * F3[2, 1] - F3[1, 1] * F3[2, 0]))
+
+
+@helper_kernel
 def _unpack(s, A):
     for q in range(6):
         r, c = SYM[q]
@@ -62,42 +71,69 @@ def _unpack(s, A):
 def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
     """Particle with deformation gradient ``Fi`` (d×d) and state row ``s``: the return map of
     its model, ``s`` updated in place, its Cauchy stress written into ``sig`` (leading d×d);
-    returns its wave speed. Scratch ``m3`` (6, 3, 3), ``v3`` (4, 3)."""
-    F3, Finv, be, tau, M, V = m3[0], m3[1], m3[2], m3[3], m3[4], m3[5]
+    returns its wave speed. Scratch ``m3`` (6, 3, 3), ``v3`` (4, 3).
+
+    The steps of :func:`parmpm.materials.plasticity.j2.j2_update` (and ``dp_update``) with the
+    trial tensor from ``C_p⁻¹``; a step without plastic flow leaves ``C_p⁻¹`` as it is (exactly:
+    ``F⁻¹ b_e^tr F⁻ᵀ = C_p⁻¹``), so it skips the new ``b_e`` and the inverse of ``F``."""
+    F3, Finv, C, tau, M, V = m3[0], m3[1], m3[2], m3[3], m3[4], m3[5]
     w, e, t = v3[0], v3[1], v3[2]
     _embed(d, Fi, F3)
-    _unpack(s, be)
+    _unpack(s, C)
+    for i in range(3):  # b_e^tr = F C_p⁻¹ Fᵀ
+        for j in range(i, 3):
+            x = 0.0
+            for k in range(3):
+                fik = F3[i, k]
+                for m in range(3):
+                    x += fik * C[k, m] * F3[j, m]
+            M[i, j] = x
+            M[j, i] = x
+    sym_eig3(M, w, V)
+    bmax = w[2]  # ascending: λ_max(b_e^tr)
+    for A in range(3):
+        w[A] = 0.5 * math.log(w[A]) if w[A] > 0.0 else math.nan
     K, G = prm[PCOL_K], prm[PCOL_G]
-    if int(prm[PCOL_MODEL]) == J2:
-        epsp, work = j2_update(F3, be, s[STATE_EPSP], K, G, int(prm[PCOL_HARDENING]),
-                               prm[PCOL_A], prm[PCOL_B], prm[PCOL_N], prm[PCOL_C],
-                               prm[PCOL_RATE0], dt, tau, M, V, w, t)
-    elif int(prm[PCOL_MODEL]) == DRUCKER_PRAGER:
-        dl, work = dp_update(F3, be, K, G, prm[PCOL_ETA], prm[PCOL_XI], prm[PCOL_ETA_BAR],
-                             prm[PCOL_COHESION], prm[PCOL_PT], tau, M, V, w, e, t)
-        epsp = s[STATE_EPSP] + dl
+    model = int(prm[PCOL_MODEL])
+    if model == J2:
+        for A in range(3):
+            e[A] = w[A]
+        dl, work = j2_return(e, K, G, int(prm[PCOL_HARDENING]), prm[PCOL_A], prm[PCOL_B],
+                             prm[PCOL_N], prm[PCOL_C], prm[PCOL_RATE0], s[STATE_EPSP], dt, t)
+        flowed = dl > 0.0
+    elif model == DRUCKER_PRAGER:
+        dg, dgt, region = dp_return(w, K, G, prm[PCOL_ETA], prm[PCOL_XI], prm[PCOL_ETA_BAR],
+                                    prm[PCOL_COHESION], prm[PCOL_PT], e, t)
+        work = dp_dissipation(w, e, t)
+        dl = dp_equivalent(w, e)
+        flowed = region != ELASTIC
     else:
-        epsp, work = math.nan, math.nan
-        for a in range(3):
-            for b in range(3):
-                tau[a, b] = math.nan
-    J = _det_inverse(F3, Finv)
-    for q in range(6):  # C_p⁻¹ = F⁻¹ b_e F⁻ᵀ
-        r, c = SYM[q]
-        x = 0.0
-        for k in range(3):
-            fk = Finv[r, k]
-            for m in range(3):
-                x += fk * be[k, m] * Finv[c, m]
-        s[q] = x
-    s[STATE_EPSP] = epsp
-    s[STATE_WORK] += work
+        dl, work, flowed = math.nan, math.nan, True
+        for A in range(3):
+            e[A], t[A] = math.nan, math.nan
+    from_principal(t, V, tau)
+    if flowed:  # b_e = Σ exp(2 ε_A) n_A n_Aᵀ, C_p⁻¹ = F⁻¹ b_e F⁻ᵀ
+        for A in range(3):
+            w[A] = math.exp(2.0 * e[A])
+        bmax = max(w[0], w[1], w[2])
+        from_principal(w, V, C)
+        J = _det_inverse(F3, Finv)
+        for q in range(6):
+            r, c = SYM[q]
+            x = 0.0
+            for k in range(3):
+                fk = Finv[r, k]
+                for m in range(3):
+                    x += fk * C[k, m] * Finv[c, m]
+            s[q] = x
+        s[STATE_EPSP] += dl
+        s[STATE_WORK] += work
+    else:
+        J = _det(F3)
     iJ = 1.0 / J
     for a in range(d):
         for b in range(d):
             sig[a, b] = tau[a, b] * iJ
-    bmax = max(be[0, 0] + abs(be[0, 1]) + abs(be[0, 2]), be[1, 1] + abs(be[0, 1]) + abs(be[1, 2]),
-               be[2, 2] + abs(be[0, 2]) + abs(be[1, 2]))  # Gershgorin bound of λ_max(b_e)
     if not J > 0.0:
         return math.inf
     return math.sqrt(prm[PCOL_C2] * max(1.0, bmax))
