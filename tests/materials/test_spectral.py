@@ -63,3 +63,43 @@ def test_nan_gives_up():
     A[0, 1] = A[1, 0] = np.nan
     w, V = np.zeros(3), np.zeros((3, 3))
     assert sym_eig3(A, w, V) == MAX_SWEEPS + 1
+
+
+# --- the closed-form solver of the plastic pass (parmpm.materials.plasticity.closed_form_eigen)
+NEAR_IDENTITY = [(f"near identity {k}", m) for k, m in enumerate(
+    (lambda rng: [np.eye(3) + s * (lambda B: B + B.T)(rng.standard_normal((3, 3)))
+                  for s in (1e-3, 1e-6, 1e-9, 1e-13)])(np.random.default_rng(5)))]
+
+
+@pytest.mark.parametrize("jit", [True, False], ids=["jit", "py_func"])
+@pytest.mark.parametrize("name,A", CASES + NEAR_IDENTITY,
+                         ids=[c[0] for c in CASES + NEAR_IDENTITY])
+def test_closed_form_against_eigh(jit, name, A):
+    """The same bounds as Jacobi's, and on near-identity ``b_e`` (the elastic metal's) the
+    eigenvalues to 1e-15 absolute: the shift to the deviator loses nothing."""
+    from parmpm.materials.plasticity.closed_form_eigen import sym_eig3_closed
+
+    eig = sym_eig3_closed if jit else sym_eig3_closed.py_func
+    A = np.ascontiguousarray((A + A.T) / 2)
+    before = A.copy()
+    w, V, back = np.zeros(3), np.zeros((3, 3)), np.zeros((3, 3))
+    eig(A, w, V)
+    norm = max(np.abs(A).max(), 1e-300)
+    assert np.array_equal(A, before)
+    assert np.abs(w - np.linalg.eigh(A)[0]).max() <= 1e-14 * norm
+    assert np.all(np.diff(w) >= 0.0)
+    assert np.abs(V.T @ V - np.eye(3)).max() <= 1e-14
+    from_principal(w, V, back)
+    assert np.abs(back - A).max() <= 1e-14 * norm
+    if name.startswith("near identity"):
+        assert np.abs(w - np.linalg.eigh(A)[0]).max() <= 1e-15
+
+
+def test_closed_form_nan_is_nan():
+    from parmpm.materials.plasticity.closed_form_eigen import sym_eig3_closed
+
+    A = np.eye(3)
+    A[0, 1] = A[1, 0] = np.nan
+    w, V = np.zeros(3), np.zeros((3, 3))
+    sym_eig3_closed(A, w, V)
+    assert np.isnan(w).all()

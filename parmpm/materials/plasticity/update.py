@@ -22,7 +22,8 @@ from parmpm.materials import DRUCKER_PRAGER, J2
 from parmpm.materials.plasticity.drucker_prager import (ELASTIC, dp_dissipation, dp_equivalent,
                                                         dp_return)
 from parmpm.materials.plasticity.j2 import be_energy, j2_return
-from parmpm.materials.plasticity.spectral import from_principal, sym_eig3
+from parmpm.materials.plasticity.closed_form_eigen import sym_eig3_closed
+from parmpm.materials.plasticity.spectral import from_principal
 from parmpm.materials.plasticity.state import STATE_EPSP, STATE_WORK, SYM
 from parmpm.materials.plasticity.table import (PCOL_A, PCOL_B, PCOL_C, PCOL_C2, PCOL_COHESION,
                                                PCOL_ETA, PCOL_ETA_BAR, PCOL_G, PCOL_HARDENING,
@@ -53,6 +54,20 @@ def _det_inverse(F3, Finv):
 
 
 @helper_kernel
+def _congruence(A, S, out, T):
+    """``out = A S Aᵀ`` for a symmetric ``S`` (3, 3), through ``T = S Aᵀ`` (scratch): 45
+    multiplications, not 108."""
+    for k in range(3):
+        for j in range(3):
+            T[k, j] = S[k, 0] * A[j, 0] + S[k, 1] * A[j, 1] + S[k, 2] * A[j, 2]
+    for i in range(3):
+        for j in range(i, 3):
+            x = A[i, 0] * T[0, j] + A[i, 1] * T[1, j] + A[i, 2] * T[2, j]
+            out[i, j] = x
+            out[j, i] = x
+
+
+@helper_kernel
 def _det(F3):
     return (F3[0, 0] * (F3[1, 1] * F3[2, 2] - F3[1, 2] * F3[2, 1])
             - F3[0, 1] * (F3[1, 0] * F3[2, 2] - F3[1, 2] * F3[2, 0])
@@ -80,16 +95,8 @@ def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
     w, e, t = v3[0], v3[1], v3[2]
     _embed(d, Fi, F3)
     _unpack(s, C)
-    for i in range(3):  # b_e^tr = F C_p⁻¹ Fᵀ
-        for j in range(i, 3):
-            x = 0.0
-            for k in range(3):
-                fik = F3[i, k]
-                for m in range(3):
-                    x += fik * C[k, m] * F3[j, m]
-            M[i, j] = x
-            M[j, i] = x
-    sym_eig3(M, w, V)
+    _congruence(F3, C, M, tau)  # b_e^tr = F C_p⁻¹ Fᵀ (tau: scratch until the stress)
+    sym_eig3_closed(M, w, V)
     bmax = w[2]  # ascending: λ_max(b_e^tr)
     for A in range(3):
         w[A] = 0.5 * math.log(w[A]) if w[A] > 0.0 else math.nan
@@ -118,14 +125,10 @@ def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
         bmax = max(w[0], w[1], w[2])
         from_principal(w, V, C)
         J = _det_inverse(F3, Finv)
+        _congruence(Finv, C, M, F3)  # F3 is not read again
         for q in range(6):
             r, c = SYM[q]
-            x = 0.0
-            for k in range(3):
-                fk = Finv[r, k]
-                for m in range(3):
-                    x += fk * C[k, m] * Finv[c, m]
-            s[q] = x
+            s[q] = M[r, c]
         s[STATE_EPSP] += dl
         s[STATE_WORK] += work
     else:
