@@ -1,5 +1,5 @@
 """The granular column collapse example, ``docs/examples/column_collapse.toml``, run as written but
-coarse (Δx = 1 cm, 800 particles, to rest at 1 s: a few seconds once compiled), checked on
+coarse (Δx = 1 cm, 800 particles, to rest at 1 s: about 10 s once compiled), checked on
 facts that do not need the experiment (the study, ``run_scripts/studies/column_collapse.py``,
 compares with it):
 
@@ -10,8 +10,15 @@ compares with it):
   while the corner at the wall stays (the failure wedge leaves a static zone against the wall,
   as in the experiment, whose surface at the wall is 0.099 m);
 * it comes to rest: the kinetic energy at the end is a small fraction of its peak;
-* the deposit's mean slope is positive and below the friction angle: a cohesionless slope at
-  rest cannot be steeper than φ (the infinite-slope limit ``tan β ≤ tan φ``).
+* the deposit's mean slope is above 5° (it collapsed, not slid away flat) and below the friction
+  angle: a cohesionless slope at rest cannot be steeper than φ (the infinite-slope limit
+  ``tan β ≤ tan φ``).
+
+Measured at this grid: plastic work 5.87 J, strictly increasing; toe (furthest particle centre)
+0.388 m; the free corner's top 0.054 m from 0.0975 m, the wall's 0.0969 m; the wall's bottom
+corner moved 0.14 mm; kinetic energy at 1 s 6.5e-6 of its peak; slope 14.1°. Under FLIP the
+kinetic energy is still 8 % of its peak at 1 s, with φ = 40° the toe stops at 0.286 m, and an
+elastic column has no plastic work and a slope of 0.01°: each fails here.
 """
 from __future__ import annotations
 
@@ -97,13 +104,16 @@ def test_it_comes_to_rest(collapse):
 
 
 def test_the_deposit_slope_is_below_the_friction_angle(collapse):
-    """Least squares over the highest particle per one-cell bin, from the wall to the toe."""
+    """Least squares over the highest particle per one-cell bin, from the wall to the toe
+    (measured 14.1° here; the experiment's surface points give 13.9°). Above 5°: a column that
+    stood (an elastic one: 0°) or slid away flat fails; below φ: a cohesionless slope at rest
+    cannot be steeper (the infinite-slope limit ``tan β ≤ tan φ``)."""
     _, _, s = collapse
     x = s["x"][-1]
     bins = (x[:, 0] // DX).astype(int)
     tops = np.array([[b * DX + DX / 2, x[bins == b, 1].max()] for b in np.unique(bins)])
     slope = -np.polyfit(tops[:, 0], tops[:, 1], 1)[0]
-    assert 0.0 < math.degrees(math.atan(slope)) < PHI
+    assert 5.0 < math.degrees(math.atan(slope)) < PHI
 
 
 @pytest.mark.slow  # a study's smoke run (run_scripts/, --quick): a subprocess and a compile check
