@@ -23,6 +23,7 @@ absolute) and repeated spectra.
 import math
 
 from parmpm.core.jit import helper_kernel
+from parmpm.materials.plasticity.spectral import jacobi_rotation
 
 TWO_PI_3 = 2.0 * math.pi / 3.0
 
@@ -72,16 +73,8 @@ def _plane_pair(b00, b01, b02, b11, b12, b22, V, first, lo, hi):
     m01 = u0 * bs0 + u1 * bs1 + u2 * bs2
     m11 = s0 * bs0 + s1 * bs1 + s2 * bs2
     c, s = 1.0, 0.0
-    if m01 != 0.0:  # the rotation zeroing m01 (spectral._rotation's)
-        theta = (m11 - m00) / (2.0 * m01)
-        if abs(theta) > 1.0e150:
-            t = 0.5 / theta
-        else:
-            t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
-            if theta < 0.0:
-                t = -t
-        c = 1.0 / math.sqrt(t * t + 1.0)
-        s = t * c
+    if m01 != 0.0:  # the rotation zeroing m01
+        t, c, s = jacobi_rotation(m00, m11, m01)
         m00, m11 = m00 - t * m01, m11 + t * m01
     # eigenvectors: c U − s S (root m00) and s U + c S (root m11)
     a0, a1, a2 = c * u0 - s * s0, c * u1 - s * s1, c * u2 - s * s2

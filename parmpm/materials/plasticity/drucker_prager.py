@@ -22,7 +22,7 @@ import math
 from parmpm.core.errors import SceneError
 from parmpm.core.jit import helper_kernel
 from parmpm.materials.plasticity.hencky import kirchhoff_principal
-from parmpm.materials.plasticity.spectral import from_principal, sym_eig3
+from parmpm.materials.plasticity.spectral import from_principal, trial_log_strains
 
 #: :func:`dp_return`'s region codes (the apex is the cone/cut-off corner when p_t = p_apex)
 ELASTIC, CONE, CUTOFF, APEX = 0, 1, 2, 3
@@ -163,18 +163,7 @@ def dp_update(dF, be, K, G, eta, xi, eta_bar, c, p_t, tau, M, V, w, e, t):
     written. Scratch: ``M``, ``V`` (3, 3), ``w``, ``e``, ``t`` (3,). Returns ``(Δε̄p, plastic
     work per unit reference volume)``, ``Δε̄p = √(2/3) |dev Δε_p|`` the von Mises equivalent of
     the step's plastic log strain (what J2's ε̄p is, so one snapshot field serves both)."""
-    for i in range(3):  # M = ΔF b_e ΔFᵀ
-        for j in range(i, 3):
-            x = 0.0
-            for k in range(3):
-                fik = dF[i, k]
-                for m in range(3):
-                    x += fik * be[k, m] * dF[j, m]
-            M[i, j] = x
-            M[j, i] = x
-    sym_eig3(M, w, V)
-    for A in range(3):
-        w[A] = 0.5 * math.log(w[A]) if w[A] > 0.0 else math.nan
+    trial_log_strains(dF, be, M, V, w)  # b_e^tr = ΔF b_e ΔFᵀ: axes, ½ ln λ
     dp_return(w, K, G, eta, xi, eta_bar, c, p_t, e, t)
     work = dp_dissipation(w, e, t)
     dl = dp_equivalent(w, e)

@@ -22,7 +22,7 @@ import math
 from parmpm.core.jit import helper_kernel
 from parmpm.materials.plasticity.hardening import LINEAR, yield_stress
 from parmpm.materials.plasticity.hencky import hencky_energy, kirchhoff_principal
-from parmpm.materials.plasticity.spectral import from_principal, sym_eig3
+from parmpm.materials.plasticity.spectral import from_principal, sym_eig3, trial_log_strains
 
 #: Newton iterations at most (a bisection step is taken whenever Newton leaves the bracket)
 MAX_ITER = 100
@@ -88,18 +88,7 @@ def j2_update(dF, be, epsp, K, G, code, a, b, n, c, rate0, dt, tau, M, V, w, t):
     Scratch: ``M``, ``V`` (3, 3), ``w``, ``t`` (3,). Hardening ``code`` and constants
     ``(a, b, n, c, rate0)`` as in :mod:`.hardening`; ``dt`` the step (Johnson–Cook's rate
     ``Δε̄p/dt``). Returns ``(ε̄p_{n+1}, plastic work of the step per unit reference volume)``."""
-    for i in range(3):  # M = ΔF b_e ΔFᵀ
-        for j in range(i, 3):
-            x = 0.0
-            for k in range(3):
-                fik = dF[i, k]
-                for m in range(3):
-                    x += fik * be[k, m] * dF[j, m]
-            M[i, j] = x
-            M[j, i] = x
-    sym_eig3(M, w, V)
-    for A in range(3):
-        w[A] = 0.5 * math.log(w[A]) if w[A] > 0.0 else math.nan
+    trial_log_strains(dF, be, M, V, w)  # b_e^tr = ΔF b_e ΔFᵀ: axes, ½ ln λ
     dl, work = j2_return(w, K, G, code, a, b, n, c, rate0, epsp, dt, t)
     from_principal(t, V, tau)
     for A in range(3):

@@ -17,7 +17,7 @@ MAX_SWEEPS = 50
 
 
 @helper_kernel
-def _rotation(app, aqq, apq):
+def jacobi_rotation(app, aqq, apq):
     """``(t, c, s)`` of the Jacobi rotation that zeroes ``a_pq``: ``t = tan θ`` the smaller root
     of ``t² + 2ϑt − 1 = 0``, ``ϑ = (a_qq − a_pp)/(2 a_pq)`` (``t ≈ 1/(2ϑ)`` where ``ϑ²``
     would overflow)."""
@@ -63,19 +63,19 @@ def sym_eig3(A, w, V):
             break
         sweeps += 1
         if a01 != 0.0:  # (p, q, r) = (0, 1, 2)
-            t, c, s = _rotation(a00, a11, a01)
+            t, c, s = jacobi_rotation(a00, a11, a01)
             a00, a11 = a00 - t * a01, a11 + t * a01
             a02, a12 = c * a02 - s * a12, s * a02 + c * a12
             a01 = 0.0
             _rotate_columns(V, 0, 1, c, s)
         if a02 != 0.0:  # (0, 2, 1)
-            t, c, s = _rotation(a00, a22, a02)
+            t, c, s = jacobi_rotation(a00, a22, a02)
             a00, a22 = a00 - t * a02, a22 + t * a02
             a01, a12 = c * a01 - s * a12, s * a01 + c * a12
             a02 = 0.0
             _rotate_columns(V, 0, 2, c, s)
         if a12 != 0.0:  # (1, 2, 0)
-            t, c, s = _rotation(a11, a22, a12)
+            t, c, s = jacobi_rotation(a11, a22, a12)
             a11, a22 = a11 - t * a12, a22 + t * a12
             a01, a02 = c * a01 - s * a02, s * a01 + c * a02
             a12 = 0.0
@@ -99,3 +99,21 @@ def from_principal(w, V, out):
             x = w[0] * V[i, 0] * V[j, 0] + w[1] * V[i, 1] * V[j, 1] + w[2] * V[i, 2] * V[j, 2]
             out[i, j] = x
             out[j, i] = x
+
+
+@helper_kernel
+def trial_log_strains(dF, be, M, V, w):
+    """The return maps' elastic predictor: ``M = ΔF b_e ΔFᵀ`` (3, 3), its eigenvectors ``V`` and
+    principal log strains ``w = ½ ln λ`` (NaN for a non-positive ``λ``)."""
+    for i in range(3):
+        for j in range(i, 3):
+            x = 0.0
+            for k in range(3):
+                fik = dF[i, k]
+                for m in range(3):
+                    x += fik * be[k, m] * dF[j, m]
+            M[i, j] = x
+            M[j, i] = x
+    sym_eig3(M, w, V)
+    for A in range(3):
+        w[A] = 0.5 * math.log(w[A]) if w[A] > 0.0 else math.nan
