@@ -28,12 +28,13 @@ from parmpm.io.checkpoint import (FIELDS, CheckpointWriter, attrs_digest, estima
                                   remove_stale_tmp)
 from parmpm.io.checkpoint import CheckpointReader
 from old_checkpoints import write_v3
+from parmpm.io.checkpoint.format import PLASTIC_WIDTH
 from parmpm.io.checkpoint.parts import top_tables
 
 DIM = 2
 TAIL = {"x": (DIM,), "v": (DIM,), "x0": (DIM,), "lh0": (DIM,),
         "F": (DIM, DIM), "stress": (DIM, DIM), "r0": (DIM, DIM), "rf": (DIM, DIM),
-        "affine": (DIM, DIM), "corners": (1 << DIM, DIM)}
+        "affine": (DIM, DIM), "corners": (1 << DIM, DIM), "plastic": (PLASTIC_WIDTH,)}
 
 
 def _fields(n, seed=0):
@@ -291,7 +292,8 @@ def test_disk_full_before_writing_is_one_line(tmp_path, monkeypatch):
     data = _fields(5000)
     with pytest.raises(ParmpmError) as e:
         CheckpointWriter(path, 5000, {k: v[:0] for k, v in data.items()}, _attrs(5000))
-    assert str(e.value) == f"disk full writing '{path}': 1.9 MB needed, 0.1 MB free"
+    # every field, the optional ones too (plastic: 8 doubles a row, 0.3 MB of the 2.2)
+    assert str(e.value) == f"disk full writing '{path}': 2.2 MB needed, 0.1 MB free"
     assert list(tmp_path.iterdir()) == []
 
 
@@ -306,7 +308,8 @@ def test_disk_filling_while_writing_removes_the_tmp(tmp_path, monkeypatch):
                          block_rows=512)
     w.write(0, {k: v[:1024] for k, v in data.items()})
     free[0] = 50_000
-    with pytest.raises(ParmpmError, match=f"^disk full writing '{path}': 0.9 MB needed, 0.1 MB free$"):
+    # 1024 rows of every field (the plastic rows too: 64 B each)
+    with pytest.raises(ParmpmError, match=f"^disk full writing '{path}': 1.0 MB needed, 0.1 MB free$"):
         w.write(1024, {k: v[1024:2048] for k, v in data.items()})
     w.abort()  # what the driver does after any failure: harmless now
     assert list(tmp_path.iterdir()) == []
