@@ -19,6 +19,7 @@ import numpy as np
 
 from parmpm.core.jit import helper_kernel, kernel, loop_kernel
 from parmpm.materials import DRUCKER_PRAGER, J2
+from parmpm.materials.kinematics import det_d
 from parmpm.materials.plasticity.drucker_prager import (ELASTIC, dp_dissipation, dp_equivalent,
                                                         dp_return)
 from parmpm.materials.plasticity.j2 import be_energy, j2_return
@@ -65,13 +66,6 @@ def _congruence(A, S, out, T):
             x = A[i, 0] * T[0, j] + A[i, 1] * T[1, j] + A[i, 2] * T[2, j]
             out[i, j] = x
             out[j, i] = x
-
-
-@helper_kernel
-def _det(F3):
-    return (F3[0, 0] * (F3[1, 1] * F3[2, 2] - F3[1, 2] * F3[2, 1])
-            - F3[0, 1] * (F3[1, 0] * F3[2, 2] - F3[1, 2] * F3[2, 0])
-            + F3[0, 2] * (F3[1, 0] * F3[2, 1] - F3[1, 1] * F3[2, 0]))
 
 
 @helper_kernel
@@ -132,7 +126,7 @@ def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
         s[STATE_EPSP] += dl
         s[STATE_WORK] += work
     else:
-        J = _det(F3)
+        J = det_d(3, F3)
     iJ = 1.0 / J
     for a in range(d):
         for b in range(d):
