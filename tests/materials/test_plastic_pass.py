@@ -10,10 +10,12 @@ import numpy as np
 import pytest
 
 from parmpm.materials.plasticity.drucker_prager import dp_update
+from parmpm.materials.plasticity.near_identity import RHO_MAX
 from parmpm.materials.plasticity.j2 import j2_update
 from parmpm.materials.plasticity.state import STATE_EPSP, STATE_WORK, initial_state, unpack
-from parmpm.materials.plasticity.table import (PCOL_COHESION, PCOL_ETA, PCOL_ETA_BAR, PCOL_G,
-                                               PCOL_K, PCOL_PT, PCOL_XI, plastic_table)
+from parmpm.materials.plasticity.table import (PCOL_A, PCOL_B, PCOL_C2, PCOL_COHESION, PCOL_ETA,
+                                               PCOL_ETA_BAR, PCOL_G, PCOL_K, PCOL_PT, PCOL_XI,
+                                               plastic_table)
 from parmpm.materials.plasticity.update import plastic_energy_sums, plastic_pass
 
 NONE = dict(hardening_exponent=None, strength_coefficient=None, rate_coefficient=None,
@@ -23,6 +25,9 @@ NONE = dict(hardening_exponent=None, strength_coefficient=None, rate_coefficient
 J2 = SimpleNamespace(**{**NONE, "model": "j2", "youngs_modulus": 117e9, "poisson_ratio": 0.35,
                         "density": 8930.0, "yield_stress": 4e8, "hardening": "linear",
                         "hardening_modulus": 1e8})
+#: elastic strains past the series' reach (:data:`RHO_MAX`): the pass's eigen path as well
+J2_SOFT = SimpleNamespace(**{**vars(J2), "youngs_modulus": 2e6, "yield_stress": 3e5,
+                             "hardening_modulus": 1e5})
 DP = SimpleNamespace(**{**NONE, "model": "drucker_prager", "youngs_modulus": 5e7,
                         "poisson_ratio": 0.3, "density": 1800.0, "friction_angle": 30.0,
                         "dilatancy_angle": 10.0, "cohesion": 1e4})
@@ -31,43 +36,61 @@ ELASTIC = SimpleNamespace(**{**NONE, "model": "neo_hookean", "youngs_modulus": 1
 
 
 def _reference(model, table, d, path, dt):
-    """``b_e`` updated by increments: (Cauchy stress, ε̄p, W_p) at the end of ``path``."""
+    """``b_e`` updated by increments: (Cauchy stress, ε̄p, W_p) at the end of ``path``, and the
+    largest and smallest ``‖b_e^tr − I‖_F`` along it."""
     p = table[0]
     be, epsp, work = np.eye(3), 0.0, 0.0
     tau, M, V = np.zeros((3, 3)), np.zeros((3, 3)), np.zeros((3, 3))
     w, e, t = np.zeros(3), np.zeros(3), np.zeros(3)
     F_old = np.eye(3)
+    reach = []
     for Fd in path:
         F3 = np.eye(3)
         F3[:d, :d] = Fd
         dF = F3 @ np.linalg.inv(F_old)
         F_old = F3
-        if model == "j2":
-            epsp, dw = j2_update(dF, be, epsp, p[PCOL_K], p[PCOL_G], 0, 4e8, 1e8, 1.0, 0.0, 1.0,
-                                 dt, tau, M, V, w, t)
+        reach.append(np.linalg.norm(dF @ be @ dF.T - np.eye(3)))
+        if model.startswith("j2"):
+            epsp, dw = j2_update(dF, be, epsp, p[PCOL_K], p[PCOL_G], 0, p[PCOL_A], p[PCOL_B], 1.0,
+                                 0.0, 1.0, dt, tau, M, V, w, t)
         else:
             dl, dw = dp_update(dF, be, p[PCOL_K], p[PCOL_G], p[PCOL_ETA], p[PCOL_XI],
                                p[PCOL_ETA_BAR], p[PCOL_COHESION], p[PCOL_PT], tau, M, V, w, e, t)
             epsp += dl
         work += dw
-    return tau[:d, :d] / np.linalg.det(F_old), epsp, work
+    return tau[:d, :d] / np.linalg.det(F_old), epsp, work, be, max(reach), min(reach)
 
 
-@pytest.mark.parametrize("model", ["j2", "drucker_prager"])
+MODELS = {"j2": J2, "j2_soft": J2_SOFT, "drucker_prager": DP}
+
+
+@pytest.mark.parametrize("model", list(MODELS))
 @pytest.mark.parametrize("d", [1, 2, 3])
 def test_pass_is_the_incremental_return_map(model, d):
+    """J2 metals take the pass's series path throughout, the soft J2 material both paths (the
+    reach of its trial ``b_e`` crosses :data:`RHO_MAX`), Drucker–Prager the eigen path; the
+    wave speed is exact on the eigen path and an upper bound within 1 % on the series."""
     rng = np.random.default_rng(7 + d)
-    table = plastic_table({"m": J2 if model == "j2" else DP}, ["m"])
+    table = plastic_table({"m": MODELS[model]}, ["m"])
     F = np.eye(d)[None].copy()
     path = []
     state, stress = initial_state(1), np.zeros((1, d, d))
     mat, v = np.zeros(1, np.int64), np.zeros((1, d))
-    scale = 2e-3 if model == "j2" else 2e-3
+    scale = 2e-2 if model == "j2_soft" else 2e-3
     for _ in range(150):
         F[0] = (np.eye(d) + scale * rng.normal(size=(d, d))) @ F[0]
         path.append(F[0].copy())
-        plastic_pass(d, F, mat, table, state, stress, v, 1e-6)
-    sig, epsp, work = _reference(model, table, d, path, 1e-6)
+        c = plastic_pass(d, F, mat, table, state, stress, v, 1e-6)
+    sig, epsp, work, be, far, near = _reference(model, table, d, path, 1e-6)
+    if model == "j2":
+        assert far < RHO_MAX
+    elif model == "j2_soft":
+        assert near < RHO_MAX < far
+    exact = np.sqrt(table[0, PCOL_C2] * max(1.0, np.linalg.eigvalsh(be).max()))
+    if far < RHO_MAX:
+        assert exact <= c <= 1.01 * exact
+    else:
+        assert c == pytest.approx(exact, rel=1e-12)
     assert epsp > 1e-3  # the path yields
     np.testing.assert_allclose(stress[0], sig, rtol=0, atol=1e-10 * np.abs(sig).max())
     assert state[0, STATE_EPSP] == pytest.approx(epsp, rel=1e-10)

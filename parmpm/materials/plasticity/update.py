@@ -22,8 +22,11 @@ from parmpm.materials import DRUCKER_PRAGER, J2
 from parmpm.materials.kinematics import det_d
 from parmpm.materials.plasticity.drucker_prager import (ELASTIC, dp_dissipation, dp_equivalent,
                                                         dp_return)
-from parmpm.materials.plasticity.j2 import be_energy, j2_return
+from parmpm.materials.plasticity.hardening import yield_stress
+from parmpm.materials.plasticity.j2 import be_energy, j2_return, plastic_increment
 from parmpm.materials.plasticity.closed_form_eigen import sym_eig3_closed
+from parmpm.materials.plasticity.near_identity import (RHO_MAX, exp_near_zero,
+                                                       log_near_identity)
 from parmpm.materials.plasticity.spectral import from_principal
 from parmpm.materials.plasticity.state import STATE_EPSP, STATE_WORK, SYM
 from parmpm.materials.plasticity.table import (PCOL_A, PCOL_B, PCOL_C, PCOL_C2, PCOL_COHESION,
@@ -77,6 +80,64 @@ def _unpack(s, A):
 
 
 @helper_kernel
+def _j2_near_identity(d, F3, M, s, prm, dt, sig, m3):
+    """:func:`plastic_update` of a J2 particle whose ``b_e^tr`` (in ``M``) is within
+    :data:`RHO_MAX` of ``I``: the same radial return (:func:`.j2.j2_return`) on the log-strain
+    tensor ``ε = ½ ln b_e^tr`` itself, by the series of :mod:`.near_identity` — isotropy makes
+    the return radial in the deviator, so it needs no principal axes. The wave speed takes
+    ``λ_max(b_e) ≤ exp(2 (ε_v/3 + √(2/3) ‖dev ε‖))`` (a traceless symmetric matrix's largest
+    eigenvalue is at most ``√(2/3)`` of its norm), an upper bound, equal on uniaxial states."""
+    l00, l11, l22, l01, l02, l12 = log_near_identity(M[0, 0] - 1.0, M[1, 1] - 1.0,
+                                                     M[2, 2] - 1.0, M[0, 1], M[0, 2], M[1, 2])
+    ev = 0.5 * (l00 + l11 + l22)
+    m = ev / 3.0
+    e00, e11, e22 = 0.5 * l00 - m, 0.5 * l11 - m, 0.5 * l22 - m
+    e01, e02, e12 = 0.5 * l01, 0.5 * l02, 0.5 * l12
+    ee = math.sqrt(e00 * e00 + e11 * e11 + e22 * e22 + 2.0 * (e01 * e01 + e02 * e02 + e12 * e12))
+    K, G = prm[PCOL_K], prm[PCOL_G]
+    code, a, b, n, c, rate0 = (int(prm[PCOL_HARDENING]), prm[PCOL_A], prm[PCOL_B], prm[PCOL_N],
+                               prm[PCOL_C], prm[PCOL_RATE0])
+    q_tr = 2.0 * G * math.sqrt(1.5) * ee
+    sy, _, _ = yield_stress(code, a, b, n, c, rate0, s[STATE_EPSP], 0.0)
+    shrink = 1.0
+    if q_tr > sy:
+        dl = plastic_increment(code, a, b, n, c, rate0, G, q_tr, s[STATE_EPSP], dt)
+        shrink = 1.0 - 3.0 * G * dl / q_tr
+        g = 2.0 * shrink  # b_e = exp(2ε_v/3) exp(2 shrink dev ε)
+        x00, x11, x22, x01, x02, x12 = exp_near_zero(g * e00, g * e11, g * e22, g * e01,
+                                                     g * e02, g * e12)
+        v = math.exp(2.0 * m)
+        C, Finv, T = m3[2], m3[1], m3[3]
+        C[0, 0], C[1, 1], C[2, 2] = v * x00, v * x11, v * x22
+        C[0, 1] = C[1, 0] = v * x01
+        C[0, 2] = C[2, 0] = v * x02
+        C[1, 2] = C[2, 1] = v * x12
+        J = _det_inverse(F3, Finv)
+        _congruence(Finv, C, M, T)  # C_p⁻¹ = F⁻¹ b_e F⁻ᵀ
+        for q in range(6):
+            r, cc = SYM[q]
+            s[q] = M[r, cc]
+        s[STATE_EPSP] += dl
+        s[STATE_WORK] += (q_tr - 3.0 * G * dl) * dl
+    else:
+        J = det_d(3, F3)
+    iJ = 1.0 / J
+    p, h = K * ev * iJ, 2.0 * G * shrink * iJ
+    sig[0, 0] = p + h * e00
+    if d > 1:
+        sig[1, 1] = p + h * e11
+        sig[0, 1] = sig[1, 0] = h * e01
+    if d > 2:
+        sig[2, 2] = p + h * e22
+        sig[0, 2] = sig[2, 0] = h * e02
+        sig[1, 2] = sig[2, 1] = h * e12
+    if not J > 0.0:
+        return math.inf
+    bmax = math.exp(2.0 * (m + math.sqrt(2.0 / 3.0) * shrink * ee))
+    return math.sqrt(prm[PCOL_C2] * max(1.0, bmax))
+
+
+@helper_kernel
 def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
     """Particle with deformation gradient ``Fi`` (d×d) and state row ``s``: the return map of
     its model, ``s`` updated in place, its Cauchy stress written into ``sig`` (leading d×d);
@@ -90,12 +151,18 @@ def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
     _embed(d, Fi, F3)
     _unpack(s, C)
     _congruence(F3, C, M, tau)  # b_e^tr = F C_p⁻¹ Fᵀ (tau: scratch until the stress)
+    model = int(prm[PCOL_MODEL])
+    if model == J2:
+        x00, x11, x22 = M[0, 0] - 1.0, M[1, 1] - 1.0, M[2, 2] - 1.0
+        x01, x02, x12 = M[0, 1], M[0, 2], M[1, 2]
+        if (x00 * x00 + x11 * x11 + x22 * x22 + 2.0 * (x01 * x01 + x02 * x02 + x12 * x12)
+                <= RHO_MAX * RHO_MAX):  # NaN takes the eigen path, which passes it on
+            return _j2_near_identity(d, F3, M, s, prm, dt, sig, m3)
     sym_eig3_closed(M, w, V)
     bmax = w[2]  # ascending: λ_max(b_e^tr)
     for A in range(3):
         w[A] = 0.5 * math.log(w[A]) if w[A] > 0.0 else math.nan
     K, G = prm[PCOL_K], prm[PCOL_G]
-    model = int(prm[PCOL_MODEL])
     if model == J2:
         for A in range(3):
             e[A] = w[A]
