@@ -34,6 +34,10 @@ from parmpm.materials.plasticity.table import (PCOL_A, PCOL_B, PCOL_C, PCOL_C2, 
                                                PCOL_K, PCOL_MODEL, PCOL_N, PCOL_PT, PCOL_RATE0,
                                                PCOL_XI)
 
+#: rows per block of :func:`_plastic_loop` (its scratch: 7 × BLOCK doubles, in L1)
+BLOCK = 64
+
+
 @helper_kernel
 def _embed(d, Fi, F3):
     """``F3`` (3, 3): ``Fi``'s leading d×d block, the identity elsewhere."""
@@ -80,15 +84,42 @@ def _unpack(s, A):
 
 
 @helper_kernel
-def _j2_near_identity(d, F3, M, s, prm, dt, sig, m3):
-    """:func:`plastic_update` of a J2 particle whose ``b_e^tr`` (in ``M``) is within
-    :data:`RHO_MAX` of ``I``: the same radial return (:func:`.j2.j2_return`) on the log-strain
-    tensor ``ε = ½ ln b_e^tr`` itself, by the series of :mod:`.near_identity` — isotropy makes
-    the return radial in the deviator, so it needs no principal axes. The wave speed takes
+def trial_be(d, Fi, s):
+    """``b_e^tr − I = F C_p⁻¹ Fᵀ − I`` (``F`` embedded in 3×3) as six scalars, and the square of
+    its Frobenius norm: the same products, in the same order, as :func:`_congruence`."""
+    f00 = Fi[0, 0]
+    f01 = f02 = f10 = f12 = f20 = f21 = 0.0
+    f11 = f22 = 1.0
+    if d > 1:
+        f01, f10, f11 = Fi[0, 1], Fi[1, 0], Fi[1, 1]
+    if d > 2:
+        f02, f12, f20, f21, f22 = Fi[0, 2], Fi[1, 2], Fi[2, 0], Fi[2, 1], Fi[2, 2]
+    c00, c11, c22, c01, c02, c12 = s[0], s[1], s[2], s[3], s[4], s[5]
+    t00, t10, t20 = (c00 * f00 + c01 * f01 + c02 * f02, c01 * f00 + c11 * f01 + c12 * f02,
+                     c02 * f00 + c12 * f01 + c22 * f02)  # T = C Fᵀ, column by column
+    t01, t11, t21 = (c00 * f10 + c01 * f11 + c02 * f12, c01 * f10 + c11 * f11 + c12 * f12,
+                     c02 * f10 + c12 * f11 + c22 * f12)
+    t02, t12, t22 = (c00 * f20 + c01 * f21 + c02 * f22, c01 * f20 + c11 * f21 + c12 * f22,
+                     c02 * f20 + c12 * f21 + c22 * f22)
+    x00 = f00 * t00 + f01 * t10 + f02 * t20 - 1.0
+    x11 = f10 * t01 + f11 * t11 + f12 * t21 - 1.0
+    x22 = f20 * t02 + f21 * t12 + f22 * t22 - 1.0
+    x01 = f00 * t01 + f01 * t11 + f02 * t21
+    x02 = f00 * t02 + f01 * t12 + f02 * t22
+    x12 = f10 * t02 + f11 * t12 + f12 * t22
+    rho2 = x00 * x00 + x11 * x11 + x22 * x22 + 2.0 * (x01 * x01 + x02 * x02 + x12 * x12)
+    return x00, x11, x22, x01, x02, x12, rho2
+
+
+@helper_kernel
+def j2_near_identity(d, Fi, s, prm, dt, sig, m3, l00, l11, l22, l01, l02, l12):
+    """:func:`plastic_update` of a J2 particle whose ``b_e^tr`` is within :data:`RHO_MAX` of
+    ``I``, given ``ln b_e^tr`` (six scalars, :func:`.near_identity.log_near_identity`): the same
+    radial return (:func:`.j2.j2_return`) on the log-strain tensor ``ε = ½ ln b_e^tr`` itself —
+    isotropy makes the return radial in the deviator, so it needs no principal axes — and, after
+    a return, ``b_e`` by :func:`.near_identity.exp_near_zero`. The wave speed takes
     ``λ_max(b_e) ≤ exp(2 (ε_v/3 + √(2/3) ‖dev ε‖))`` (a traceless symmetric matrix's largest
     eigenvalue is at most ``√(2/3)`` of its norm), an upper bound, equal on uniaxial states."""
-    l00, l11, l22, l01, l02, l12 = log_near_identity(M[0, 0] - 1.0, M[1, 1] - 1.0,
-                                                     M[2, 2] - 1.0, M[0, 1], M[0, 2], M[1, 2])
     ev = 0.5 * (l00 + l11 + l22)
     m = ev / 3.0
     e00, e11, e22 = 0.5 * l00 - m, 0.5 * l11 - m, 0.5 * l22 - m
@@ -107,11 +138,12 @@ def _j2_near_identity(d, F3, M, s, prm, dt, sig, m3):
         x00, x11, x22, x01, x02, x12 = exp_near_zero(g * e00, g * e11, g * e22, g * e01,
                                                      g * e02, g * e12)
         v = math.exp(2.0 * m)
-        C, Finv, T = m3[2], m3[1], m3[3]
+        F3, Finv, C, T, M = m3[0], m3[1], m3[2], m3[3], m3[4]
         C[0, 0], C[1, 1], C[2, 2] = v * x00, v * x11, v * x22
         C[0, 1] = C[1, 0] = v * x01
         C[0, 2] = C[2, 0] = v * x02
         C[1, 2] = C[2, 1] = v * x12
+        _embed(d, Fi, F3)
         J = _det_inverse(F3, Finv)
         _congruence(Finv, C, M, T)  # C_p⁻¹ = F⁻¹ b_e F⁻ᵀ
         for q in range(6):
@@ -120,7 +152,7 @@ def _j2_near_identity(d, F3, M, s, prm, dt, sig, m3):
         s[STATE_EPSP] += dl
         s[STATE_WORK] += (q_tr - 3.0 * G * dl) * dl
     else:
-        J = det_d(3, F3)
+        J = det_d(d, Fi)
     iJ = 1.0 / J
     p, h = K * ev * iJ, 2.0 * G * shrink * iJ
     sig[0, 0] = p + h * e00
@@ -151,18 +183,12 @@ def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
     _embed(d, Fi, F3)
     _unpack(s, C)
     _congruence(F3, C, M, tau)  # b_e^tr = F C_p⁻¹ Fᵀ (tau: scratch until the stress)
-    model = int(prm[PCOL_MODEL])
-    if model == J2:
-        x00, x11, x22 = M[0, 0] - 1.0, M[1, 1] - 1.0, M[2, 2] - 1.0
-        x01, x02, x12 = M[0, 1], M[0, 2], M[1, 2]
-        if (x00 * x00 + x11 * x11 + x22 * x22 + 2.0 * (x01 * x01 + x02 * x02 + x12 * x12)
-                <= RHO_MAX * RHO_MAX):  # NaN takes the eigen path, which passes it on
-            return _j2_near_identity(d, F3, M, s, prm, dt, sig, m3)
     sym_eig3_closed(M, w, V)
     bmax = w[2]  # ascending: λ_max(b_e^tr)
     for A in range(3):
         w[A] = 0.5 * math.log(w[A]) if w[A] > 0.0 else math.nan
     K, G = prm[PCOL_K], prm[PCOL_G]
+    model = int(prm[PCOL_MODEL])
     if model == J2:
         for A in range(3):
             e[A] = w[A]
@@ -208,25 +234,49 @@ def plastic_pass(d, F, mat, table, state, stress, v, dt):
     """:func:`plastic_update` of every plastic particle (rows in any order: each is its own);
     returns their largest ``c_p + |v_p|`` (0 with none, ``inf`` once one is NaN)."""
     return _plastic_loop(d, F, mat, table, state, stress, v, dt, np.empty((6, 3, 3)),
-                         np.empty((4, 3)))
+                         np.empty((4, 3)), np.empty((7, BLOCK)))
 
 
 @loop_kernel
-def _plastic_loop(d, F, mat, table, state, stress, v, dt, m3, v3):
+def _plastic_loop(d, F, mat, table, state, stress, v, dt, m3, v3, lg):
     """:func:`plastic_pass`'s loop, reference counting off (:mod:`parmpm.core.jit`: the per-row
-    views ``F[i]``, ``state[i]``, ``stress[i]`` cost no atomic pair each)."""
+    views ``F[i]``, ``state[i]``, ``stress[i]`` cost no atomic pair each), in blocks of
+    :data:`BLOCK` rows: every row's ``b_e^tr − I`` and its logarithm first, into the columns of
+    ``lg`` (7, BLOCK) — branch-free loops over rows, the logarithm's vectorised across them —
+    then each plastic row's return: a J2 row in the series' range finishes from its logarithm
+    (:func:`j2_near_identity`), any other plastic row takes :func:`plastic_update`. The
+    logarithm of a row it does not serve (an elastic material, a strain past :data:`RHO_MAX`,
+    NaN) is computed and not read."""
     vmax = 0.0
-    for i in range(F.shape[0]):
-        prm = table[mat[i]]
-        if prm[PCOL_MODEL] == 0.0:
-            continue
-        c = plastic_update(d, F[i], state[i], prm, dt, stress[i], m3, v3)
-        sp = 0.0
-        for a in range(d):
-            sp += v[i, a] * v[i, a]
-        s = c + math.sqrt(sp)
-        if not (s <= vmax):
-            vmax = s if s == s else math.inf
+    n = F.shape[0]
+    lim = RHO_MAX * RHO_MAX
+    for start in range(0, n, BLOCK):
+        rows = min(BLOCK, n - start)
+        for k in range(rows):
+            x = trial_be(d, F[start + k], state[start + k])
+            for q in range(7):
+                lg[q, k] = x[q]
+        for k in range(rows):
+            l00, l11, l22, l01, l02, l12 = log_near_identity(lg[0, k], lg[1, k], lg[2, k],
+                                                             lg[3, k], lg[4, k], lg[5, k])
+            lg[0, k], lg[1, k], lg[2, k], lg[3, k], lg[4, k], lg[5, k] = (l00, l11, l22, l01,
+                                                                          l02, l12)
+        for k in range(rows):
+            i = start + k
+            prm = table[mat[i]]
+            if prm[PCOL_MODEL] == 0.0:
+                continue
+            if prm[PCOL_MODEL] == J2 and lg[6, k] <= lim:  # NaN: the eigen path passes it on
+                c = j2_near_identity(d, F[i], state[i], prm, dt, stress[i], m3, lg[0, k],
+                                     lg[1, k], lg[2, k], lg[3, k], lg[4, k], lg[5, k])
+            else:
+                c = plastic_update(d, F[i], state[i], prm, dt, stress[i], m3, v3)
+            sp = 0.0
+            for a in range(d):
+                sp += v[i, a] * v[i, a]
+            s = c + math.sqrt(sp)
+            if not (s <= vmax):
+                vmax = s if s == s else math.inf
     return vmax
 
 
