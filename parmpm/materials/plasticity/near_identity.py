@@ -47,6 +47,25 @@ def sym_product(a00, a11, a22, a01, a02, a12, b00, b11, b22, b01, b02, b12):
 
 
 @helper_kernel
+def square_and_cube(a00, a11, a22, a01, a02, a12):
+    """``(A², A A²)`` of a symmetric ``A``, as twelve scalars."""
+    b00, b11, b22, b01, b02, b12 = sym_product(a00, a11, a22, a01, a02, a12,
+                                               a00, a11, a22, a01, a02, a12)
+    return (b00, b11, b22, b01, b02, b12) + sym_product(a00, a11, a22, a01, a02, a12,
+                                                        b00, b11, b22, b01, b02, b12)
+
+
+@helper_kernel
+def sym_combination(c0, c1, a00, a11, a22, a01, a02, a12, c2, b00, b11, b22, b01, b02, b12, c3,
+                    d00, d11, d22, d01, d02, d12):
+    """``c0 I + c1 A + c2 B + c3 D`` of symmetric matrices, as six scalars, summed left to
+    right."""
+    return (c0 + c1 * a00 + c2 * b00 + c3 * d00, c0 + c1 * a11 + c2 * b11 + c3 * d11,
+            c0 + c1 * a22 + c2 * b22 + c3 * d22, c1 * a01 + c2 * b01 + c3 * d01,
+            c1 * a02 + c2 * b02 + c3 * d02, c1 * a12 + c2 * b12 + c3 * d12)
+
+
+@helper_kernel
 def log_near_identity(x00, x11, x22, x01, x02, x12):
     """``ln(I + X)`` for a symmetric ``X`` with ``‖X‖_F ≤`` :data:`RHO_MAX`, as six scalars."""
     y00, y11, y22 = 2.0 + x00, 2.0 + x11, 2.0 + x22  # Y = 2I + X; its inverse by cofactors
@@ -60,33 +79,19 @@ def log_near_identity(x00, x11, x22, x01, x02, x12):
     # products after Q where Horner's rule chains six), then ln(I + X) = 2 Z P
     q00, q11, q22, q01, q02, q12 = sym_product(z00, z11, z22, z01, z02, z12,
                                                z00, z11, z22, z01, z02, z12)
-    r00, r11, r22, r01, r02, r12 = sym_product(q00, q11, q22, q01, q02, q12,
-                                               q00, q11, q22, q01, q02, q12)
-    s00, s11, s22, s01, s02, s12 = sym_product(q00, q11, q22, q01, q02, q12,
-                                               r00, r11, r22, r01, r02, r12)
-    b00, b11, b22 = (C3 + C4 * q00 + C5 * r00 + C6 * s00, C3 + C4 * q11 + C5 * r11 + C6 * s11,
-                     C3 + C4 * q22 + C5 * r22 + C6 * s22)
-    b01, b02, b12 = (C4 * q01 + C5 * r01 + C6 * s01, C4 * q02 + C5 * r02 + C6 * s02,
-                     C4 * q12 + C5 * r12 + C6 * s12)
+    (r00, r11, r22, r01, r02, r12,
+     s00, s11, s22, s01, s02, s12) = square_and_cube(q00, q11, q22, q01, q02, q12)
+    b00, b11, b22, b01, b02, b12 = sym_combination(C3, C4, q00, q11, q22, q01, q02, q12,
+                                                   C5, r00, r11, r22, r01, r02, r12,
+                                                   C6, s00, s11, s22, s01, s02, s12)
     p00, p11, p22, p01, p02, p12 = sym_product(s00, s11, s22, s01, s02, s12,
                                                b00, b11, b22, b01, b02, b12)
-    p00, p11, p22 = 1.0 + C1 * q00 + C2 * r00 + p00, 1.0 + C1 * q11 + C2 * r11 + p11, \
-        1.0 + C1 * q22 + C2 * r22 + p22
-    p01, p02, p12 = C1 * q01 + C2 * r01 + p01, C1 * q02 + C2 * r02 + p02, C1 * q12 + C2 * r12 + p12
+    p00, p11, p22, p01, p02, p12 = sym_combination(1.0, C1, q00, q11, q22, q01, q02, q12,
+                                                   C2, r00, r11, r22, r01, r02, r12,
+                                                   1.0, p00, p11, p22, p01, p02, p12)
     l00, l11, l22, l01, l02, l12 = sym_product(z00, z11, z22, z01, z02, z12,
                                                p00, p11, p22, p01, p02, p12)
     return 2.0 * l00, 2.0 * l11, 2.0 * l22, 2.0 * l01, 2.0 * l02, 2.0 * l12
-
-
-@helper_kernel
-def _exp_block(j, d00, d11, d22, d01, d02, d12, e00, e11, e22, e01, e02, e12, f00, f11, f22,
-               f01, f02, f12):
-    """``Σ_{0<i<4} D^(4j+i)/(4j+i)!`` from ``D``, ``D²`` (``e``), ``D³`` (``f``): a block of
-    :func:`exp_near_zero` but for its multiple of ``I`` (added last, where it rounds least)."""
-    a1, a2, a3 = INV_FACTORIAL[4 * j + 1], INV_FACTORIAL[4 * j + 2], INV_FACTORIAL[4 * j + 3]
-    return (a1 * d00 + a2 * e00 + a3 * f00, a1 * d11 + a2 * e11 + a3 * f11,
-            a1 * d22 + a2 * e22 + a3 * f22, a1 * d01 + a2 * e01 + a3 * f01,
-            a1 * d02 + a2 * e02 + a3 * f02, a1 * d12 + a2 * e12 + a3 * f12)
 
 
 @helper_kernel
@@ -94,10 +99,8 @@ def exp_near_zero(d00, d11, d22, d01, d02, d12):
     """``exp D`` for a symmetric ``D`` with ``‖D‖₂ ≤ 0.25``, as six scalars: ``Σ_{k≤12} Dᵏ/k!``
     as ``A0 + D⁴ (A1 + D⁴ (A2 + D⁴ A3))``, each ``A_j`` a combination of ``I, D, D², D³``
     (Paterson & Stockmeyer 1973: six products where Horner's rule chains twelve)."""
-    e00, e11, e22, e01, e02, e12 = sym_product(d00, d11, d22, d01, d02, d12,
-                                               d00, d11, d22, d01, d02, d12)
-    f00, f11, f22, f01, f02, f12 = sym_product(e00, e11, e22, e01, e02, e12,
-                                               d00, d11, d22, d01, d02, d12)
+    (e00, e11, e22, e01, e02, e12,
+     f00, f11, f22, f01, f02, f12) = square_and_cube(d00, d11, d22, d01, d02, d12)
     g00, g11, g22, g01, g02, g12 = sym_product(e00, e11, e22, e01, e02, e12,
                                                e00, e11, e22, e01, e02, e12)
     h = INV_FACTORIAL[EXP_ORDER]  # the innermost block, A3 = I/12!
@@ -105,8 +108,11 @@ def exp_near_zero(d00, d11, d22, d01, d02, d12):
     for j in range(EXP_ORDER // 4 - 1, -1, -1):
         p00, p11, p22, p01, p02, p12 = sym_product(g00, g11, g22, g01, g02, g12,
                                                    p00, p11, p22, p01, p02, p12)
-        a00, a11, a22, a01, a02, a12 = _exp_block(j, d00, d11, d22, d01, d02, d12, e00, e11, e22,
-                                                  e01, e02, e12, f00, f11, f22, f01, f02, f12)
+        # A_j but for its multiple of I, which is added last, where it rounds least
+        a00, a11, a22, a01, a02, a12 = sym_combination(
+            0.0, INV_FACTORIAL[4 * j + 1], d00, d11, d22, d01, d02, d12,
+            INV_FACTORIAL[4 * j + 2], e00, e11, e22, e01, e02, e12,
+            INV_FACTORIAL[4 * j + 3], f00, f11, f22, f01, f02, f12)
         a0 = INV_FACTORIAL[4 * j]
         p00, p11, p22, p01, p02, p12 = ((p00 + a00) + a0, (p11 + a11) + a0, (p22 + a22) + a0,
                                         p01 + a01, p02 + a02, p12 + a12)
