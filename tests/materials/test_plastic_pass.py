@@ -117,3 +117,32 @@ def test_elastic_rows_are_left_alone_and_sums_count_plastic_rows_only():
 
 def test_no_plastic_material_no_table():
     assert plastic_table({"a": ELASTIC}, ["a"]) is None
+
+
+@pytest.mark.parametrize("d", [1, 2, 3])
+def test_trial_be_is_the_congruence_bit_for_bit(d):
+    """The blocked loop's scalar ``b_e^tr − I`` and the eigen path's array congruence are the same
+    products in the same order, so a row gives one trial tensor whichever path reads it."""
+    from numba import njit
+
+    from parmpm.materials.plasticity.update import _congruence, _embed, _unpack, trial_be
+
+    @njit(cache=False)
+    def both(Fi, s):
+        F3, C, M, T = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+        _embed(d, Fi, F3)
+        _unpack(s, C)
+        _congruence(F3, C, M, T)
+        return trial_be(d, Fi, s), M
+
+    rng = np.random.default_rng(11 + d)
+    for _ in range(50):
+        Fi = np.eye(d) + 0.3 * rng.normal(size=(d, d))
+        A = rng.normal(size=(3, 3))
+        s = np.zeros(8)
+        C = np.eye(3) + 0.1 * (A @ A.T)
+        for q, (r, c) in enumerate([(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]):
+            s[q] = C[r, c]
+        x, M = both(Fi, s)
+        assert x[:6] == (M[0, 0] - 1.0, M[1, 1] - 1.0, M[2, 2] - 1.0, M[0, 1], M[0, 2], M[1, 2])
+        assert x[6] == pytest.approx(np.sum((M - np.eye(3)) ** 2), rel=1e-14)
