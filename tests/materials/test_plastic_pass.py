@@ -4,6 +4,7 @@ the way the material-point tests drive them: the pass keeps ``C_p⁻¹`` and for
 the increment ``ΔF = F_{n+1} F_n⁻¹`` — the same map, so the two agree to round-off along any path,
 in every dimension's embedding, for J2 and Drucker–Prager; and the pass leaves elastic rows and
 their stress alone."""
+import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -113,6 +114,28 @@ def test_elastic_rows_are_left_alone_and_sums_count_plastic_rows_only():
     sums = plastic_energy_sums(d, np.array([0, n]), np.arange(n, dtype=np.uint64), np.ones(n), F,
                                mat, table, state)
     np.testing.assert_array_equal(sums, [[0.0, 0.0]])
+
+
+@pytest.mark.parametrize("bad", ["nan", "inverted"])
+def test_a_broken_row_stops_the_run_and_leaves_the_others(bad):
+    """A NaN ``F`` (the eigen path: the series' range test is false for NaN) or an inverted one
+    (``b_e = I``, the series path, ``det F < 0``) makes the pass's speed ``inf`` — the step's
+    stop — and its own stress non-finite or as computed, while the rows around it, across a
+    block boundary (64 rows), get the stress of a row alone."""
+    table = plastic_table({"b": J2}, ["b"])
+    d, n = 3, 130
+    F = np.tile(np.diag([1.001, 1.0, 1.0]), (n, 1, 1))
+    F[70] = np.nan if bad == "nan" else np.diag([-1.0, 1.0, 1.0])
+    mat = np.zeros(n, np.int64)
+    state, stress = initial_state(n), np.zeros((n, d, d))
+    c = plastic_pass(d, F, mat, table, state, stress, np.zeros((n, d)), 1e-6)
+    assert c == math.inf
+    one_state, one = initial_state(1), np.zeros((1, d, d))
+    plastic_pass(d, F[:1], mat[:1], table, one_state, one, np.zeros((1, d)), 1e-6)
+    ok = np.arange(n) != 70
+    np.testing.assert_array_equal(stress[ok], np.broadcast_to(one, (n - 1, d, d)))
+    if bad == "nan":
+        assert np.isnan(stress[70]).all()
 
 
 def test_no_plastic_material_no_table():
