@@ -68,9 +68,9 @@ MODELS = {"j2": J2, "j2_soft": J2_SOFT, "drucker_prager": DP}
 @pytest.mark.parametrize("model", list(MODELS))
 @pytest.mark.parametrize("d", [1, 2, 3])
 def test_pass_is_the_incremental_return_map(model, d):
-    """J2 metals take the pass's series path throughout, the soft J2 material both paths (the
-    reach of its trial ``b_e`` crosses :data:`RHO_MAX`), Drucker–Prager the eigen path; the
-    wave speed is exact on the eigen path and an upper bound within 1 % on the series."""
+    """J2 metals and this Drucker–Prager sand take the pass's series path throughout, the soft
+    J2 material both paths (the reach of its trial ``b_e`` crosses :data:`RHO_MAX`); the wave
+    speed is exact on the eigen path and an upper bound within 1 % on the series."""
     rng = np.random.default_rng(7 + d)
     table = plastic_table({"m": MODELS[model]}, ["m"])
     F = np.eye(d)[None].copy()
@@ -83,7 +83,7 @@ def test_pass_is_the_incremental_return_map(model, d):
         path.append(F[0].copy())
         c = plastic_pass(d, F, mat, table, state, stress, v, 1e-6)
     sig, epsp, work, be, far, near = _reference(model, table, d, path, 1e-6)
-    if model == "j2":
+    if model in ("j2", "drucker_prager"):
         assert far < RHO_MAX
     elif model == "j2_soft":
         assert near < RHO_MAX < far
@@ -114,6 +114,66 @@ def test_elastic_rows_are_left_alone_and_sums_count_plastic_rows_only():
     sums = plastic_energy_sums(d, np.array([0, n]), np.arange(n, dtype=np.uint64), np.ones(n), F,
                                mat, table, state)
     np.testing.assert_array_equal(sums, [[0.0, 0.0]])
+
+
+SAND = SimpleNamespace(**{**vars(DP), "cohesion": 0.0, "dilatancy_angle": 0.0})
+
+
+def _dp_path(kind, d, steps=60):
+    """Deformation gradients of a path whose Drucker–Prager regions are known: ``expand``
+    (isotropic stretch: the trial state passes the apex), ``shear`` (isochoric simple shear:
+    onto the cone), ``squeeze`` (compression, then shear along the cone at p < 0)."""
+    out = []
+    for k in range(1, steps + 1):
+        t = k / steps
+        F = np.eye(d)
+        if kind == "expand":
+            F *= 1.0 + 0.02 * t
+        elif kind == "shear":
+            F[0, 1] = 0.05 * t
+        else:
+            F *= 1.0 - 0.01 * min(2 * t, 1.0)
+            F[0, 1] = 0.04 * max(2 * t - 1.0, 0.0)
+        out.append(F)
+    return out
+
+
+@pytest.mark.parametrize("material", ["cohesive", "sand"])
+@pytest.mark.parametrize("kind", ["expand", "shear", "squeeze"])
+@pytest.mark.parametrize("d", [2, 3])
+def test_drucker_prager_regions_on_the_series_path(material, kind, d):
+    """Every Drucker–Prager region (cone, apex; cohesive and cohesionless) through the pass's
+    series path against the increment-driven principal-axis return with a Jacobi solver."""
+    table = plastic_table({"m": DP if material == "cohesive" else SAND}, ["m"])
+    path = _dp_path(kind, d)
+    F = np.eye(d)[None].copy()
+    state, stress = initial_state(1), np.zeros((1, d, d))
+    mat, v = np.zeros(1, np.int64), np.zeros((1, d))
+    for Fd in path:
+        F[0] = Fd
+        plastic_pass(d, F, mat, table, state, stress, v, 1e-6)
+    sig, epsp, work, be, far, near = _reference("drucker_prager", table, d, path, 1e-6)
+    assert far < RHO_MAX
+    # a log strain is known to ~1e-15 (sums of order-1 entries of b_e): its stress to K·1e-15,
+    # which is all there is at the cohesionless apex (σ = 0)
+    floor = 1e-12 * table[0, PCOL_K]
+    np.testing.assert_allclose(stress[0], sig, rtol=0, atol=1e-9 * np.abs(sig).max() + floor)
+    assert state[0, STATE_EPSP] == pytest.approx(epsp, rel=1e-9, abs=1e-14)
+    assert state[0, STATE_WORK] == pytest.approx(work, rel=1e-8, abs=floor * 1e-2)
+    if kind == "expand":  # at the apex: τ = p_t I (cohesionless: no stress at all)
+        J = np.linalg.det(path[-1])
+        np.testing.assert_allclose(stress[0], table[0, PCOL_PT] / J * np.eye(d), rtol=1e-12,
+                                   atol=floor)
+    elif kind == "shear":
+        assert epsp > 1e-3  # on the cone
+    np.testing.assert_allclose(unpack(state)[0], np.linalg.inv(_embed3(Fd)) @ be
+                               @ np.linalg.inv(_embed3(Fd)).T, rtol=0, atol=1e-12)
+
+
+def _embed3(Fd):
+    F3 = np.eye(3)
+    F3[:Fd.shape[0], :Fd.shape[1]] = Fd
+    return F3
 
 
 @pytest.mark.parametrize("bad", ["nan", "inverted"])

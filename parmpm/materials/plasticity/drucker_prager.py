@@ -101,13 +101,39 @@ def _set_state(eps_tr, K, G, p, scale, eps_out, tau_out):
 
 
 @helper_kernel
+def dp_return_invariants(ev, ee, K, G, eta, xi, eta_bar, c, p_t):
+    """:func:`dp_return` on the trial's invariants: ``ev = tr ε*`` and ``ee = |dev ε*|²`` of the
+    trial elastic log strain. Returns ``(p, scale, Δγ, Δγ_t, region)``: the updated mean stress
+    and the factor the trial deviator is scaled by (``ε = scale dev ε* + p/(3K) I``), the
+    multipliers and the region. Isotropy makes every return one of these two numbers, so the
+    principal axes are not needed (the series path of :mod:`.update` uses this directly)."""
+    p_tr = K * ev
+    q_tr = G * math.sqrt(2.0 * ee)  # √J2 of s* = 2G dev ε*
+    f_tr = q_tr + eta * p_tr - xi * c
+    if f_tr <= 0.0 and p_tr <= p_t:
+        return p_tr, 1.0, 0.0, 0.0, ELASTIC
+    if f_tr > 0.0:
+        dg = f_tr / (G + K * eta * eta_bar)
+        p = p_tr - K * eta_bar * dg
+        q = q_tr - G * dg
+        if p <= p_t and q >= 0.0:
+            return p, q / q_tr, dg, 0.0, CONE
+    q_t = max(xi * c - eta * p_t, 0.0)  # the cone's √J2 at the cut-off (0: the apex)
+    if q_tr < q_t:
+        return p_t, 1.0, 0.0, (p_tr - p_t) / K, CUTOFF
+    dg = (q_tr - q_t) / G
+    return p_t, q_t / q_tr if q_tr > 0.0 else 0.0, dg, (p_tr - p_t) / K - eta_bar * dg, APEX
+
+
+@helper_kernel
 def dp_return(eps_tr, K, G, eta, xi, eta_bar, c, p_t, eps_out, tau_out):
     """Return map of the principal trial elastic log strains ``eps_tr`` (3,): writes the updated
     ones ``eps_out`` and the principal Kirchhoff stresses ``tau_out``; returns
     ``(Δγ, Δγ_t, region)``, the multipliers of the cone's potential and of the cut-off, so that
     ``Δε_p = eps_tr − eps_out = Δγ (s / (2√J2) + η̄/3 I) + Δγ_t I/3``.
 
-    Closed forms (perfect plasticity; ``q = √J2``, trial values ``q*``, ``p*``):
+    Closed forms (perfect plasticity; ``q = √J2``, trial values ``q*``, ``p*``;
+    :func:`dp_return_invariants`):
 
     * cone: ``Δγ = f* / (G + K η η̄)``, ``q = q* − G Δγ``, ``p = p* − K η̄ Δγ``, accepted when
       ``p ≤ p_t``;
@@ -118,32 +144,18 @@ def dp_return(eps_tr, K, G, eta, xi, eta_bar, c, p_t, eps_out, tau_out):
       return overshoots ``p_t`` and the cut-off return leaves the cone: no third case).
     """
     ev = eps_tr[0] + eps_tr[1] + eps_tr[2]
-    p_tr = K * ev
     ee = 0.0
     for a in range(3):
         e = eps_tr[a] - ev / 3.0
         ee += e * e
-    q_tr = G * math.sqrt(2.0 * ee)  # √J2 of s* = 2G dev ε*
-    f_tr = q_tr + eta * p_tr - xi * c
-    if f_tr <= 0.0 and p_tr <= p_t:
+    p, scale, dg, dgt, region = dp_return_invariants(ev, ee, K, G, eta, xi, eta_bar, c, p_t)
+    if region == ELASTIC:
         for a in range(3):
             eps_out[a] = eps_tr[a]
         kirchhoff_principal(eps_out, K, G, tau_out)
-        return 0.0, 0.0, ELASTIC
-    if f_tr > 0.0:
-        dg = f_tr / (G + K * eta * eta_bar)
-        p = p_tr - K * eta_bar * dg
-        q = q_tr - G * dg
-        if p <= p_t and q >= 0.0:
-            _set_state(eps_tr, K, G, p, q / q_tr, eps_out, tau_out)
-            return dg, 0.0, CONE
-    q_t = max(xi * c - eta * p_t, 0.0)  # the cone's √J2 at the cut-off (0: the apex)
-    if q_tr < q_t:
-        _set_state(eps_tr, K, G, p_t, 1.0, eps_out, tau_out)
-        return 0.0, (p_tr - p_t) / K, CUTOFF
-    dg = (q_tr - q_t) / G
-    _set_state(eps_tr, K, G, p_t, q_t / q_tr if q_tr > 0.0 else 0.0, eps_out, tau_out)
-    return dg, (p_tr - p_t) / K - eta_bar * dg, APEX
+    else:
+        _set_state(eps_tr, K, G, p, scale, eps_out, tau_out)
+    return dg, dgt, region
 
 
 @helper_kernel

@@ -21,7 +21,7 @@ from parmpm.core.jit import helper_kernel, kernel, loop_kernel
 from parmpm.materials import DRUCKER_PRAGER, J2
 from parmpm.materials.kinematics import det_d
 from parmpm.materials.plasticity.drucker_prager import (ELASTIC, dp_dissipation, dp_equivalent,
-                                                        dp_return)
+                                                        dp_return, dp_return_invariants)
 from parmpm.materials.plasticity.hardening import yield_stress
 from parmpm.materials.plasticity.j2 import be_energy, j2_return, plastic_increment
 from parmpm.materials.plasticity.closed_form_eigen import sym_eig3_closed
@@ -112,32 +112,54 @@ def trial_be(d, Fi, s):
 
 
 @helper_kernel
-def j2_near_identity(d, Fi, s, prm, dt, sig, m3, l00, l11, l22, l01, l02, l12):
-    """:func:`plastic_update` of a J2 particle whose ``b_e^tr`` is within :data:`RHO_MAX` of
-    ``I``, given ``ln b_e^tr`` (six scalars, :func:`.near_identity.log_near_identity`): the same
-    radial return (:func:`.j2.j2_return`) on the log-strain tensor ``ε = ½ ln b_e^tr`` itself —
-    isotropy makes the return radial in the deviator, so it needs no principal axes — and, after
-    a return, ``b_e`` by :func:`.near_identity.exp_near_zero`. The wave speed takes
-    ``λ_max(b_e) ≤ exp(2 (ε_v/3 + √(2/3) ‖dev ε‖))`` (a traceless symmetric matrix's largest
-    eigenvalue is at most ``√(2/3)`` of its norm), an upper bound, equal on uniaxial states."""
+def near_identity_return(d, Fi, s, prm, dt, sig, m3, l00, l11, l22, l01, l02, l12):
+    """:func:`plastic_update` of a particle whose ``b_e^tr`` is within :data:`RHO_MAX` of ``I``,
+    given ``ln b_e^tr`` (six scalars, :func:`.near_identity.log_near_identity`). Both models'
+    returns are isotropic: each leaves the trial log strain's deviator scaled and sets its mean
+    stress, ``ε = scale dev ε* + p/(3K) I`` — J2's radial return (:func:`.j2.j2_return`,
+    ``p = K ε_v``) and Drucker–Prager's (:func:`.drucker_prager.dp_return_invariants`) — so
+    neither needs principal axes. Then, with ``e = |dev ε*|``:
+
+    * the step's plastic strain ``Δε_p = (1 − scale) dev ε* + (ε_v − p/K)/3 I``: its
+      equivalent ``√(2/3)(1 − scale) e`` and its work ``τ : Δε_p = p (ε_v − p/K)
+      + 2G scale (1 − scale) e²`` (J2: ``(q* − 3GΔε̄p) Δε̄p``, the same number);
+    * after a return, ``b_e = exp(2p/(3K)) exp(2 scale dev ε*)`` by
+      :func:`.near_identity.exp_near_zero`, and ``C_p⁻¹ = F⁻¹ b_e F⁻ᵀ``;
+    * the wave speed from ``λ_max(b_e) ≤ exp(2 (p/(3K) + √(2/3) scale e))`` (a traceless
+      symmetric matrix's largest eigenvalue is at most ``√(2/3)`` of its norm), an upper
+      bound, equal on uniaxial states."""
     ev = 0.5 * (l00 + l11 + l22)
     m = ev / 3.0
     e00, e11, e22 = 0.5 * l00 - m, 0.5 * l11 - m, 0.5 * l22 - m
     e01, e02, e12 = 0.5 * l01, 0.5 * l02, 0.5 * l12
-    ee = math.sqrt(e00 * e00 + e11 * e11 + e22 * e22 + 2.0 * (e01 * e01 + e02 * e02 + e12 * e12))
+    ee2 = e00 * e00 + e11 * e11 + e22 * e22 + 2.0 * (e01 * e01 + e02 * e02 + e12 * e12)
+    ee = math.sqrt(ee2)
     K, G = prm[PCOL_K], prm[PCOL_G]
-    code, a, b, n, c, rate0 = (int(prm[PCOL_HARDENING]), prm[PCOL_A], prm[PCOL_B], prm[PCOL_N],
-                               prm[PCOL_C], prm[PCOL_RATE0])
-    q_tr = 2.0 * G * math.sqrt(1.5) * ee
-    sy, _, _ = yield_stress(code, a, b, n, c, rate0, s[STATE_EPSP], 0.0)
-    shrink = 1.0
-    if q_tr > sy:
-        dl = plastic_increment(code, a, b, n, c, rate0, G, q_tr, s[STATE_EPSP], dt)
-        shrink = 1.0 - 3.0 * G * dl / q_tr
-        g = 2.0 * shrink  # b_e = exp(2ε_v/3) exp(2 shrink dev ε)
+    dl = work = 0.0
+    if int(prm[PCOL_MODEL]) == J2:
+        code, a, b, n, c, rate0 = (int(prm[PCOL_HARDENING]), prm[PCOL_A], prm[PCOL_B],
+                                   prm[PCOL_N], prm[PCOL_C], prm[PCOL_RATE0])
+        q_tr = 2.0 * G * math.sqrt(1.5) * ee
+        sy, _, _ = yield_stress(code, a, b, n, c, rate0, s[STATE_EPSP], 0.0)
+        p, scale, flowed = K * ev, 1.0, q_tr > sy
+        if flowed:
+            dl = plastic_increment(code, a, b, n, c, rate0, G, q_tr, s[STATE_EPSP], dt)
+            scale = 1.0 - 3.0 * G * dl / q_tr
+            work = (q_tr - 3.0 * G * dl) * dl
+    else:  # Drucker–Prager
+        p, scale, _, _, region = dp_return_invariants(
+            ev, ee2, K, G, prm[PCOL_ETA], prm[PCOL_XI], prm[PCOL_ETA_BAR], prm[PCOL_COHESION],
+            prm[PCOL_PT])
+        flowed = region != ELASTIC
+        if flowed:
+            dl = math.sqrt(2.0 / 3.0) * (1.0 - scale) * ee
+            work = p * (ev - p / K) + 2.0 * G * scale * (1.0 - scale) * ee2
+    mp = p / (3.0 * K)  # the updated mean log strain
+    if flowed:
+        g = 2.0 * scale  # b_e = exp(2 mp) exp(2 scale dev ε*)
         x00, x11, x22, x01, x02, x12 = exp_near_zero(g * e00, g * e11, g * e22, g * e01,
                                                      g * e02, g * e12)
-        v = math.exp(2.0 * m)
+        v = math.exp(2.0 * mp)
         F3, Finv, C, T, M = m3[0], m3[1], m3[2], m3[3], m3[4]
         C[0, 0], C[1, 1], C[2, 2] = v * x00, v * x11, v * x22
         C[0, 1] = C[1, 0] = v * x01
@@ -150,22 +172,22 @@ def j2_near_identity(d, Fi, s, prm, dt, sig, m3, l00, l11, l22, l01, l02, l12):
             r, cc = SYM[q]
             s[q] = M[r, cc]
         s[STATE_EPSP] += dl
-        s[STATE_WORK] += (q_tr - 3.0 * G * dl) * dl
+        s[STATE_WORK] += work
     else:
         J = det_d(d, Fi)
     iJ = 1.0 / J
-    p, h = K * ev * iJ, 2.0 * G * shrink * iJ
-    sig[0, 0] = p + h * e00
+    pj, h = p * iJ, 2.0 * G * scale * iJ
+    sig[0, 0] = pj + h * e00
     if d > 1:
-        sig[1, 1] = p + h * e11
+        sig[1, 1] = pj + h * e11
         sig[0, 1] = sig[1, 0] = h * e01
     if d > 2:
-        sig[2, 2] = p + h * e22
+        sig[2, 2] = pj + h * e22
         sig[0, 2] = sig[2, 0] = h * e02
         sig[1, 2] = sig[2, 1] = h * e12
     if not J > 0.0:
         return math.inf
-    bmax = math.exp(2.0 * (m + math.sqrt(2.0 / 3.0) * shrink * ee))
+    bmax = math.exp(2.0 * (mp + math.sqrt(2.0 / 3.0) * scale * ee))
     return math.sqrt(prm[PCOL_C2] * max(1.0, bmax))
 
 
@@ -243,8 +265,8 @@ def _plastic_loop(d, F, mat, table, state, stress, v, dt, m3, v3, lg):
     views ``F[i]``, ``state[i]``, ``stress[i]`` cost no atomic pair each), in blocks of
     :data:`BLOCK` rows: every row's ``b_e^tr − I`` and its logarithm first, into the columns of
     ``lg`` (7, BLOCK) — branch-free loops over rows, the logarithm's vectorised across them —
-    then each plastic row's return: a J2 row in the series' range finishes from its logarithm
-    (:func:`j2_near_identity`), any other plastic row takes :func:`plastic_update`. The
+    then each plastic row's return: a row in the series' range finishes from its logarithm
+    (:func:`near_identity_return`), any other plastic row takes :func:`plastic_update`. The
     logarithm of a row it does not serve (an elastic material, a strain past :data:`RHO_MAX`,
     NaN) is computed and not read."""
     vmax = 0.0
@@ -266,9 +288,9 @@ def _plastic_loop(d, F, mat, table, state, stress, v, dt, m3, v3, lg):
             prm = table[mat[i]]
             if prm[PCOL_MODEL] == 0.0:
                 continue
-            if prm[PCOL_MODEL] == J2 and lg[6, k] <= lim:  # NaN: the eigen path passes it on
-                c = j2_near_identity(d, F[i], state[i], prm, dt, stress[i], m3, lg[0, k],
-                                     lg[1, k], lg[2, k], lg[3, k], lg[4, k], lg[5, k])
+            if lg[6, k] <= lim and (prm[PCOL_MODEL] == J2 or prm[PCOL_MODEL] == DRUCKER_PRAGER):
+                c = near_identity_return(d, F[i], state[i], prm, dt, stress[i], m3, lg[0, k],
+                                         lg[1, k], lg[2, k], lg[3, k], lg[4, k], lg[5, k])
             else:
                 c = plastic_update(d, F[i], state[i], prm, dt, stress[i], m3, v3)
             sp = 0.0
