@@ -84,6 +84,21 @@ def _unpack(s, A):
 
 
 @helper_kernel
+def _record_return(F3, Finv, b, M, T, s, dl, work):
+    """After a return: ``C_p⁻¹ = F⁻¹ b_e F⁻ᵀ`` (``b_e`` in ``b``) into the state row ``s``, with
+    the step's ``Δε̄p`` and plastic work; returns ``det F``. Scratch ``Finv``, ``M``, ``T`` (``T``
+    may be ``F3``: it is read only by the inverse, which comes first)."""
+    J = _det_inverse(F3, Finv)
+    _congruence(Finv, b, M, T)
+    for q in range(6):
+        r, c = SYM[q]
+        s[q] = M[r, c]
+    s[STATE_EPSP] += dl
+    s[STATE_WORK] += work
+    return J
+
+
+@helper_kernel
 def trial_be(d, Fi, s):
     """``b_e^tr − I = F C_p⁻¹ Fᵀ − I`` (``F`` embedded in 3×3) as six scalars, and the square of
     its Frobenius norm: the same products, in the same order, as :func:`_congruence`."""
@@ -166,13 +181,7 @@ def near_identity_return(d, Fi, s, prm, dt, sig, m3, l00, l11, l22, l01, l02, l1
         C[0, 2] = C[2, 0] = v * x02
         C[1, 2] = C[2, 1] = v * x12
         _embed(d, Fi, F3)
-        J = _det_inverse(F3, Finv)
-        _congruence(Finv, C, M, T)  # C_p⁻¹ = F⁻¹ b_e F⁻ᵀ
-        for q in range(6):
-            r, cc = SYM[q]
-            s[q] = M[r, cc]
-        s[STATE_EPSP] += dl
-        s[STATE_WORK] += work
+        J = _record_return(F3, Finv, C, M, T, s, dl, work)
     else:
         J = det_d(d, Fi)
     iJ = 1.0 / J
@@ -233,13 +242,7 @@ def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
             w[A] = math.exp(2.0 * e[A])
         bmax = max(w[0], w[1], w[2])
         from_principal(w, V, C)
-        J = _det_inverse(F3, Finv)
-        _congruence(Finv, C, M, F3)  # F3 is not read again
-        for q in range(6):
-            r, c = SYM[q]
-            s[q] = M[r, c]
-        s[STATE_EPSP] += dl
-        s[STATE_WORK] += work
+        J = _record_return(F3, Finv, C, M, F3, s, dl, work)  # F3: scratch once inverted
     else:
         J = det_d(3, F3)
     iJ = 1.0 / J
