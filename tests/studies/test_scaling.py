@@ -164,7 +164,11 @@ def test_scaling_quick(tmp_path):
         assert r["oversubscribed"] == str(int(r["ranks"]) > (os.cpu_count() or 1))
         shares = {k: float(v) for k, v in r.items() if k.startswith("share_") and v != ""}
         assert {"share_p2g", "share_g2p"} <= set(shares)
-        assert all(0.0 <= v <= 1.0 for v in shares.values())
+        # a share is the slowest rank's phase time over the loop's wall time less the kernels
+        # compiled in it: a phase that meets a kernel mid-run, or a rank the OS stalls in its last
+        # phase of a --quick run's few steps, can take it past 1 (CI saw it once, on a loaded
+        # machine), so only what holds on any machine is checked here
+        assert all(math.isfinite(v) and v >= 0.0 for v in shares.values())
         # the face/edge/corner formula reproduces the halo code's bytes (0 on one rank)
         assert float(r["halo_bytes_model"]) == pytest.approx(float(r["halo_bytes_per_step"]), rel=1e-12)
     assert int(strong[1]["halo_bytes_per_step"]) > 0
