@@ -58,6 +58,20 @@ def plastic_increment(code, a, b, n, c, rate0, G, q_tr, epsp, dt):
 
 
 @helper_kernel
+def radial_return(q_tr, G, code, a, b, n, c, rate0, epsp, dt):
+    """J2's return on the trial equivalent stress ``q_tr`` alone (isotropy: it scales the trial
+    deviator and leaves the mean stress): ``(flowed, Δε̄p, shrink, work)``, the plastic strain
+    increment, the factor the trial deviator is scaled by and the step's plastic work
+    ``q_{n+1} Δε̄p`` per unit reference volume; ``(False, 0, 1, 0)`` inside the yield surface and
+    for a NaN trial state (which stays NaN in the stresses that use it)."""
+    sy, _, _ = yield_stress(code, a, b, n, c, rate0, epsp, 0.0)
+    if not q_tr > sy:
+        return False, 0.0, 1.0, 0.0
+    dl = plastic_increment(code, a, b, n, c, rate0, G, q_tr, epsp, dt)
+    return True, dl, 1.0 - 3.0 * G * dl / q_tr, (q_tr - 3.0 * G * dl) * dl
+
+
+@helper_kernel
 def j2_return(eps, K, G, code, a, b, n, c, rate0, epsp, dt, tau):
     """Radial return in principal space, in place: ``eps`` (3,) the trial principal log strains
     on entry, the updated elastic ones on exit; ``tau`` (3,) the principal Kirchhoff stresses.
@@ -69,16 +83,14 @@ def j2_return(eps, K, G, code, a, b, n, c, rate0, epsp, dt, tau):
     for A in range(3):
         ss += (tau[A] - p) * (tau[A] - p)
     q_tr = math.sqrt(1.5 * ss)
-    sy, _, _ = yield_stress(code, a, b, n, c, rate0, epsp, 0.0)
-    if not q_tr > sy:  # elastic (a NaN trial state stays NaN)
+    flowed, dl, shrink, work = radial_return(q_tr, G, code, a, b, n, c, rate0, epsp, dt)
+    if not flowed:
         return 0.0, 0.0
-    dl = plastic_increment(code, a, b, n, c, rate0, G, q_tr, epsp, dt)
-    shrink = 1.0 - 3.0 * G * dl / q_tr  # s = shrink · s^tr
     for A in range(3):
         s_tr = tau[A] - p
         eps[A] -= 1.5 * dl * s_tr / q_tr
         tau[A] = p + shrink * s_tr
-    return dl, (q_tr - 3.0 * G * dl) * dl
+    return dl, work
 
 
 @helper_kernel

@@ -22,8 +22,7 @@ from parmpm.materials import DRUCKER_PRAGER, J2
 from parmpm.materials.kinematics import det_d
 from parmpm.materials.plasticity.drucker_prager import (ELASTIC, dp_dissipation, dp_equivalent,
                                                         dp_return, dp_return_invariants)
-from parmpm.materials.plasticity.hardening import yield_stress
-from parmpm.materials.plasticity.j2 import be_energy, j2_return, plastic_increment
+from parmpm.materials.plasticity.j2 import be_energy, j2_return, radial_return
 from parmpm.materials.plasticity.closed_form_eigen import sym_eig3_closed
 from parmpm.materials.plasticity.near_identity import (RHO_MAX, exp_near_zero,
                                                        log_near_identity)
@@ -99,6 +98,15 @@ def _record_return(F3, Finv, b, M, T, s, dl, work):
 
 
 @helper_kernel
+def _wave_speed(prm, J, bmax):
+    """``√(c0² max(1, λ_max(b_e)))`` (``bmax``: ``λ_max(b_e)`` or a bound above it); ``inf``
+    once ``det F`` is not positive, which stops the step."""
+    if not J > 0.0:
+        return math.inf
+    return math.sqrt(prm[PCOL_C2] * max(1.0, bmax))
+
+
+@helper_kernel
 def trial_be(d, Fi, s):
     """``b_e^tr − I = F C_p⁻¹ Fᵀ − I`` (``F`` embedded in 3×3) as six scalars, and the square of
     its Frobenius norm: the same products, in the same order, as :func:`_congruence`."""
@@ -151,16 +159,11 @@ def near_identity_return(d, Fi, s, prm, dt, sig, m3, l00, l11, l22, l01, l02, l1
     ee = math.sqrt(ee2)
     K, G = prm[PCOL_K], prm[PCOL_G]
     dl = work = 0.0
-    if int(prm[PCOL_MODEL]) == J2:
-        code, a, b, n, c, rate0 = (int(prm[PCOL_HARDENING]), prm[PCOL_A], prm[PCOL_B],
-                                   prm[PCOL_N], prm[PCOL_C], prm[PCOL_RATE0])
-        q_tr = 2.0 * G * math.sqrt(1.5) * ee
-        sy, _, _ = yield_stress(code, a, b, n, c, rate0, s[STATE_EPSP], 0.0)
-        p, scale, flowed = K * ev, 1.0, q_tr > sy
-        if flowed:
-            dl = plastic_increment(code, a, b, n, c, rate0, G, q_tr, s[STATE_EPSP], dt)
-            scale = 1.0 - 3.0 * G * dl / q_tr
-            work = (q_tr - 3.0 * G * dl) * dl
+    if int(prm[PCOL_MODEL]) == J2:  # q* = √(3/2) |dev τ*|
+        flowed, dl, scale, work = radial_return(
+            2.0 * G * math.sqrt(1.5) * ee, G, int(prm[PCOL_HARDENING]), prm[PCOL_A], prm[PCOL_B],
+            prm[PCOL_N], prm[PCOL_C], prm[PCOL_RATE0], s[STATE_EPSP], dt)
+        p = K * ev
     else:  # Drucker–Prager
         p, scale, _, _, region = dp_return_invariants(
             ev, ee2, K, G, prm[PCOL_ETA], prm[PCOL_XI], prm[PCOL_ETA_BAR], prm[PCOL_COHESION],
@@ -194,10 +197,7 @@ def near_identity_return(d, Fi, s, prm, dt, sig, m3, l00, l11, l22, l01, l02, l1
         sig[2, 2] = pj + h * e22
         sig[0, 2] = sig[2, 0] = h * e02
         sig[1, 2] = sig[2, 1] = h * e12
-    if not J > 0.0:
-        return math.inf
-    bmax = math.exp(2.0 * (mp + math.sqrt(2.0 / 3.0) * scale * ee))
-    return math.sqrt(prm[PCOL_C2] * max(1.0, bmax))
+    return _wave_speed(prm, J, math.exp(2.0 * (mp + math.sqrt(2.0 / 3.0) * scale * ee)))
 
 
 @helper_kernel
@@ -249,9 +249,7 @@ def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
     for a in range(d):
         for b in range(d):
             sig[a, b] = tau[a, b] * iJ
-    if not J > 0.0:
-        return math.inf
-    return math.sqrt(prm[PCOL_C2] * max(1.0, bmax))
+    return _wave_speed(prm, J, bmax)
 
 
 @kernel
