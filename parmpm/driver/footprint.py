@@ -75,6 +75,12 @@ def _body_particles(body: Body, h: tuple[float, ...], dim: int) -> float:
     return inscribed * math.prod(2 * body.radius / hk * p + 1 for hk, p in zip(h, ppc))
 
 
+def particles_estimate(spec: SceneSpec) -> float:
+    """The scene's particles, counted from its bodies' keys without seeding them (listed bodies:
+    their files' rows)."""
+    return sum(_body_particles(b, spec.grid.cell_size, spec.dim) for b in spec.bodies)
+
+
 def contact_bytes(contact: Contact | None, dim: int, particles: float, patches: float,
                   nodes: int) -> float:
     """What ``[contact]`` adds (:class:`parmpm.step.contact.ContactPhase`): per velocity field
@@ -104,7 +110,7 @@ def estimate(spec: SceneSpec, ghost: int, ranks: int = 1) -> dict:
     d, grid = spec.dim, spec.grid
     h, origin, cells = grid.cell_size, grid.origin, grid.cells
     psize = grid.patch_size
-    particles = sum(_body_particles(b, h, d) for b in spec.bodies)
+    particles = particles_estimate(spec)
     patches = 0.0
     for body in spec.bodies:
         lo, hi = body.bounds()

@@ -8,7 +8,7 @@ they are due; then it writes ``summary.json`` and a figure and returns the summa
 also gets the resolved scene (``scene.toml``, a scene file that runs the same again) before the
 first step, and ``summary.json`` is written too when a signal stops the run (``"stopped":
 "interrupted"``, with the checkpoint to continue from). Under MPI, rank 0 compiles the kernels
-first and the other ranks load them when the caller passes ``warm_up=compile_first``
+(two ranks at once) and the others load them when the caller passes ``warm_up=compile_first``
 (:func:`parmpm.driver.warm_up.compile_first`: the run itself knows nothing of compiling). Every rank
 runs the same loop with the same global Δt; every figure in the summary is reduced over all
 ranks (:mod:`parmpm.driver.measures`) and only rank 0 writes files.
@@ -50,7 +50,7 @@ class Simulation:
         self.out_dir = Path(out_dir) if out_dir else Path("parmpm-out") / scene.name
         self.overwrite, self.quiet = overwrite, quiet
         if warm_up is not None and comm is not None:  # e.g. rank 0 compiles, the others load
-            warm_up(scene.spec, comm)
+            warm_up(scene, comm)
         self.state: RankState = set_up(scene, comm if comm is not None else SerialComm(),
                                        checkpoint)
         self.observers: list = []

@@ -16,11 +16,17 @@ under a second. Three things here deal with that first run:
   one rank alone does not: the separation count's shared pairs, a patch-set change, and a step
   with no patch and no particle (the idle ranks of a run on more ranks than occupied patches).
   A batch job runs it once before ``srun``; a run on any number of ranks then compiles nothing.
-* :func:`compile_first`: under MPI, rank 0 runs the tiny run of the scene's dimension, method,
-  update and transfer first while the other ranks wait, so that P ranks do not compile the same kernels P
-  times at once (on an oversubscribed node that multiplies the start-up; with a warm cache it
-  costs rank 0 a few tenths of a second). The other ranks wait in a polled, non-blocking barrier:
-  MPICH's blocking one spins and would take the cores rank 0 compiles on.
+* :func:`compile_first`: under MPI, the scene's own kernels are compiled before the run, split
+  between two ranks while the others wait, so that P ranks do not compile the same kernels P
+  times at once (on an oversubscribed node that multiplies the start-up). Rank 0 runs the scene
+  itself for two steps on its own (its outputs first, then its steps) while rank 1 takes the two
+  steps alone (its step's kernels first): two cores compile at once, and only what this scene
+  uses (a tiny run of everything a step can switch on compiled, for the default scene, 24
+  kernels in 59 s where the scene needs 17 in 36 s). A scene past
+  :data:`SCENE_WARM_UP_PARTICLES` would cost rank 0 its whole set-up: it gets the tiny run of
+  its dimension, method, update and transfer instead. The other ranks wait in a polled,
+  non-blocking barrier: MPICH's blocking one spins and would take the cores the two compile on.
+  With a warm cache this costs the two ranks a set-up of the small scene and two steps.
 
 Not covered by the tiny runs (compiled by the run that needs them): the manufactured solution's
 body force.
@@ -33,6 +39,7 @@ import shutil
 import tempfile
 import time
 
+from parmpm.driver.footprint import particles_estimate
 from parmpm.materials import PLASTIC_MODELS
 from parmpm.transfer.affine import AFFINE_TRANSFERS, APIC_INTERPOLATORS, TRANSFERS
 from parmpm.core.log import get_logger
@@ -232,17 +239,30 @@ def tiny_scene_toml(dim: int, method: str, update: str, transfer: str = "flip",
 
 
 @contextlib.contextmanager
-def _only_compile_messages():
-    """The tiny run's own info lines (folders, patch sizes) are noise here; the notice is not."""
+def _only_compile_messages(level: int = logging.WARNING):
+    """The tiny run's own info lines (folders, patch sizes) are noise here (below ``level``);
+    the notice is not."""
     root, own = logging.getLogger("parmpm"), logging.getLogger(log.name)
     saved = root.level, own.level
     own.setLevel(root.getEffectiveLevel())
-    root.setLevel(max(root.level, logging.WARNING))
+    root.setLevel(max(root.level, level))
     try:
         yield
     finally:
         root.setLevel(saved[0])
         own.setLevel(saved[1])
+
+
+def _claims_two_ranks():
+    """One rank that says there are two: the separation count then takes its multi-rank path
+    (pairs shared with other ranks, merged on rank 0) and compiles its kernels too."""
+    from decomposition import SerialComm
+
+    class ClaimsTwoRanks(SerialComm):
+        def Get_size(self) -> int:
+            return 2
+
+    return ClaimsTwoRanks()
 
 
 def warm_up(dim: int, method: str, update: str, transfer: str = "flip",
@@ -255,13 +275,6 @@ def warm_up(dim: int, method: str, update: str, transfer: str = "flip",
     from parmpm.scene.load import scene_from_toml
     from parmpm.driver.simulation import Simulation
 
-    class ClaimsTwoRanks(SerialComm):
-        """One rank that says there are two: the separation count then takes its multi-rank
-        path (pairs shared with other ranks, merged on rank 0) and compiles its kernels too."""
-
-        def Get_size(self) -> int:
-            return 2
-
     scene = scene_from_toml(tiny_scene_toml(dim, method, update, transfer, plastic),
                             f"compile-{dim}d-{method}")
     tmp = tempfile.mkdtemp(prefix="parmpm-compile-")
@@ -272,7 +285,7 @@ def warm_up(dim: int, method: str, update: str, transfer: str = "flip",
             sim.state.stepper.compile_lazy_order()
             sim.run()
             sim.domain_corners()  # the figure's (2D; the tiny run draws none)
-            sim.state.comm = ClaimsTwoRanks()
+            sim.state.comm = _claims_two_ranks()
             components(sim.state)
             sim.state.comm = SerialComm()
             _patch_set_change(sim)
@@ -280,6 +293,15 @@ def warm_up(dim: int, method: str, update: str, transfer: str = "flip",
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return time.perf_counter() - t0
+
+
+def _regroup(sim) -> None:
+    """What a run does when particles change patch (their order merged, :mod:`parmpm.particles.
+    order`) and when its patch set changes (:func:`_patch_set_change`): two steps of a small scene
+    seldom do either. Last: it leaves the particles in a lazy order."""
+    P, ps = sim.particles, sim.state.patches
+    P.group_by_patch(P.rows.patch.copy(), ps.slot_of, ps.n_local, moved=1)
+    _patch_set_change(sim)
 
 
 def _patch_set_change(sim) -> None:
@@ -355,26 +377,79 @@ def wait_for_all(comm, poll: float = 0.01) -> None:
         time.sleep(poll)
 
 
-def compile_first(spec, comm) -> None:
-    """Collective: rank 0 runs the tiny run of the scene's dimension, interpolator, update and
-    transfer (compiling what is not cached) while the other ranks wait; then they all load from the
-    cache. Once per process and case; a failed warm-up is only a debug message (the run then
-    compiles as before). ``spec``: the scene's records (``scene.spec``)."""
-    m = spec.method
-    key = (spec.dim, m.interpolator, m.update, m.transfer)
-    plastic = any(mat.model in PLASTIC_MODELS for mat in spec.materials.values())
-    cases = [c for c in ((key, False), (PLASTIC_CASE + ("flip",), True)) if c[1] <= plastic]
-    cases = [c for c in cases if c not in _WARMED]
-    if comm is None or comm.Get_size() == 1 or not cases:
+def compile_first(scene, comm) -> None:
+    """Collective: compile (or load) the scene's kernels before its run, on rank 0 and rank 1 at
+    once while the other ranks wait (the module doc says how); then every rank loads them from the
+    cache. Once per process and scene (or case); a failed warm-up is only a debug message (the
+    run then compiles as before)."""
+    spec = scene.spec
+    if comm is None or comm.Get_size() == 1:
+        return
+    if particles_estimate(spec) <= SCENE_WARM_UP_PARTICLES:
+        key = ("scene", scene.to_toml())
+        cases = [] if key in _WARMED else [key]
+    else:
+        m = spec.method
+        plastic = any(mat.model in PLASTIC_MODELS for mat in spec.materials.values())
+        cases = [c for c in (((spec.dim, m.interpolator, m.update, m.transfer), False),
+                             (PLASTIC_CASE + ("flip",), True)) if c[1] <= plastic]
+        cases = [c for c in cases if c not in _WARMED]
+    if not cases:
         return
     _WARMED.update(cases)
+    rank = comm.Get_rank()
     try:
-        if comm.Get_rank() == 0:
+        if rank <= 1:
             try:
-                seconds = sum(warm_up(*case, plastic=p) for case, p in cases)
-                log.debug("rank 0 warmed up the kernels in %.1f s", seconds)
+                t0 = time.perf_counter()
+                for case, plastic in cases:
+                    if case == "scene":
+                        scene_warm_up(scene, outputs=rank == 0)
+                    elif rank == 0:
+                        warm_up(*case, plastic=plastic)
+                log.debug("rank %d warmed up the kernels in %.1f s", rank,
+                          time.perf_counter() - t0)
             except Exception as exc:  # the run itself will meet (and report) any real problem
-                log.debug("kernel warm-up failed (%s: %s); every rank compiles", type(exc).__name__,
-                          exc)
+                log.debug("kernel warm-up failed (%s: %s); every rank compiles",
+                          type(exc).__name__, exc)
     finally:
         wait_for_all(comm)
+
+
+#: the most particles (:func:`parmpm.driver.footprint.particles_estimate`) a scene may have for
+#: rank 0 to warm up with the scene itself (:func:`compile_first`); the default scene has 900
+SCENE_WARM_UP_PARTICLES = 20_000
+
+
+def scene_warm_up(scene, outputs: bool = True) -> float:
+    """The scene itself, two steps on this process alone (output in a temporary folder,
+    removed): with ``outputs`` a run (the initial outputs, then the steps, then the final
+    ones, as the scene asks for them), else only the two steps. Returns its wall time; warnings
+    of the scene (the run repeats them) and its info lines are not shown."""
+    from decomposition import SerialComm
+    from parmpm.driver.measures import components
+    from parmpm.driver.simulation import Simulation
+    from parmpm.output.metrics import separation_kinds
+    from parmpm.scene.load import scene_from_toml
+
+    small = scene_from_toml(scene.to_toml(), scene.source,
+                            overrides=("time.steps=2", "output.figure=false"))
+    tmp = tempfile.mkdtemp(prefix="parmpm-compile-")
+    t0 = time.perf_counter()
+    try:
+        with _only_compile_messages(level=logging.CRITICAL):
+            sim = Simulation(small, tmp, quiet=True, comm=SerialComm())
+            if outputs:
+                sim.run()
+                if small.spec.metrics.kind in separation_kinds():  # its multi-rank path too
+                    sim.state.comm = _claims_two_ranks()
+                    components(sim.state)
+            else:
+                clock, stepper = sim.state.clock, sim.state.stepper
+                while not clock.done():
+                    dt = clock.next_dt()
+                    clock.tick(dt, stepper.step(dt, sim.gravity(clock.t), clock.t))
+                _regroup(sim)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return time.perf_counter() - t0
