@@ -11,7 +11,7 @@ arithmetic (owned box, ghost base, cell or point → patch), written once;
 :mod:`~decomposition.patchset` keeps the live picture consistent on every rank.
 """
 from decomposition.comm import (SerialComm, allreduce_max, is_parallel, max_and_patch_sum,
-                                ordered_sum, ranks_on_this_node, world)
+                                ordered_sum, ranks_on_this_node, scatter_from_root, world)
 from decomposition.halo import HaloPlan, accumulate, accumulate_max, fill, halo_pairs
 from decomposition.layout import PatchLayout
 from decomposition.migrate import exchange, migrate
@@ -21,4 +21,5 @@ from decomposition.patchset import PatchSet
 __all__ = ["PatchLayout", "PatchSet", "HaloPlan", "accumulate", "accumulate_max", "fill", "halo_pairs",
            "migrate", "exchange",
            "active_patches", "assign", "imbalance", "morton_order", "SerialComm", "world",
-           "is_parallel", "allreduce_max", "max_and_patch_sum", "ordered_sum", "ranks_on_this_node"]
+           "is_parallel", "allreduce_max", "max_and_patch_sum", "ordered_sum", "ranks_on_this_node",
+           "scatter_from_root"]

@@ -133,3 +133,9 @@ def max_and_patch_sum(comm, maxima: np.ndarray, partials: np.ndarray, owner: np.
         return top, np.zeros(k)
     # cumsum adds strictly in sequence, as ordered_sum does
     return top, np.cumsum(rows, axis=0)[-1]
+
+
+def scatter_from_root(comm, parts: list | None, root: int = 0):
+    """This rank's item of ``parts`` (on ``root``: one item per rank, e.g. a tuple of numpy
+    arrays; elsewhere None), in one scatter: each rank receives only its own."""
+    return comm.scatter(parts, root=root)
