@@ -6,16 +6,16 @@ and scanning all N rows), rank 0 alone does (the scene's check already did: the 
 its resolved scene, :func:`parmpm.scene.agreement.load_shared_scene`). At set-up rank 0 counts
 every body's particles per patch and broadcasts the counts (:func:`counted_by_root`); once the
 patches are dealt out it finds each listed particle's rank and sends each rank the rows of its own
-particles, one scatter per body (:func:`share_listed`). Every rank then builds its particles
-from its :class:`parmpm.particles.seeding.listed.Share` as before: the same global ids, the same
-bits, on any number of ranks. Rank 0's peak stays O(N) (the file, its patch ids, the rows it
-sends); every other rank's is O(N/P).
+particles, one rank after another (:func:`share_listed`, :func:`decomposition.deal_from_root`).
+Every rank then builds its particles from its :class:`parmpm.particles.seeding.listed.Share` as
+before: the same global ids, the same bits, on any number of ranks. Rank 0's peak stays O(N) (the file, its patch ids, the rows it
+sends one rank at a time); every other rank's is O(N/P).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from decomposition import is_parallel, scatter_from_root
+from decomposition import deal_from_root, is_parallel
 from parmpm.core.errors import ParmpmError
 from parmpm.particles.seeding import Seeds, seed_bodies
 from parmpm.particles.seeding.listed import Listed, Share
@@ -62,21 +62,26 @@ def counted_by_root(comm, seeds: Seeds, disc) -> np.ndarray:
 def share_listed(comm, seeds: Seeds, disc, rank_of: np.ndarray) -> None:
     """Replace every listed body's seeds by this rank's :class:`Share`: rank 0 finds each
     particle's patch, hence its rank (``rank_of``: per flat patch id), and sends every rank the
-    rows of its own particles (collective; one scatter per listed body)."""
+    rows of its own particles, one rank after another, so that rank 0 holds one rank's rows
+    at a time besides the file (collective)."""
     rank, size = comm.Get_rank(), comm.Get_size()
     for k, (src, *rest) in enumerate(seeds.chunks):
         if not isinstance(src, Listed):
             continue
-        parts = None
+        order = edges = None
         if rank == 0:
             owner = rank_of[seeds.patches_of(k, disc)]
             order = np.argsort(owner, kind="stable")  # by rank, ids increasing within each
             edges = np.searchsorted(owner[order], np.arange(size + 1))
-            parts = [_rows(src, order[edges[r]:edges[r + 1]]) for r in range(size)]
-            del owner, order
-        mine = scatter_from_root(comm, parts, root=0)
-        del parts
+            del owner
+        mine = deal_from_root(comm, _rank_rows(src, order, edges), root=0)
         seeds.chunks[k] = (Share(len(src), *mine), *rest)
+
+
+def _rank_rows(src: Listed, order, edges):
+    """Rank ``r``'s rows, made when asked for (rank 0; ``order``: the seeds by rank, ``edges``:
+    where each rank's begin)."""
+    return lambda r: _rows(src, order[edges[r]:edges[r + 1]])
 
 
 def _rows(src: Listed, ids: np.ndarray) -> tuple:

@@ -137,7 +137,7 @@ def _from_rank_0(comm, scene, mine, read, overrides, problem) -> Scene:
     shared = comm.bcast(shared, root=0)
     if rank != 0 and problem is None:
         try:
-            if shared is not None and mine == shared[0]:
+            if shared is not None and mine is not None and mine == shared[0]:
                 adopt(shared[3])
                 scene = Scene(shared[1], shared[2])
             elif shared is not None:  # rank 0's problem, if any, is raised below
