@@ -10,8 +10,8 @@ arithmetic (owned box, ghost base, cell or point → patch), written once;
 (locally and over MPI); :mod:`~decomposition.migrate` moves records between ranks;
 :mod:`~decomposition.patchset` keeps the live picture consistent on every rank.
 """
-from decomposition.comm import (SerialComm, allreduce_max, is_parallel, max_and_patch_sum,
-                                ordered_sum, ranks_on_this_node, world)
+from decomposition.comm import (SerialComm, allreduce_max, deal_from_root, is_parallel,
+                                max_and_patch_sum, ordered_sum, ranks_on_this_node, world)
 from decomposition.halo import HaloPlan, accumulate, accumulate_max, fill, halo_pairs
 from decomposition.layout import PatchLayout
 from decomposition.migrate import exchange, migrate
@@ -21,4 +21,5 @@ from decomposition.patchset import PatchSet
 __all__ = ["PatchLayout", "PatchSet", "HaloPlan", "accumulate", "accumulate_max", "fill", "halo_pairs",
            "migrate", "exchange",
            "active_patches", "assign", "imbalance", "morton_order", "SerialComm", "world",
-           "is_parallel", "allreduce_max", "max_and_patch_sum", "ordered_sum", "ranks_on_this_node"]
+           "is_parallel", "allreduce_max", "max_and_patch_sum", "ordered_sum", "ranks_on_this_node",
+           "deal_from_root"]

@@ -133,3 +133,20 @@ def max_and_patch_sum(comm, maxima: np.ndarray, partials: np.ndarray, owner: np.
         return top, np.zeros(k)
     # cumsum adds strictly in sequence, as ordered_sum does
     return top, np.cumsum(rows, axis=0)[-1]
+
+
+#: the tag of :func:`deal_from_root`'s messages
+TAG_DEAL = 107
+
+
+def deal_from_root(comm, part_for, root: int = 0):
+    """This rank's part, dealt out by ``root``: it makes each other rank's with ``part_for(rank)``
+    (e.g. a tuple of numpy arrays) and sends it before making the next, so that it never holds
+    more than one other rank's part at a time (a scatter holds them all); the other ranks
+    receive theirs. Collective."""
+    if comm.Get_rank() != root:
+        return comm.recv(source=root, tag=TAG_DEAL)
+    for r in range(comm.Get_size()):
+        if r != root:
+            comm.send(part_for(r), dest=r, tag=TAG_DEAL)
+    return part_for(root)

@@ -31,6 +31,7 @@ from parmpm.output.history import body_ranges
 from parmpm.core.errors import ParmpmError, SceneError, SimulationError
 from parmpm.exact.bars import manufactured_motion
 from parmpm.driver.footprint import check_memory
+from parmpm.driver.listed_share import counted_by_root, seeded_by_root, share_listed, shared_listing
 from parmpm.grid.update import BC_CODES
 from parmpm.grid.symmetry import check_blocks
 from parmpm.driver.checkpoint_writer import load_patches, load_rows
@@ -297,16 +298,22 @@ def _patch_set(spec: SceneSpec, comm, layout, counts) -> PatchSet:
 def _seeded(spec: SceneSpec, comm, D, params, rows, plastic=False):
     """Seeded: every rank counts the particles per patch block by block (global ids = seeding
     order), deals the patches out, then builds only its own (:mod:`parmpm.particles.seeding`) and the
-    metrics from them (collective): a rank holds one block of seeds and its own particles."""
+    metrics from them (collective): a rank holds one block of seeds and its own particles. With
+    a mesh or particle-file body on several ranks, rank 0 alone reads the file, counts and sends
+    every rank its own rows (:mod:`parmpm.driver.listed_share`)."""
     layout, d = D.layout, spec.dim
-    seeds = seed_bodies(spec.grid, spec.bodies, rows)
+    shared = shared_listing(comm, spec.bodies)  # mesh, particle files: read by rank 0 only
+    seeds = (seeded_by_root(comm, spec.grid, spec.bodies, rows) if shared
+             else seed_bodies(spec.grid, spec.bodies, rows))
     man = spec.manufactured
     if man:  # the particles start on the exact field: their patches are where they start
         amplitude, c = man.amplitude, manufactured.frequency(params)
         seeds.motion = lambda X: X + manufactured_motion(X, 0.0, amplitude, c)[0]
-    counts = seeds.patch_counts(D)
+    counts = counted_by_root(comm, seeds, D) if shared else seeds.patch_counts(D)
     patches = _patch_set(spec, comm, layout, counts)
     _warn_idle_ranks(comm, D, counts, seeds)
+    if shared:  # each rank receives its own particles' rows
+        share_listed(comm, seeds, D, patches.rank_of)
     P = seeds.particles(params, seeds.members(D, patches.rank_of == comm.Get_rank()),
                         carried_fields(spec.method, plastic))
     check_overlaps(comm, spec, seeds, P.gid, P.x0)  # bodies seeded twice: one warning each

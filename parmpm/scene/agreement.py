@@ -12,18 +12,28 @@ resolves the text with its own ``--set``, and :func:`check_same_scene` compares 
 every rank's resolved scene (and, for a restart, of the checkpoint it continues): ranks that
 would run different scenes all fail with one line naming a rank, the first key that differs and
 both values. The cost is one broadcast of a page of TOML and one allgather of 64 characters.
+
+Rank 0 resolves first; a rank whose input is rank 0's (the usual case) takes rank 0's resolved
+scene, and with it what rank 0 read of the bodies' mesh and particle files (bounds, counts), so
+that only rank 0 reads them (issue 43: set-up O(N/P)); the files' own checks and warnings are
+rank 0's, as every rank's were the same.
 """
 from __future__ import annotations
 
 import hashlib
 import json
+import os
+import tomllib
 from collections.abc import Iterable
 from pathlib import Path
 
 from parmpm.core.collective import agree
 from parmpm.core.errors import ParmpmError, SceneError
 from parmpm.scene import load as scenes  # scenes.load_scene looked up at call time (tests replace it)
-from parmpm.scene.load import Scene, read_scene_text, scene_from_toml, scene_identity
+from parmpm.scene.body_files import count
+from parmpm.scene.load import (BOM, Scene, apply_overrides, read_scene_text, scene_from_toml,
+                               scene_identity)
+from parmpm.scene.recorded_files import adopt, file_records
 from parmpm.scene.check import show
 
 HOW = ("give every rank the same scene and --set (an MPMD launch, or a scene file changed while "
@@ -80,9 +90,12 @@ def check_same_scene(comm, scene: Scene, extra: str = "", what: str | None = Non
 def load_shared_scene(comm, source: str | Path, overrides: Iterable[str] = ()) -> Scene:
     """:func:`parmpm.scene.load.load_scene` for every rank of ``comm`` (collective; None or one
     rank: the plain load): the file is read by rank 0 only and shared with the ranks that name
-    the same file; a rank that names another reads its own; every rank resolves with its own
-    ``overrides``; then :func:`check_same_scene`. Any rank's problem is raised on every rank
-    (the lowest rank's message)."""
+    the same file; rank 0 resolves it first, reading its bodies' files, and a rank whose input
+    (text, ``overrides``, working folder: :func:`input_digest`) is rank 0's takes rank 0's
+    resolved scene and its mesh and particle files' bounds and counts
+    (:func:`parmpm.scene.recorded_files.adopt`) without reading those files; a rank with
+    another input resolves its own; then :func:`check_same_scene`. Any rank's problem is
+    raised on every rank (the lowest rank's message)."""
     if comm is None or comm.Get_size() == 1:
         return scenes.load_scene(source, overrides)
     rank = comm.Get_rank()
@@ -94,7 +107,7 @@ def load_shared_scene(comm, source: str | Path, overrides: Iterable[str] = ()) -
         except ParmpmError as exc:
             problem = str(exc)
     ident0, read0, problem0 = comm.bcast((ident, read, problem) if rank == 0 else None, root=0)
-    scene = None
+    scene, mine = None, None
     try:
         if ident == ident0:
             if problem0:
@@ -102,11 +115,49 @@ def load_shared_scene(comm, source: str | Path, overrides: Iterable[str] = ()) -
             read = read0
         elif read is None:
             read = read_scene_text(source)
-        body, label, default_name = read
-        scene = scene_from_toml(body, label, overrides, default_name=default_name)
+        mine = input_digest(read, overrides)
+        if rank == 0:
+            scene = scene_from_toml(read[0], read[1], overrides, default_name=read[2])
         problem = None
     except ParmpmError as exc:
         problem = str(exc)
-    agree(comm, problem, root=None, error=SceneError)
+    scene = _from_rank_0(comm, scene, mine, read, overrides, problem)
     check_same_scene(comm, scene, what=f"'{scene.source}'")
     return scene
+
+
+def _from_rank_0(comm, scene, mine, read, overrides, problem) -> Scene:
+    """Rank 0's resolved scene, its files' records and its digest, broadcast; another rank with
+    the same input digest takes them, one with another input resolves its own (collective)."""
+    rank = comm.Get_rank()
+    shared = None
+    if rank == 0 and scene is not None:
+        shared = (mine, scene.data, scene.source,
+                  file_records(scene.spec.bodies, lambda b: count(b, scene.spec.dim)))
+    shared = comm.bcast(shared, root=0)
+    if rank != 0 and problem is None:
+        try:
+            if shared is not None and mine is not None and mine == shared[0]:
+                adopt(shared[3])
+                scene = Scene(shared[1], shared[2])
+            elif shared is not None:  # rank 0's problem, if any, is raised below
+                scene = scene_from_toml(read[0], read[1], overrides, default_name=read[2])
+        except ParmpmError as exc:
+            problem = str(exc)
+    agree(comm, problem, root=None, error=SceneError)
+    return scene
+
+
+def input_digest(read: tuple[str, str, str], overrides: Iterable[str]) -> str | None:
+    """SHA-256 of what a rank resolves: the scene's text, label and default name, its
+    ``overrides`` applied (None when they do not apply: the rank resolves its own, to say why),
+    the working folder and home (relative and ``~`` paths of body files)."""
+    text, label, default_name = read
+    try:
+        raw = tomllib.loads(text.removeprefix(BOM))
+        origins = apply_overrides(raw, overrides, f"scene '{label}'")
+    except (ParmpmError, ValueError, RecursionError):
+        return None
+    extra = "\0".join([label, default_name, os.getcwd(), os.path.expanduser("~"),
+                       json.dumps(origins, sort_keys=True)])
+    return scene_digest(raw, extra)

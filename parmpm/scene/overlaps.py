@@ -79,7 +79,7 @@ def seeded_twice(comm, spec, seeds, gid: np.ndarray, x0: np.ndarray) -> list[dic
         order = np.argsort(gid, kind="stable")
         gid, x0 = gid[order], x0[order]
     counts = local_counts(bodies, dim, pairs, first, gid, x0)
-    sums = _listed_sums(spec, pairs, first, gid, x0)
+    sums = _listed_sums(spec, seeds, pairs, first, gid, x0)
     if is_parallel(comm):
         counts = np.sum(comm.allgather(counts), axis=0)
         sums = np.sum(comm.allgather(sums), axis=0)
@@ -96,21 +96,24 @@ def seeded_twice(comm, spec, seeds, gid: np.ndarray, x0: np.ndarray) -> list[dic
     return out
 
 
-def _listed_sums(spec, pairs, first: np.ndarray, gid: np.ndarray, x0: np.ndarray) -> np.ndarray:
+def _listed_sums(spec, seeds, pairs, first: np.ndarray, gid: np.ndarray,
+                 x0: np.ndarray) -> np.ndarray:
     """Per pair whose body ``j`` is listed, the volume and mass of its particles inside body
-    ``i`` (these particles' share)."""
+    ``i`` (these particles' share), from the seeds this rank holds of body ``j`` (on several
+    ranks only its own rows: :class:`parmpm.particles.seeding.listed.Share`)."""
     dim, bodies = spec.dim, spec.bodies
+    names_of = {row: name for name, row in seeds.material_rows.items()}
     out = np.zeros((len(pairs), 2))
     for k, (i, j) in enumerate(pairs):
         if bodies[j].shape not in LISTED:
             continue
         a, b = np.searchsorted(gid, [first[j], first[j + 1]])
         ids = gid[a:b] - first[j]
-        data = bodies[j].listed(dim)
+        src = seeds.chunks[j][0]
         inside = np.asarray(bodies[i].inside(dim, x0[a:b]), bool)
-        vol = data.vol[ids][inside]
-        names = (data.material[ids][inside] if data.material is not None
-                 else np.full(len(vol), bodies[j].material))
+        vol = src.vol[src.local(ids)][inside]
+        names = (np.full(len(vol), bodies[j].material) if src.rows is None
+                 else [names_of[int(r)] for r in src.material_rows(ids, -1)[inside]])
         rho = np.array([spec.materials[str(m)].density for m in names], float)
         out[k] = vol.sum(), (rho * vol).sum()
     return out

@@ -13,6 +13,12 @@ contents again refuses, in one line (:mod:`parmpm.scene.body_files`).
 Without records (a new run, a checkpoint written before they existed) nothing is detached: a
 file whose digest differs from the scene's ``file_sha256`` is read as it is now, with one
 warning saying that it changed since the scene was recorded.
+
+The same record serves a parallel run's other ranks (:func:`file_records`, :func:`adopt`): rank
+0 reads a mesh or particle file once, checking the scene, and hands every other rank the bounds
+and count it found (:func:`parmpm.scene.agreement.load_shared_scene`), which those ranks answer
+from (:func:`shared`) instead of reading the file; the particles themselves come from rank 0 at
+set-up (:mod:`parmpm.driver.listed_share`).
 """
 from __future__ import annotations
 
@@ -35,6 +41,10 @@ class Recorded(NamedTuple):
 
 #: (file, sha256, shape, groups, split, step) -> Recorded, from the checkpoint a restart reads
 _RECORDS: dict[tuple, Recorded] = {}
+#: the same key -> Recorded, as rank 0 read the file (a parallel run's other ranks)
+_SHARED: dict[tuple, Recorded] = {}
+#: bodies whose points are listed from their file (a surface's inside needs the whole file)
+LISTED_SHAPES = ("mesh", "particles")
 
 
 def stamp(path: str) -> tuple:
@@ -133,3 +143,28 @@ def remember(records) -> list[tuple[int, int]] | None:
             first, last = rec["ids"]
             _RECORDS[key] = Recorded(tuple(rec["lo"]), tuple(rec["hi"]), int(last - first))
     return [(int(r["ids"][0]), int(r["ids"][1])) for r in records]
+
+
+def file_records(bodies, count) -> list[dict]:
+    """What rank 0 read of every mesh or particle file that has a digest: the key
+    (:func:`key_of`) with the bounds and ``count(body)`` (``bodies``: the scene's records)."""
+    out = []
+    for body in bodies:
+        if body.shape in LISTED_SHAPES and getattr(body, "file_sha256", None) is not None:
+            lo, hi = body.bounds()
+            out.append({"key": key_of(body), "lo": [float(v) for v in lo],
+                        "hi": [float(v) for v in hi], "count": int(count(body))})
+    return out
+
+
+def adopt(records) -> None:
+    """Register rank 0's :func:`file_records` on another rank (:func:`shared` answers from them)."""
+    for rec in records:
+        _SHARED[tuple(rec["key"])] = Recorded(tuple(rec["lo"]), tuple(rec["hi"]), rec["count"])
+
+
+def shared(body) -> Recorded | None:
+    """Rank 0's record of a mesh or particle body's file, if this rank adopted one."""
+    if body.shape not in LISTED_SHAPES:
+        return None
+    return _SHARED.get(key_of(body))

@@ -13,7 +13,7 @@ from pathlib import Path
 from mpi_launch import needs_mpi, mpirun
 
 from parmpm.scene.load import load_scene
-from parmpm.scene.agreement import first_difference, scene_digest
+from parmpm.scene.agreement import first_difference, input_digest, scene_digest
 
 REPO = Path(__file__).resolve().parents[2]
 TIMEOUT_S = 300
@@ -53,6 +53,25 @@ def test_digest_and_first_difference():
     assert first_difference(a, a) is None
     assert first_difference({"x": [1, 2]}, {"x": [1, 2, 3]}) == ("x", [1, 2], [1, 2, 3])
     assert first_difference({"x": 1}, {"x": 1.0}) == ("x", 1, 1.0)  # what JSON tells apart
+
+
+def test_input_digest_tells_apart_what_a_rank_would_resolve_differently(tmp_path, monkeypatch):
+    """A rank takes rank 0's resolved scene (and its body files' records, never reading them)
+    only when its input digest is rank 0's: the same text, label, --set and working folder
+    (issue 43); a --set, a value's spelling of another type or another folder (relative body
+    files) makes it resolve its own; an input that does not parse has none."""
+    read = (BAR, "bar.toml", "bar")
+    monkeypatch.chdir(tmp_path)
+    one = input_digest(read, ["time.steps=2"])
+    assert one is not None and one == input_digest(read, ["time.steps=2"])
+    assert one != input_digest(read, ["time.steps=3"])
+    assert one != input_digest(read, ["time.steps=2.0"])
+    assert one != input_digest((BAR, "other.toml", "bar"), ["time.steps=2"])
+    (tmp_path / "elsewhere").mkdir()
+    monkeypatch.chdir(tmp_path / "elsewhere")
+    assert one != input_digest(read, ["time.steps=2"])
+    assert input_digest(("grid = [", "bad.toml", "bad"), []) is None
+    assert input_digest(read, ["no_equals_sign"]) is None
 
 
 # --- under mpirun -------------------------------------------------------------------------------

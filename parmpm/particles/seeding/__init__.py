@@ -37,7 +37,7 @@ from parmpm.core.errors import SceneError, SimulationError
 from parmpm.geometry.primitives import turn as rotation
 from parmpm.particles.locate import locate_patches
 from parmpm.particles.seeding.conforming import CONFORMING, conforming_seeds
-from parmpm.particles.seeding.listed import Listed, fill, listed_seeds
+from parmpm.particles.seeding.listed import Listed, Share, fill, listed_seeds
 from parmpm.particles.seeding.velocity import _initial_affine, _initial_velocity
 from parmpm.particles.store import Particles
 from parmpm.shapes.cpdi2 import affine_corners
@@ -193,8 +193,9 @@ class Seeds:
     the particles start at (the manufactured solution starts displaced): patches are found
     from those."""
 
-    def __init__(self, dim: int, chunks: list):
+    def __init__(self, dim: int, chunks: list, material_rows: dict | None = None):
         self.dim = dim
+        self.material_rows = dict(material_rows or {})  # name -> row of the material table
         # (points: _Lattice | _Turned | _Masked | Rings | Shells | Tube | Listed, body, spacing
         #  (None: listed; a mean cell's for the CONFORMING ones),
         #  material row (-1: per particle, the file's), turn or None)
@@ -251,11 +252,15 @@ class Seeds:
 
     def patch_counts(self, disc) -> np.ndarray:
         """Particles in every patch of the layout (flat ids): unturned boxes from per-axis
-        counts, other bodies block by block. A particle outside the grid is an error."""
+        counts, other bodies block by block, a rank's :class:`Share` not at all (rank 0 counts
+        a listed body). A particle outside the grid is an error."""
         counts = np.zeros(disc.layout.n_patches, np.int64)
         ppa = self._ppa(disc)
         first = 0
         for src, *_ in self.chunks:
+            if isinstance(src, Share):  # rank 0 counts a listed body's (driver.listed_share)
+                first += len(src)
+                continue
             per_axis = self._axis_patches(src, disc) if self._separable(src) else None
             if per_axis is not None:
                 hist = [np.bincount(q, minlength=n) for q, n in zip(per_axis, ppa)]
@@ -268,12 +273,23 @@ class Seeds:
             first += len(src)
         return counts
 
+    def patches_of(self, k: int, disc) -> np.ndarray:
+        """Flat patch id of every seed of body ``k``, block by block (rank 0 dealing a listed
+        body's rows out: :mod:`parmpm.driver.listed_share`)."""
+        first = sum(len(c[0]) for c in self.chunks[:k])
+        parts = [self._locate(disc, pts, first + start) for start, pts in _blocks(self.chunks[k][0])]
+        return np.concatenate(parts) if parts else np.zeros(0, np.int64)
+
     def members(self, disc, owned: np.ndarray) -> np.ndarray:
         """Global ids (increasing) of the particles in the patches where ``owned`` (a bool per
-        flat patch id) is true, block by block."""
+        flat patch id) is true, block by block (a :class:`Share`: the ones it holds)."""
         owned = np.asarray(owned, bool)
         out, first = [], 0
         for src, *_ in self.chunks:
+            if isinstance(src, Share):  # rank 0 sent this rank exactly its own
+                out.append(src.held + first)
+                first += len(src)
+                continue
             per_axis = self._axis_patches(src, disc) if self._separable(src) else None
             if per_axis is not None:  # per-axis patch indices of the lattice's own points
                 ppa = self._ppa(disc)
@@ -350,11 +366,12 @@ def fmt_spacing(spacing) -> str:
     return ", ".join(f"{float(v):.4g}" for v in np.ravel(spacing))
 
 
-def seed_bodies(grid, bodies, material_rows: dict[str, int]) -> Seeds:
+def seed_bodies(grid, bodies, material_rows: dict[str, int], read_listed: bool = True) -> Seeds:
     """Every body's seeds: ``ppc`` per cell per axis, domains tiling the body (descriptions:
     the points are made block by block when asked for). ``grid``, ``bodies``: the scene's
     records (``scene.spec.grid``, ``scene.spec.bodies``); ``material_rows``: material name →
-    its row of the material table."""
+    its row of the material table; ``read_listed`` False: a mesh or particle body's file is not
+    read, its seeds a :class:`Share` awaiting its rows (a parallel run's ranks but rank 0)."""
     d = len(grid.cells)
     h = np.asarray(grid.cell_size, float)
     origin = np.asarray(grid.origin, float)
@@ -383,7 +400,8 @@ def seed_bodies(grid, bodies, material_rows: dict[str, int]) -> Seeds:
                                  "enlarge the radius or raise ppc")
         elif body.shape in ("mesh", "particles"):  # listed, each point its own volume
             spacing = None
-            pts = listed_seeds(body, d, material_rows, _block_edges)
+            pts = (listed_seeds(body, d, material_rows, _block_edges) if read_listed
+                   else Share.awaiting(body.count(), d))
         else:  # cylinder, polygon, CSG, surface: the same lattice, kept where the body is
             spacing = h / ppc
             bmin, bmax = (np.asarray(b, float) for b in body.bounds())
@@ -399,7 +417,7 @@ def seed_bodies(grid, bodies, material_rows: dict[str, int]) -> Seeds:
                                  f"lattice (spacing {fmt_spacing(spacing)} m): {why}")
         row = -1 if body.material is None else material_rows[body.material]
         chunks.append((pts, body, spacing, row, turn))
-    return Seeds(d, chunks)
+    return Seeds(d, chunks, material_rows)
 
 
 def _grid_lattice(origin: np.ndarray, spacing: np.ndarray, bmin, bmax) -> _Lattice:

@@ -57,11 +57,14 @@ def _groups_of(body) -> tuple | None:
 
 
 def count(body, dim: int) -> int:
-    """How many particles a mesh or particle body makes, without making them."""
+    """How many particles a mesh or particle body makes, without making them (a detached body's:
+    as recorded; on a parallel run's other ranks: as rank 0 counted them)."""
     from parmpm.geometry.mesh import particles_per_element
 
     if recorded_files.detached(body):
         return recorded_files.recorded(body).count
+    if (rec := recorded_files.shared(body)) is not None:  # rank 0 read it
+        return rec.count
     if body.shape == "particles":
         return int(listed(body, dim).x.shape[0])
     mesh = _mesh_file(_stamp(body.file), dim, _groups_of(body))[0]
@@ -111,9 +114,11 @@ def surface(body):
 
 def bounds(body, dim: int) -> tuple[list, list]:
     """Axis-aligned bounds of a file body: a mesh's nodes, a surface's triangles, the points (a
-    detached body's: as recorded)."""
+    detached body's: as recorded; on a parallel run's other ranks: as rank 0 read them)."""
     if recorded_files.detached(body):
         rec = recorded_files.recorded(body)
+        return list(rec.lo), list(rec.hi)
+    if (rec := recorded_files.shared(body)) is not None:  # rank 0 read it
         return list(rec.lo), list(rec.hi)
     if body.shape == "surface":
         s = surface(body)[2]

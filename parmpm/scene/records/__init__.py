@@ -195,6 +195,10 @@ class Body:
         """A mesh's or particle file's points (:class:`parmpm.scene.body_files.Listed`)."""
         return body_files.listed(self, dim)
 
+    def count(self) -> int:
+        """How many particles a mesh or particle body makes (:func:`parmpm.scene.body_files.count`)."""
+        return body_files.count(self, self.dim)
+
 
 @dataclass(frozen=True, slots=True)
 class Method:
