@@ -34,8 +34,8 @@ AXES = {1: (0,), 2: (0, 1), 3: (0, 1, 2)}
 #: the interpolator code, the axes (:data:`AXES`), ``l_cr`` (:data:`NO_SCALING`: no domain scaling),
 #: whether transfers are affine (APIC or MLS, :mod:`parmpm.transfer.affine`) rather than FLIP/PIC, and
 #: whether the weight gradient is MLS's (force and ``L`` from ``φ D⁻¹ r``, ``Δt f`` folded into
-#: the momentum)
-Method = namedtuple("Method", ("code", "axes", "lcr", "apic", "mls"))
+#: the momentum), and the code again as the support's switch takes it (:data:`parmpm.shapes.KINDS`)
+Method = namedtuple("Method", ("code", "axes", "lcr", "apic", "mls", "kind"))
 #: a rank's patches in slot order: particle ranges ``start`` of the canonical ``order`` (slot
 #: ``s`` holds physical rows ``order[start[s]:start[s + 1]]``; None: rows ``start[s]`` on, see
 #: :meth:`parmpm.particles.store.Particles.lazy_order`; the loops take it as an argument of its own so

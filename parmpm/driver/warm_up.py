@@ -34,6 +34,7 @@ body force.
 from __future__ import annotations
 
 import contextlib
+import copy
 import logging
 import shutil
 import tempfile
@@ -430,10 +431,12 @@ def scene_warm_up(scene, outputs: bool = True) -> float:
     from parmpm.driver.measures import components
     from parmpm.driver.simulation import Simulation
     from parmpm.output.metrics import separation_kinds
-    from parmpm.scene.load import scene_from_toml
+    from parmpm.scene.load import Scene
 
-    small = scene_from_toml(scene.to_toml(), scene.source,
-                            overrides=("time.steps=2", "output.figure=false"))
+    data = copy.deepcopy(scene.data)  # resolved: its files are not read again
+    data["time"]["steps"] = 2
+    data["output"]["figure"] = False
+    small = Scene(data, scene.source)
     tmp = tempfile.mkdtemp(prefix="parmpm-compile-")
     t0 = time.perf_counter()
     try:

@@ -1,8 +1,9 @@
 """One entry point for every interpolator: the (node, weight, gradient) entries of a particle.
 
-``particle_support`` dispatches on the interpolator's integer code (numba cannot cache kernels
-that take functions as arguments, so the registry in :mod:`parmpm.shapes` maps names to codes and
-this is the single switch). Tensor-product interpolators (mpm, ugimp, cpgimp, bspline) fill per-axis rows
+``particle_support`` dispatches on the interpolator's code, given as a tuple of that length
+(:data:`parmpm.shapes.KINDS`: numba cannot cache kernels that take functions as arguments, so the
+registry in :mod:`parmpm.shapes` maps names to codes and this is the single switch; a length is a
+compile-time constant, so each loop compiles one branch). Tensor-product interpolators (mpm, ugimp, cpgimp, bspline) fill per-axis rows
 ``(jk, wk, dwk)`` and are assembled here; cpdi and cpdi2 write their corner entries directly.
 
 Entries: ``idx[e]`` flat local node index in the patch's ghost-inclusive box, ``w[e] = φ_ip``,
@@ -65,28 +66,29 @@ def domain_matrix(d, method, lcr, F, r0, R):
 
 
 @helper_kernel
-def particle_support(method, d, xi, F, lh0, R, C, base, nloc, nglob, inv_h,
+def particle_support(kind, d, xi, F, lh0, R, C, base, nloc, nglob, inv_h,
                      nk, jk, wk, dwk, idx, w, g, corners, i, lcr, sc):
-    """Entries of one particle; ``xi`` grid coordinates, ``F`` its deformation gradient, ``lh0``
+    """Entries of one particle of the interpolator ``kind`` (:data:`parmpm.shapes.KINDS`: the
+    branches of the others are pruned before they are compiled); ``xi`` grid coordinates, ``F`` its deformation gradient, ``lh0``
     its initial GIMP half-widths (physical), ``R`` its (already scaled) CPDI domain;
     ``corners[i]`` its CPDI2 corners (``corners`` the field of every particle: empty unless
     cpdi2), capped at ``lcr`` into the scratch ``sc`` (:data:`parmpm.shapes.cpdi2.SCRATCH_SHAPE`,
     where the capped corners stay for the caller). Returns the entry count, ``OUT_OF_BOX`` (-1:
     reach beyond the ghost layer / grid) or ``INVERTED`` (-2: a cpdi2 domain of volume <= 0)."""
-    if method == CPDI:
+    if len(kind) == CPDI:
         return cpdi_support(d, xi, R, C, base, nloc, nglob, inv_h, nloc[0], nloc[1],
                             jk, wk, dwk, idx, w, g)
-    if method == CPDI2:
+    if len(kind) == CPDI2:
         return cpdi2_support(d, xi, corners[i], lcr, base, nloc, nglob, inv_h, nloc[0], nloc[1],
                              jk, wk, dwk, idx, w, g, sc)
     for k in range(d):
-        if method == MPM:
+        if len(kind) == MPM:
             nk[k] = mpm_axis(xi[k], base[k], nloc[k], nglob[k], inv_h[k], jk, wk, dwk, k)
-        elif method == BSPLINE:
+        elif len(kind) == BSPLINE:
             nk[k] = bspline_axis(xi[k], base[k], nloc[k], nglob[k], inv_h[k], jk, wk, dwk, k)
         else:
             half = lh0[k] * inv_h[k]
-            if method == CPGIMP:
+            if len(kind) == CPGIMP:
                 half *= abs(F[k, k])
             nk[k] = gimp_axis(xi[k], half, base[k], nloc[k], nglob[k], inv_h[k], jk, wk, dwk, k)
         if nk[k] < 0:

@@ -13,6 +13,7 @@ from collections import namedtuple
 import numpy as np
 
 from parmpm.core.records import AXES, Boxes, Fields, Locate, Material, Method
+from parmpm.shapes import KINDS
 from parmpm.transfer.affine import AFFINE_TRANSFERS, inertia_diagonal
 from parmpm.transfer.generic import g2p, p2g, p2g_momentum
 from parmpm.transfer.kernels2d import KERNELS_2D, MLS_KERNELS_2D
@@ -82,7 +83,8 @@ class Transfers:
             boxes = boxes._replace(start=np.zeros(1, np.int64), order=np.zeros(0, np.uint64))
         fields = Fields(R.x, R.v, R.F, R.r0, R.lh0, R.mass, R.vol0, R.stress, R.dx, R.affine,
                         R.corners, R.rf)
-        return Method(D.method, AXES[D.dim], D.lcr, self.apic, self.mls), boxes, fields
+        return (Method(D.method, AXES[D.dim], D.lcr, self.apic, self.mls, KINDS[D.method]), boxes,
+                fields)
 
     def p2g(self, grid, bforce: np.ndarray, dt: float, err: np.ndarray, account: bool) -> None:
         """Mass, momentum and force of every slot into ``grid``'s sums (MLS folds ``Δt f`` into

@@ -52,7 +52,7 @@ from parmpm.grid.crack import field_node, to_fields
 from parmpm.materials.damage import damage_update
 from parmpm.materials.kinematics import det_d, flip_pic, update_F
 from parmpm.materials.laws import cauchy_stress, wave_speed
-from parmpm.shapes import CPDI2
+from parmpm.shapes import CPDI, CPDI2
 from parmpm.shapes.cpdi import cell_node
 from parmpm.shapes.cpdi2 import SCRATCH_SHAPE
 from parmpm.shapes.hat import hat_axis
@@ -83,7 +83,7 @@ def loop_scratch(nloc, d):
 
 
 @helper_kernel
-def _entries(method, d, lcr, boxes, fields, i, p, err, scratch):
+def _entries(kind, d, lcr, boxes, fields, i, p, err, scratch):
     """Particle ``i``'s (node, weight, gradient) entries in the scratch's ``idx, w, g`` for the
     node box of slot ``p``; their count, or -1 (noted in ``err``) when its support leaves the
     grid or the ghost layer, -2 (cpdi2: an inverted domain); a negative count is noted in
@@ -93,8 +93,9 @@ def _entries(method, d, lcr, boxes, fields, i, p, err, scratch):
     origin, inv_h = boxes.origin, boxes.inv_h
     for k in range(d):
         xi[k] = (x[i, k] - origin[k]) * inv_h[k]
-    domain_matrix(d, method, lcr, F[i], fields.r0[i], R)
-    n = particle_support(method, d, xi, F[i], fields.lh0[i], R, C, boxes.base[p], boxes.nloc,
+    if len(kind) == CPDI:  # a constant: the other interpolators compile no call
+        domain_matrix(d, CPDI, lcr, F[i], fields.r0[i], R)
+    n = particle_support(kind, d, xi, F[i], fields.lh0[i], R, C, boxes.base[p], boxes.nloc,
                          boxes.nglob, inv_h, nk, jk, wk, dwk, idx, w, g, fields.corners, i, lcr,
                          sc)
     if n < 0 and err[0] < 0:
@@ -143,11 +144,11 @@ def each_particle(body, d, how, boxes, order, fields, err, scratch, out, args, a
     Returns ``acc``. What a body writes comes as a kernel argument (``fields``,
     ``scratch``, ``out``), never in ``args``, a tuple built in the kernel
     (:mod:`parmpm.transfer.kernels2d.loops` says why)."""
-    method, lcr, start = how.code, how.lcr, boxes.start
+    kind, lcr, start = how.kind, how.lcr, boxes.start
     for p in range(start.size - 1):
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
             i = row(order, kk)
-            n = _entries(method, d, lcr, boxes, fields, i, p, err, scratch)
+            n = _entries(kind, d, lcr, boxes, fields, i, p, err, scratch)
             if n >= 0:
                 to_fields(sides, i, p, n, scratch[7])
                 acc = body(i, p, n, d, how, boxes, fields, scratch, out, args, acc)

@@ -3,7 +3,7 @@ import numpy as np
 
 from decomposition import PatchLayout
 from parmpm.core.records import kernel_lcr
-from parmpm.shapes import CPDI
+from parmpm.shapes import CPDI, KINDS
 from parmpm.shapes.cpdi2 import SCRATCH_SHAPE
 from parmpm.shapes.support import domain_matrix, particle_support
 
@@ -46,7 +46,7 @@ def _entries(method, d, x, F, lh0, r0, lcr, h, lay, base, jit):
     dm = domain_matrix if jit else domain_matrix.py_func
     ps = particle_support if jit else particle_support.py_func
     dm(d, method, kernel_lcr(lcr), F, r0, R)
-    n = ps(method, d, xi, F, lh0, R, C, base, nloc, nglob, inv_h, nk, jk, wk, dwk, idx, w, g,
+    n = ps(KINDS[method], d, xi, F, lh0, R, C, base, nloc, nglob, inv_h, nk, jk, wk, dwk, idx, w, g,
            NO_CORNERS[d], 0, kernel_lcr(lcr), np.zeros(SCRATCH_SHAPE))
     if n < 0:
         return None

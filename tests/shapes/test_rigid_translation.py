@@ -34,7 +34,7 @@ import numpy as np
 import pytest
 
 import parmpm
-from parmpm.shapes import CPGIMP, UGIMP
+from parmpm.shapes import CPGIMP, KINDS, UGIMP
 from parmpm.shapes.cpdi2 import SCRATCH_SHAPE
 from parmpm.shapes.gimp import gimp_axis
 from parmpm.shapes.support import particle_support
@@ -184,7 +184,7 @@ def test_gimp_velocity_gradient_of_uniform_grid_velocity_is_zero(dim, method):
         xi = 1e3 + 4 * rng.random(3)
         F = np.eye(3) + 0.3 * rng.standard_normal((3, 3))
         lh0 = h / (2 * rng.integers(1, 5, 3))
-        n = particle_support(method, dim, xi, F, lh0, R, C, np.zeros(3, np.int64), big, big,
+        n = particle_support(KINDS[method], dim, xi, F, lh0, R, C, np.zeros(3, np.int64), big, big,
                              inv_h, nk, jk, wk, dwk, idx, w, g, np.zeros((0, 1 << dim, dim)), 0,
                              math.inf, np.zeros(SCRATCH_SHAPE))
         assert n > 0
