@@ -57,7 +57,7 @@ METHODS = tuple(INTERPOLATORS)
 COMPILED_UPDATES = ("usl", "musl")
 #: the cache is keyed to the sources (:mod:`parmpm.core.cache_key`): the first run after any edit or
 #: upgrade compiles too
-NOTICE = ("compiling kernels (first run of these sources: about a minute; cached afterwards "
+NOTICE = ("compiling kernels (first run of these sources: half a minute to a minute; cached afterwards "
           "in {where})")
 
 
