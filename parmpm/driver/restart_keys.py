@@ -12,7 +12,8 @@ The keys a restart may change are those the continued run applies in full from i
 without contradicting what the checkpoint holds (:data:`RESTART_KEYS`):
 
 * ``time.*``: how long (``end``, ``steps``: both count from the run's start, and must lie past
-  the checkpoint), the step (``cfl``, ``dt_max``) and the blow-up watch (``max_energy_growth``);
+  the checkpoint), the step (``cfl``, ``dt_max``, ``dt``) and the blow-up watch
+  (``max_energy_growth``);
 * ``output.*`` (a changed ``every`` / ``every_steps`` starts a new snapshot series from the
   checkpoint's time instead of the stored schedule), ``checkpoint.*``;
 * ``method.*``: the interpolator, ``lcr``, update order, FLIP blend and transfer are how each

@@ -27,6 +27,9 @@ import time
 import numpy as np
 
 from decomposition import allreduce_max
+from parmpm.core.log import get_logger
+
+log = get_logger(__name__)
 
 #: relative tolerance of "simulated time has reached a scheduled time"
 REL_TOL = 1e-12
@@ -111,20 +114,35 @@ class AnyOf:
 class Clock:
     """Simulated time and step count, the CFL step and the end of the run (the scene's ``time``
     record, ``tm``: :class:`parmpm.scene.records.Time`; ``h_min``: the smallest cell size).
-    ``vmax`` is the largest wave speed plus particle speed, which sets the next step."""
+    ``vmax`` is the largest wave speed plus particle speed, which sets the next step.
+
+    With ``time.dt`` every step is that long (the last one shortened to end on ``time.end``),
+    whatever the CFL step: a user's choice, e.g. to compare with a code or a paper at its Δt. The
+    CFL step is still computed (``vmax`` is the same on every rank), and the first step longer
+    than it is one warning line naming both, said by rank 0 (``speaks``; the energy watch stops a
+    run that then blows up)."""
 
     def __init__(self, tm, h_min: float, vmax: float, t: float = 0.0, nstep: int = 0,
-                 last_dt: float = 0.0):
-        self.tm, self.h_min = tm, h_min
+                 last_dt: float = 0.0, speaks: bool = True):
+        self.tm, self.h_min, self.speaks = tm, h_min, speaks
         self.t, self.nstep, self.last_dt, self.vmax = t, nstep, last_dt, vmax
         self.dt_limit = "time.cfl"  # the key that set the last step: the one a blow-up names
+        self.warned = False         # time.dt past the CFL step, said once
 
     def next_dt(self) -> float:
-        """The CFL step, capped by ``time.dt_max`` and the end time."""
+        """The CFL step, capped by ``time.dt_max`` and the end time; or ``time.dt``."""
         tm = self.tm
         dt = tm.cfl * self.h_min / self.vmax
         self.dt_limit = "time.cfl"
-        if tm.dt_max and tm.dt_max < dt:
+        if tm.dt is not None:
+            if tm.dt > dt and not self.warned:
+                self.warned = True
+                if self.speaks:
+                    log.warning("time.dt = %.4g s is longer than the CFL step (time.cfl = %g: "
+                                "%.4g s) at step %d (t = %.6g s); the run may turn unstable",
+                                tm.dt, tm.cfl, dt, self.nstep, self.t)
+            dt, self.dt_limit = tm.dt, "time.dt"
+        elif tm.dt_max and tm.dt_max < dt:
             dt, self.dt_limit = tm.dt_max, "time.dt_max"
         if tm.end is not None:
             dt = min(dt, tm.end - self.t)
@@ -146,6 +164,8 @@ class Clock:
     def unstable_hint(self) -> str:
         """What to lower when the run blew up: the key that set the step."""
         tm = self.tm
+        if self.dt_limit == "time.dt":
+            return f"Δt = {self.last_dt:.3g} s was fixed by time.dt: try a smaller time.dt"
         if self.dt_limit == "time.dt_max":
             return (f"Δt = {self.last_dt:.3g} s was set by time.dt_max, below the CFL step: try a "
                     f"smaller time.dt_max (now {tm.dt_max:.3g} s)")

@@ -218,14 +218,15 @@ def _clock(scene, comm, D, P, params, metrics, energy, checkpoint, vmax_plastic=
     """(the clock, the run a restart continues, the output schedule's next time): a fresh run's
     (``vmax_plastic``: the plastic particles' largest ``c + |v|``, which the elastic table
     leaves out), or a restart's, whose metrics and energy watch are restored too."""
-    tm = scene.spec.time  # the Time record: cfl, dt_max, end, steps
+    tm = scene.spec.time  # the Time record: cfl, dt_max, dt, end, steps
     h_min = float(D.h.min())
     if checkpoint is None:
         vmax = max(max_speed(D.dim, P.v, P.F, P.mat, params), vmax_plastic)
-        return Clock(tm, h_min, float(allreduce_max(comm, np.array([vmax]))[0])), None, None
+        return (Clock(tm, h_min, float(allreduce_max(comm, np.array([vmax]))[0]),
+                      speaks=comm.Get_rank() == 0), None, None)
     a = checkpoint.attrs
     clock = Clock(tm, h_min, float(a["vmax"]), float(a["time"]), int(a["step"]),
-                  float(a["dt"]))
+                  float(a["dt"]), speaks=comm.Get_rank() == 0)
     state = checkpoint.state
     next_output = state.get("next_output")
     changed = (scene.restart or {}).get("changed", {})

@@ -155,7 +155,10 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   start on the exact field and get its body force every step).
 * ``[time]``: ``end`` (> 0 s) and/or ``steps`` (int > 0), at least one; the run stops at
   whichever comes first (a missing one resolves to None). ``cfl`` (0 < cfl < 1, default 0.4),
-  ``dt_max`` (> 0 s, default None), ``max_energy_growth`` (> 0 or "off", default 1.0: the run
+  ``dt_max`` (> 0 s, default None: a cap on the CFL step), ``dt`` (> 0 s, default None: every
+  step this long instead of the CFL one, the last shortened to end on ``end``; not with
+  ``dt_max``; one warning when it is longer than the CFL step; at most 10⁹ steps to ``end``
+  unless ``steps`` stops the run first), ``max_energy_growth`` (> 0 or "off", default 1.0: the run
   stops when the body holds more energy than it started with plus the work of gravity by more
   than this fraction of that; :mod:`parmpm.output.energy`).
 * ``[output]``: ``every`` (simulated seconds) and/or ``every_steps``; a snapshot is due whenever
@@ -184,6 +187,6 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   particles; as many as the ranks: one file; snapshots are written in the same groups). A SIGTERM or SIGINT always writes a final
   checkpoint before the run stops.
 
-Absent optional values (``time.end``, ``time.dt_max``, ``output.every``, ``bodies.N.vibration``,
+Absent optional values (``time.end``, ``time.dt_max``, ``time.dt``, ``output.every``, ``bodies.N.vibration``,
 ...) are ``None`` in ``Scene.data`` and omitted from ``Scene.to_toml()``.
 """

@@ -53,7 +53,10 @@ METHOD_KEYS = ("interpolator", "lcr", "update", "flip", "transfer")
 GRAVITY_KEYS = ("g", "ramp_time")
 DAMPING_KEYS = ("coefficient",)
 MANUFACTURED_KEYS = ("amplitude",)
-TIME_KEYS = ("end", "steps", "cfl", "dt_max", "max_energy_growth")
+TIME_KEYS = ("end", "steps", "cfl", "dt_max", "dt", "max_energy_growth")
+#: the most steps a fixed ``time.dt`` may need to reach ``time.end`` (a typo such as 1e-30 for
+#: 1e-3 would otherwise start a run that never ends)
+MAX_FIXED_STEPS = 10**9
 OUTPUT_KEYS = ("every", "every_steps", "snapshots", "figure", "domains", "history")
 #: snapshots per run when the scene gives no schedule
 OUTPUT_ROWS = 20
@@ -325,8 +328,11 @@ def _time(c: Checker, raw: Any) -> dict:
     cfl = t.get("cfl", 0.4)
     if not isinstance(cfl, bool) and isinstance(cfl, (int, float)) and cfl >= 1:
         c.expected("time.cfl", "a number with 0 < cfl < 1 (the CFL number must be < 1)", cfl)
-    dt_max = t.get("dt_max")
-    return {
+    dt_max, dt = t.get("dt_max"), t.get("dt")
+    if dt is not None and dt_max is not None:
+        c.fail("time.dt", f"expected time.dt (a fixed step, s) or time.dt_max (a cap on the CFL "
+                          f"step), not both: got dt = {dt!r} and dt_max = {dt_max!r}")
+    out = {
         "end": None if end is None else c.number("time.end", end, "a number > 0 (s)",
                                                  lambda x: x > 0),
         "steps": None if steps is None else c.integer("time.steps", steps, "an integer > 0",
@@ -334,9 +340,19 @@ def _time(c: Checker, raw: Any) -> dict:
         "cfl": c.number("time.cfl", cfl, "a number with 0 < cfl < 1", lambda x: 0 < x < 1),
         "dt_max": None if dt_max is None else c.number("time.dt_max", dt_max,
                                                        "a number > 0 (s)", lambda x: x > 0),
+        # a fixed step instead of the CFL one (parmpm.driver.schedule.Clock)
+        "dt": None if dt is None else c.number("time.dt", dt, "a number > 0 (s)",
+                                               lambda x: x > 0),
         # the blow-up watch (parmpm.output.energy): "off" or the largest growth of the energy balance
         "max_energy_growth": _energy_limit(c, t.get("max_energy_growth", 1.0)),
     }
+    fixed, end, steps = out["dt"], out["end"], out["steps"]
+    if (fixed is not None and end is not None and end / fixed > MAX_FIXED_STEPS
+            and (steps is None or steps > MAX_FIXED_STEPS)):
+        c.fail("time.dt", f"time.dt = {fixed!r} s would take {end / fixed:.3g} steps to reach "
+                          f"time.end = {end!r} s (more than {MAX_FIXED_STEPS:.0e}): expected a "
+                          "larger time.dt, or time.steps to stop it")
+    return out
 
 
 def _energy_limit(c: Checker, value: Any) -> float | str:

@@ -70,7 +70,7 @@ def test_any_of_asks_every_part_and_at_end_follows_the_clock():
         def advance(self, t):
             pass
 
-    clock = Clock(SimpleNamespace(cfl=0.5, dt_max=None, end=1.0, steps=None), 0.1, 1.0)
+    clock = Clock(SimpleNamespace(cfl=0.5, dt_max=None, dt=None, end=1.0, steps=None), 0.1, 1.0)
     both = AnyOf(Schedule(every_steps=1), Counting(), AtEnd(clock))
     assert both.due(0.5, 1) and asked == [1]
     clock.t = 1.0 - 1e-13  # within REL_TOL of the end

@@ -232,7 +232,7 @@ NUMERIC_KEYS = ["grid.cell_size", "grid.cells", "grid.origin", "grid.patch_size"
                 "grid.exterior", "materials.bar.density", "materials.bar.youngs_modulus",
                 "materials.bar.poisson_ratio", "bodies.0.ppc", "bodies.0.min", "bodies.0.max",
                 "bodies.0.velocity", "method.lcr", "method.flip", "gravity.g", "gravity.ramp_time",
-                "damping.coefficient", "time.end", "time.steps", "time.cfl", "time.dt_max",
+                "damping.coefficient", "time.end", "time.steps", "time.cfl", "time.dt_max", "time.dt",
                 "time.max_energy_growth", "output.every", "output.every_steps",
                 "checkpoint.every", "checkpoint.keep", "metrics.every_steps"]
 NUMBERS = st.one_of(

@@ -83,7 +83,7 @@ def test_hanging_bar_resolved():
     assert d["method"] == {"interpolator": "cpdi", "lcr": "2dx", "update": "auto", "transfer": "flip",
                            "flip": 1.0}
     assert d["gravity"] == {"g": [0.0, -1000.0], "ramp_time": 0.0}
-    assert d["time"] == {"end": 0.3, "steps": None, "cfl": 0.4, "dt_max": None,
+    assert d["time"] == {"end": 0.3, "steps": None, "cfl": 0.4, "dt_max": None, "dt": None,
                          "max_energy_growth": 1.0}
     assert d["output"]["every"] == 0.05
     assert d["metrics"] == {"kind": "hanging_bar", "every_steps": 1, "axis": 1,

@@ -275,6 +275,7 @@ class Time:
     cfl: float
     dt_max: float | None
     max_energy_growth: float | str   # "off": no blow-up watch
+    dt: float | None = None          # a fixed step instead of the CFL one
 
 
 @dataclass(frozen=True, slots=True)
