@@ -140,7 +140,7 @@ def plot(rows: list[dict], path: Path) -> Path:
         if math.isfinite(y):
             ax.bar(2 * i + 0.9, y, color="0.6", width=0.8, label="yardstick" if i == 0 else None)
             ax.text(2 * i + 0.9, y, f"{y:.0f}\n×{r['ratio']:.2f}", ha="center", va="bottom", fontsize=8)
-        labels.append(f"{r['method']} {r['update'].upper()}"
+        labels.append(f"{r['method']}\n{r['update'].upper()}"  # stacked: no label runs into the next
                       + (f" {r['transfer'].upper()}\n(vs C mls)" if r["transfer"] != "flip"
                          else ""))
     ax.set_xticks([2 * i + 0.45 for i in range(len(rows))], labels)
