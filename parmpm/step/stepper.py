@@ -219,13 +219,23 @@ class Stepper:
                 T.sides = None
             self.moves.located = None
             return vmax
-        try:  # each field's particles from its own grid; the migration finds the new patches
+        # each field's particles from its own grid; every particle is in one field's share, so
+        # the fields' G2P together find every next patch, as one field's does (the migration
+        # looks again only when a particle left the grid: its message names the first in
+        # canonical order, which a field's share does not know)
+        moved, whole = 0, mode != G2P_MUSL_MOTION
+        try:
             for k in range(C.K):
                 T.subset = C.boxes(k)
-                vmax = max(vmax, T.g2p(C.grids[k], mode, dt, self.faults.err, locate)[0])
+                speed, located = T.g2p(C.grids[k], mode, dt, self.faults.err, locate)
+                vmax = max(vmax, speed)
+                if located is None or located[0] >= 0:
+                    whole = False
+                else:
+                    moved += int(located[1])
         finally:
             T.subset = None
-        self.moves.located = None
+        self.moves.located = (-1, moved) if whole else None
         return vmax
 
     def _body_force(self, time_now: float) -> np.ndarray:

@@ -233,3 +233,37 @@ def test_named_fields_name_their_history_columns(tmp_path):
     cracked = scene_from_toml('name = "c"\n' + DAMAGED.replace(
         "friction = 0.3", 'cracks = true\nfields = [[0], [1]]\nnames = ["a", "b"]'))
     assert cracked.spec.contact.column_names() == ("a", "b", "a_far", "b_far")
+
+
+@pytest.mark.parametrize("update", ["usl", "musl"])
+def test_the_fields_g2p_finds_every_next_patch_as_the_migration_would(tmp_path, monkeypatch,
+                                                                     update):
+    """With contact, each field's G2P finds its particles' next patches, as one field's does:
+    the migration then skips its own search. Checked at every step of the rings example
+    against that search run anyway (the same patches, the same count of particles that
+    changed patch), and the search is skipped at every step (it once ran for every contact
+    step: 0.17 of 5.1 ms per step on two disks of 22,620 particles)."""
+    import parmpm.step.migration as migration
+
+    checked, real = [], migration.Migration.locate_and_send
+
+    def twice(self):
+        located = self.located
+        assert located is not None  # G2P found them
+        before = self.new_patch.copy()
+        D, lay = self.disc, self.disc.layout
+        checked.append(migration.locate_patches(D.dim, self.P.rows.x, D.origin3, D.inv_h3,
+                                                lay.cells3, lay.psize3, lay.patches_per_axis,
+                                                self.P.rows.patch, self.new_patch,
+                                                self.P.order()))
+        assert np.array_equal(before, self.new_patch)
+        assert tuple(checked[-1]) == (-1, located[1])
+        return real(self)
+
+    monkeypatch.setattr(migration.Migration, "locate_and_send", twice)
+    sc = load_scene(EXAMPLES / "rings_contact.toml",
+                    overrides=["output.snapshots=false", "output.figure=false",
+                               "output.history=false", "time.end=0.002",
+                               f"method.update=\"{update}\""])
+    Simulation(sc, tmp_path / "rings", quiet=True).run()
+    assert len(checked) > 10 and sum(m for _, m in checked) > 0  # particles changed patch
