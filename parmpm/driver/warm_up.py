@@ -40,7 +40,6 @@ import shutil
 import tempfile
 import time
 
-from parmpm.driver.footprint import particles_estimate
 from parmpm.materials import PLASTIC_MODELS
 from parmpm.transfer.affine import AFFINE_TRANSFERS, APIC_INTERPOLATORS, TRANSFERS
 from parmpm.core.log import get_logger
@@ -415,6 +414,14 @@ def compile_first(scene, comm) -> None:
                           type(exc).__name__, exc)
     finally:
         wait_for_all(comm)
+
+
+def particles_estimate(spec) -> float:
+    """:func:`parmpm.driver.footprint.particles_estimate`, imported when called: it loads the
+    kernels' modules, which ``parmpm --help`` and the CLI's parser must not."""
+    from parmpm.driver.footprint import particles_estimate as estimate
+
+    return estimate(spec)
 
 
 #: the most particles (:func:`parmpm.driver.footprint.particles_estimate`) a scene may have for
