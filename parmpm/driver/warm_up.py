@@ -56,8 +56,8 @@ METHODS = tuple(INTERPOLATORS)
 COMPILED_UPDATES = ("usl", "musl")
 #: the cache is keyed to the sources (:mod:`parmpm.core.cache_key`): the first run after any edit or
 #: upgrade compiles too
-NOTICE = ("compiling kernels (first run of these sources: half a minute to a minute; cached afterwards "
-          "in {where})")
+NOTICE = ("compiling kernels (first run of these sources: half a minute to a minute; cached "
+          "afterwards in {where})")
 
 
 # --- the notice ---------------------------------------------------------------------------------
@@ -385,15 +385,15 @@ def compile_first(scene, comm) -> None:
     spec = scene.spec
     if comm is None or comm.Get_size() == 1:
         return
+    # (what, plastic): the scene itself (its text), or a tiny run's case
     if particles_estimate(spec) <= SCENE_WARM_UP_PARTICLES:
-        key = ("scene", scene.to_toml())
-        cases = [] if key in _WARMED else [key]
+        cases = [(("scene", scene.to_toml()), False)]
     else:
         m = spec.method
         plastic = any(mat.model in PLASTIC_MODELS for mat in spec.materials.values())
         cases = [c for c in (((spec.dim, m.interpolator, m.update, m.transfer), False),
                              (PLASTIC_CASE + ("flip",), True)) if c[1] <= plastic]
-        cases = [c for c in cases if c not in _WARMED]
+    cases = [c for c in cases if c not in _WARMED]
     if not cases:
         return
     _WARMED.update(cases)
@@ -403,7 +403,7 @@ def compile_first(scene, comm) -> None:
             try:
                 t0 = time.perf_counter()
                 for case, plastic in cases:
-                    if case == "scene":
+                    if case[0] == "scene":
                         scene_warm_up(scene, outputs=rank == 0)
                     elif rank == 0:
                         warm_up(*case, plastic=plastic)
