@@ -37,7 +37,7 @@ import os
 from parmpm.core.errors import ParmpmError
 from parmpm.grid.update import row_stride
 from parmpm.output.metrics import separation_kinds
-from parmpm.scene.bodies import LISTED_SHAPES
+from parmpm.scene.recorded_files import LISTED_SHAPES
 from parmpm.scene.body_files import count
 from parmpm.scene.contact import Contact
 from parmpm.scene.records import Body, SceneSpec

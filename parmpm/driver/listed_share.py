@@ -19,9 +19,7 @@ from decomposition import deal_from_root, is_parallel
 from parmpm.core.errors import ParmpmError
 from parmpm.particles.seeding import Seeds, seed_bodies
 from parmpm.particles.seeding.listed import Listed, Share
-
-#: the shapes whose particles are listed from a file
-LISTED_SHAPES = ("mesh", "particles")
+from parmpm.scene.recorded_files import LISTED_SHAPES
 
 
 def shared_listing(comm, bodies) -> bool:

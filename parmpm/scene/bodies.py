@@ -16,7 +16,7 @@ from parmpm.geometry import csg
 from parmpm.geometry.circular import round_form
 from parmpm.geometry.primitives import rotated_box_bounds
 from parmpm.scene.body_files import FILE_DIMS, FILE_KEYS, check_file_body, listed
-from parmpm.scene.recorded_files import detached
+from parmpm.scene.recorded_files import LISTED_SHAPES, detached
 from parmpm.scene.check import AXIS_NAMES, Checker, show
 from parmpm.scene.parts import PART_DIMS, PART_KEYS, check_part, csg_bounds
 from parmpm.scene.records import Part, build
@@ -34,8 +34,6 @@ _SHAPE_ONLY_KEYS = ("min", "max", "center", "radius", "axis", "length", "vertice
 #: the key a body outside the grid is blamed on, by shape
 _PLACED_BY = {"disk": "center", "sphere": "center", "cylinder": "center", "polygon": "vertices",
               "mesh": "file", "surface": "file", "particles": "file"}
-#: bodies whose particles are listed (one per quadrature point or file row), not a lattice
-LISTED_SHAPES = ("mesh", "particles")
 VIBRATION_KEYS = ("amplitude", "mode", "axis")
 #: how a body's particles are placed: "conforming" follows a round body's outline (a disk's or
 #: annulus's rings, :mod:`parmpm.particles.seeding.polar`; a sphere's shells,

@@ -43,7 +43,8 @@ class Recorded(NamedTuple):
 _RECORDS: dict[tuple, Recorded] = {}
 #: the same key -> Recorded, as rank 0 read the file (a parallel run's other ranks)
 _SHARED: dict[tuple, Recorded] = {}
-#: bodies whose points are listed from their file (a surface's inside needs the whole file)
+#: bodies whose particles are listed (one per quadrature point or file row), not a lattice; their
+#: file records are shared (a surface's inside needs the whole file)
 LISTED_SHAPES = ("mesh", "particles")
 
 
