@@ -132,12 +132,13 @@ def average_normal(d, sums, X, eps, p, node, xi, k, c):
 
 @kernel
 def contact_normals(d, nodes, origin, h, sums, X, eps, mode, normal, mask):
-    """``normal[k, p, :2d, node]`` (zeroed here on owned nodes): field ``k``'s candidate
-    contact normals at every owned node where it and another field have mass (more than
-    ``eps``), else zero (``mode``: :data:`NORMAL_MODES`): rows ``0..d−1`` out of the heavy
-    field ("separating", "heavy"), out of the deciding field ("gradient") or the moments'
-    average ("average"); rows ``d..2d−1`` the line between the centres of mass ("separating",
-    "centroids"); ``mask[p, 0, node]`` 1 at those nodes, else 0.
+    """``normal[k, p, :2d, node]``: field ``k``'s candidate contact normals at every owned
+    node where it and another field have mass (more than ``eps``), zero for a field without
+    (``mode``: :data:`NORMAL_MODES`): rows ``0..d−1`` out of the heavy field ("separating",
+    "heavy"), out of the deciding field ("gradient") or the moments' average ("average"); rows
+    ``d..2d−1`` the line between the centres of mass ("separating", "centroids");
+    ``mask[p, 0, node]`` 1 at those nodes, else 0. Elsewhere the normals keep what they held:
+    every reader (the extents, the correction) looks at the nodes the mask marks only.
     ``sums``: (fields, slots, rows, stride) P2G sums (row 0 the mass); ``X``: (fields, slots,
     1 + d, stride) first moments in rows 1..d (spare slots past the patches' are not visited)."""
     own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
@@ -156,15 +157,16 @@ def contact_normals(d, nodes, origin, h, sums, X, eps, mode, normal, mask):
                     xi[0] = origin[0] + (base[p, 0] + i0) * h[0]
                     node = row0 + i0
                     present = 0
-                    mask[p, 0, node] = 0.0
                     for k in range(K):
-                        for a in range(2 * d):
-                            normal[k, p, a, node] = 0.0
                         if sums[k, p, 0, node] > eps:
                             present += 1
                     if present < 2:
+                        mask[p, 0, node] = 0.0
                         continue
                     mask[p, 0, node] = 1.0
+                    for k in range(K):
+                        for a in range(2 * d):
+                            normal[k, p, a, node] = 0.0
                     heavy = 0  # the field with the most mass here (ties: the first)
                     for k in range(1, K):
                         if sums[k, p, 0, node] > sums[heavy, p, 0, node]:

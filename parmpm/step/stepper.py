@@ -174,8 +174,8 @@ class Stepper:
             try:
                 for k in range(C.K):
                     T.subset = C.boxes(k)
-                    T.p2g(C.grids[k], bforce, dt, err, self.ledger is not None)
-                    T.p2g_momentum(C.moments[k], err, positions=True)
+                    T.p2g_and_moments(C.grids[k], C.moments[k], bforce, dt, err,
+                                      self.ledger is not None)
             finally:
                 T.subset = None
         self._check("p2g")
