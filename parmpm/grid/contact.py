@@ -131,6 +131,26 @@ def average_normal(d, sums, X, eps, p, node, xi, k, c):
 
 
 @kernel
+def contact_mask(nodes, sums, eps, mask):
+    """``mask[p, 0, node]`` 1 at every owned node where two or more fields have mass (more than
+    ``eps``), else 0: the nodes :func:`contact_normals` gives normals (``sums``: as there)."""
+    own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
+    K = sums.shape[0]
+    L0, L1 = nloc[0], nloc[1]
+    for p in range(own_lo.shape[0]):
+        for i2 in range(own_lo[p, 2], own_hi[p, 2]):
+            for i1 in range(own_lo[p, 1], own_hi[p, 1]):
+                row0 = L0 * (i1 + L1 * i2)
+                for i0 in range(own_lo[p, 0], own_hi[p, 0]):
+                    node = row0 + i0
+                    present = 0
+                    for k in range(K):
+                        if sums[k, p, 0, node] > eps:
+                            present += 1
+                    mask[p, 0, node] = 1.0 if present >= 2 else 0.0
+
+
+@kernel
 def contact_normals(d, nodes, origin, h, sums, X, eps, mode, normal, mask):
     """``normal[k, p, :2d, node]``: field ``k``'s candidate contact normals at every owned
     node where it and another field have mass (more than ``eps``), zero for a field without

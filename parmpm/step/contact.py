@@ -23,7 +23,7 @@ import numpy as np
 from decomposition import accumulate, accumulate_max, fill
 from parmpm.core.records import Sides
 from parmpm.grid.contact import (GAP_MODES, NORMAL_MODES, contact_correct, contact_extents,
-                                 contact_normals, field_of_rows, split_by_field)
+                                 contact_mask, contact_normals, field_of_rows, split_by_field)
 from parmpm.grid.crack import crack_normals, nodal_damage
 from parmpm.grid.update import grid_block
 from parmpm.transfer.damage_field import damage_gradients, damage_sums
@@ -75,6 +75,10 @@ class ContactPhase:
         self.grids: list[FieldGrid] = []
         self.moments: list[FieldGrid] = []   # Σ S m x in rows 1..d (P2G's momentum scatter)
         self.sums: np.ndarray | None = None  # (slots, fields, 6) of the last force update
+        #: the first moments taken after the masses' accumulation, from the patches whose boxes
+        #: hold a node where fields meet (:meth:`detect`); set per step by the stepper: not with
+        #: crack faces (one stacked pass) nor mirror faces (whose fold needs the moments first)
+        self.late_moments = False
 
     def rebuild(self, disc, grid) -> None:
         """Allocate every field's grid like ``grid`` (the stepper's, rebuilt with the patch
@@ -164,6 +168,35 @@ class ContactPhase:
         if which == "x":
             return [v[:, :, 1:] for v in views]
         return [v if rows is None else v[:, :, :rows] for v in views]
+
+    def active_boxes(self, k: int, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Field ``k``'s (start, order) with only the slots ``active`` marks (the others
+        empty)."""
+        start, order = self.boxes(k)
+        counts = np.diff(start)
+        kept = np.zeros_like(start)
+        np.cumsum(counts * active, out=kept[1:])
+        return kept, order[np.repeat(active, counts)]
+
+    def moments_where_fields_meet(self, transfers, nodes, plan, eps: float,
+                                  err: np.ndarray) -> None:
+        """Every field's first moments from the particles of the slots whose box holds a node
+        where fields meet, accumulated over the ghost layers (collective). A particle of any
+        other slot reaches no such node (its slot's copy of the node would be marked), so every
+        marked node gets every term, in the order the whole pass adds them; the unmarked nodes'
+        moments are partial, and no reader looks at them."""
+        contact_mask(nodes, self.sum_all, eps, self.mask)
+        slots = self.grids[0].gsum_block.shape[0]
+        mask = _views(self.mask[:slots], self.nodes)
+        fill(plan, mask)
+        active = mask[:, :, 0].any(axis=1)
+        try:
+            for k in range(self.K):
+                transfers.subset = self.active_boxes(k, active)
+                transfers.p2g_momentum(self.moments[k], err, positions=True)
+        finally:
+            transfers.subset = None
+        accumulate(plan, *self.node_views("x"))
 
     def detect(self, disc, P, nodes, plan, eps: float) -> None:
         """Normals at the owned nodes, filled to their ghost copies; the fields' extremes along

@@ -171,11 +171,15 @@ class Stepper:
                 T.sides = None
         else:
             C.split(self.P)
+            C.late_moments = self.grid_phase.symmetry is None
             try:
                 for k in range(C.K):
                     T.subset = C.boxes(k)
-                    T.p2g_and_moments(C.grids[k], C.moments[k], bforce, dt, err,
-                                      self.ledger is not None)
+                    if C.late_moments:  # taken after the masses' accumulation (_grid)
+                        T.p2g(C.grids[k], bforce, dt, err, self.ledger is not None)
+                    else:
+                        T.p2g_and_moments(C.grids[k], C.moments[k], bforce, dt, err,
+                                          self.ledger is not None)
             finally:
                 T.subset = None
         self._check("p2g")
@@ -263,13 +267,16 @@ class Stepper:
             phase.fold(grid, rows, momentum_only)
         t = self._lap("p2g", t)
         sums = [g.gmv if momentum_only else g.gsum[:, :, :rows] for g in grids]
-        if C is not None and not momentum_only:
+        if C is not None and not momentum_only and not C.late_moments:
             sums += C.node_views("x")
         accumulate(plan, *sums)
         t = self._lap("accumulate", t)
         nodes = phase.records()[0]
         heavy = -1.0 if self.mls else phase.mass_eps
         if C is not None and not momentum_only:  # MUSL's re-map keeps the step's contacts
+            if C.late_moments:
+                C.moments_where_fields_meet(self.transfers, nodes, plan, phase.mass_eps,
+                                            self.faults.err)
             C.detect(self.disc, self.P, nodes, plan, phase.mass_eps)
         for k, grid in enumerate(grids):
             phase.update(grid, dt, gravity, momentum_only)
