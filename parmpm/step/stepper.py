@@ -156,7 +156,8 @@ class Stepper:
 
     def p2g(self, bforce: np.ndarray, dt: float) -> None:
         """P2G of the step ``dt`` into the grid sums (with contact: every field's, and their
-        first moments)."""
+        first moments where they cannot wait for the masses' accumulation: mirror or crack
+        faces; :meth:`parmpm.step.contact.ContactPhase.moments_where_fields_meet`)."""
         C, T, err = self.contact, self.transfers, self.faults.err
         if C is None:
             T.p2g(self.grid, bforce, dt, err, self.ledger is not None)
