@@ -76,8 +76,9 @@ class ContactPhase:
         self.moments: list[FieldGrid] = []   # Σ S m x in rows 1..d (P2G's momentum scatter)
         self.sums: np.ndarray | None = None  # (slots, fields, 6) of the last force update
         #: the first moments taken after the masses' accumulation, from the patches whose boxes
-        #: hold a node where fields meet (:meth:`detect`); set per step by the stepper: not with
-        #: crack faces (one stacked pass) nor mirror faces (whose fold needs the moments first)
+        #: hold a node where fields meet (:meth:`moments_where_fields_meet`); set per step by the
+        #: stepper: not with crack faces (one stacked pass) nor mirror faces (whose fold needs
+        #: the moments first)
         self.late_moments = False
 
     def rebuild(self, disc, grid) -> None:
