@@ -130,12 +130,22 @@ def average_normal(d, sums, X, eps, p, node, xi, k, c):
         c[a] = c[a] / size if size > 0.0 else 0.0
 
 
+@helper_kernel
+def fields_meet(sums, eps, p, node):
+    """Two or more fields have mass (more than ``eps``) at node ``node`` of slot ``p``: where
+    contact acts (``sums``: (fields, slots, rows, stride), row 0 the mass)."""
+    present = 0
+    for k in range(sums.shape[0]):
+        if sums[k, p, 0, node] > eps:
+            present += 1
+    return present >= 2
+
+
 @kernel
 def contact_mask(nodes, sums, eps, mask):
-    """``mask[p, 0, node]`` 1 at every owned node where two or more fields have mass (more than
-    ``eps``), else 0: the nodes :func:`contact_normals` gives normals (``sums``: as there)."""
+    """``mask[p, 0, node]`` 1 at every owned node where fields meet (:func:`fields_meet`),
+    else 0: the nodes :func:`contact_normals` gives normals (``sums``: as there)."""
     own_lo, own_hi, base, nloc, face_lo, face_hi = nodes
-    K = sums.shape[0]
     L0, L1 = nloc[0], nloc[1]
     for p in range(own_lo.shape[0]):
         for i2 in range(own_lo[p, 2], own_hi[p, 2]):
@@ -143,21 +153,18 @@ def contact_mask(nodes, sums, eps, mask):
                 row0 = L0 * (i1 + L1 * i2)
                 for i0 in range(own_lo[p, 0], own_hi[p, 0]):
                     node = row0 + i0
-                    present = 0
-                    for k in range(K):
-                        if sums[k, p, 0, node] > eps:
-                            present += 1
-                    mask[p, 0, node] = 1.0 if present >= 2 else 0.0
+                    mask[p, 0, node] = 1.0 if fields_meet(sums, eps, p, node) else 0.0
 
 
 @kernel
-def contact_normals(d, nodes, origin, h, sums, X, eps, mode, normal, mask):
+def contact_normals(d, nodes, origin, h, sums, X, eps, mode, normal, mask, marked):
     """``normal[k, p, :2d, node]``: field ``k``'s candidate contact normals at every owned
     node where it and another field have mass (more than ``eps``), zero for a field without
     (``mode``: :data:`NORMAL_MODES`): rows ``0..d−1`` out of the heavy field ("separating",
     "heavy"), out of the deciding field ("gradient") or the moments' average ("average"); rows
     ``d..2d−1`` the line between the centres of mass ("separating", "centroids");
-    ``mask[p, 0, node]`` 1 at those nodes, else 0. Elsewhere the normals keep what they held:
+    ``mask[p, 0, node]`` 1 at those nodes, else 0 (``marked``: :func:`contact_mask` has marked
+    them already, on the same sums: read, not written). Elsewhere the normals keep what they held:
     every reader (the extents, the correction) looks at the nodes the mask marks only.
     ``sums``: (fields, slots, rows, stride) P2G sums (row 0 the mass); ``X``: (fields, slots,
     1 + d, stride) first moments in rows 1..d (spare slots past the patches' are not visited)."""
@@ -176,14 +183,14 @@ def contact_normals(d, nodes, origin, h, sums, X, eps, mode, normal, mask):
                 for i0 in range(own_lo[p, 0], own_hi[p, 0]):
                     xi[0] = origin[0] + (base[p, 0] + i0) * h[0]
                     node = row0 + i0
-                    present = 0
-                    for k in range(K):
-                        if sums[k, p, 0, node] > eps:
-                            present += 1
-                    if present < 2:
+                    if marked:
+                        if mask[p, 0, node] == 0.0:
+                            continue
+                    elif fields_meet(sums, eps, p, node):
+                        mask[p, 0, node] = 1.0
+                    else:
                         mask[p, 0, node] = 0.0
                         continue
-                    mask[p, 0, node] = 1.0
                     for k in range(K):
                         for a in range(2 * d):
                             normal[k, p, a, node] = 0.0
@@ -311,9 +318,10 @@ def contact_extents(d, start, order, field, x, F, r0, origin, h, reach, base, nl
 
 @kernel
 def contact_correct(d, nodes, sums, new, normal, ext, mu, dt, gvec, heavy, eps, momentum_only,
-                    mode):
+                    mode, mask):
     """Correct every field's updated velocity (``new[k]``: rows ``v``, then ``Δv`` unless
-    ``momentum_only``) at the owned nodes where fields touch and approach; returns per slot and
+    ``momentum_only``) at the owned nodes where fields touch (``mask``: where they meet, from
+    :func:`contact_normals` on these masses) and approach; returns per slot and
     field: the contact impulse on the field (3), its work, and what the forces' and gravity's
     work gain at the corrected mean velocity (the energy ledger's account, as for walls;
     ``heavy``: the lightest node whose force row counts)."""
@@ -330,19 +338,17 @@ def contact_correct(d, nodes, sums, new, normal, ext, mu, dt, gvec, heavy, eps, 
                 row0 = L0 * (i1 + L1 * i2)
                 for i0 in range(own_lo[p, 0], own_hi[p, 0]):
                     node = row0 + i0
+                    if mask[p, 0, node] == 0.0:
+                        continue
                     M = 0.0
-                    present = 0
                     for a in range(d):
                         vc[a] = 0.0
                     for k in range(K):
                         m = sums[k, p, 0, node]
                         if m > eps:
                             M += m
-                            present += 1
                             for a in range(d):
                                 vc[a] += m * new[k, p, a, node]
-                    if present < 2:
-                        continue
                     for a in range(d):
                         vc[a] /= M
                     for k in range(K):  # every field's change first, from the same v_c

@@ -200,13 +200,16 @@ class ContactPhase:
         accumulate(plan, *self.node_views("x"))
 
     def detect(self, disc, P, nodes, plan, eps: float) -> None:
-        """Normals at the owned nodes, filled to their ghost copies; the fields' extremes along
-        them from every particle near a node, their maxima over the ghost layers (collective)."""
+        """Normals at the owned nodes, filled to their ghost copies (and the mask where fields
+        meet, unless :meth:`moments_where_fields_meet` marked and filled it this step); the
+        fields' extremes along them from every particle near a node, their maxima over the
+        ghost layers (collective)."""
+        marked = self.late_moments
         contact_normals(disc.dim, nodes, disc.origin3, disc.h3, self.sum_all, self.x_all, eps,
-                        self.normal_mode, self.normal, self.mask)
+                        self.normal_mode, self.normal, self.mask, marked)
         slots = self.grids[0].gsum_block.shape[0]
         mask = _views(self.mask[:slots], self.nodes)
-        fill(plan, *self.node_views("normal"), mask)
+        fill(plan, *self.node_views("normal"), *(() if marked else (mask,)))
         active = mask[:, :, 0].any(axis=1)  # slots with a node where fields meet
         # only there are extremes read (a slot without such a node holds no copy of one)
         self.ext[:, :slots][:, active] = -np.inf
@@ -224,6 +227,6 @@ class ContactPhase:
         g[:disc.dim] = gravity[:disc.dim]
         sums = contact_correct(disc.dim, nodes, self.sum_all, self.new_all, self.normal,
                                self.ext, self.mu, dt, g, heavy, eps, momentum_only,
-                               self.normal_mode)
+                               self.normal_mode, self.mask)
         if not momentum_only:
             self.sums = sums
