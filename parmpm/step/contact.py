@@ -14,7 +14,8 @@ With crack faces (``[contact] cracks``, :mod:`parmpm.grid.crack`) every body fie
 field, the far side of a crack, and a particle's field is chosen per node inside the transfer
 loops: the grids of all fields are then one stacked grid (field ``k``'s node ``j`` at
 ``j + k · stride``, the arrays laid out (slots, rows, fields, stride)) that one pass of the
-generic transfers fills, and each field's grid a view into it.
+generic transfers fills, and each field's grid a view into it. Until a particle can crack, a
+scene of one body steps without them (:attr:`parmpm.step.stepper.Stepper.fields_now`).
 """
 from __future__ import annotations
 
@@ -219,6 +220,14 @@ class ContactPhase:
                         active, self.ext, self.sides if self.crack is not None else None,
                         self.gap_mode)
         accumulate_max(plan, *self.node_views("ext"))
+
+    def untouched(self, slots: int) -> None:
+        """A step without the contact phase (a crack scene with no crack yet): no impulse and no
+        work on any field, as :meth:`correct` would sum them."""
+        if self.sums is None or self.sums.shape != (slots, self.K, 6):
+            self.sums = np.zeros((slots, self.K, 6))
+        else:
+            self.sums[:] = 0.0
 
     def correct(self, disc, nodes, dt: float, gravity: np.ndarray, heavy: float, eps: float,
                 momentum_only: bool) -> None:

@@ -71,6 +71,9 @@ class Stepper:
         self.ledger = None                  # an EnergyLedger fed after each force update
         self.walls = None                   # a WallPhase (parmpm.step.walls) when the scene has walls
         self.contact = None                 # a ContactPhase (parmpm.step.contact): [contact]
+        #: the contact phase this step runs (:meth:`_fields_this_step`): ``contact``, or None
+        self.fields_now = None
+        self._kernels = "specialised"       # the kernels asked for (use_kernels)
         #: the plastic table (:mod:`parmpm.materials.plasticity.table`) of a scene with a plastic
         #: material, whose pass follows G2P's deformation update; None: no pass
         self.plastic: np.ndarray | None = None
@@ -97,6 +100,7 @@ class Stepper:
         """``"specialised"`` (the default) or ``"generic"`` transfer kernels (:meth:`Transfers.use
         <parmpm.step.transfers.Transfers.use>`)."""
         self.transfers.use(kind)
+        self._kernels = kind
 
     def compile_lazy_order(self) -> None:
         """Compile (or load from numba's cache) the specialised transfers' variant for a lazy
@@ -130,14 +134,31 @@ class Stepper:
     def use_contact(self, contact) -> None:
         """Separate velocity fields from now on (a :class:`~parmpm.step.contact.ContactPhase`)."""
         self.contact = contact
-        if contact.crack is not None:  # a particle's field per node: the generic loops
-            self.use_kernels("generic")
         contact.rebuild(self.disc, self.grid)
+        self._fields_this_step()
+
+    def _fields_this_step(self) -> None:
+        """Which fields this step runs, into :attr:`fields_now`: the contact phase's, or none —
+        one field on the specialised kernels — while a crack scene of one body has no particle
+        anywhere damaged enough for a crack (``max_damage``, the same on every rank: the last
+        step's, or at a run's first step, a restart's included, the particles' own), where every
+        particle is in its body's field at every node and the far side is empty (the crack
+        passes would find that). A crack's sides are per node: the generic loops."""
+        C = self.contact
+        if C is not None and C.crack is not None and C.fields == 1:
+            if not math.isfinite(C.max_damage):  # collective: every rank's first step
+                local = np.array([float(self.P.rows.damage.max(initial=0.0))])
+                C.max_damage = float(allreduce_max(self.comm, local)[0])
+            if C.max_damage < C.crack:
+                C = None
+        self.fields_now = C
+        self.transfers.use("generic" if C is not None and C.crack is not None
+                           else self._kernels)
 
     @property
     def field_grids(self) -> list:
         """The grids the transfers fill: the one grid, or every contact field's."""
-        return [self.grid] if self.contact is None else self.contact.grids
+        return [self.grid] if self.fields_now is None else self.fields_now.grids
 
     # --- the phases -----------------------------------------------------------------------------
     def _check(self, phase: str) -> None:
@@ -158,7 +179,7 @@ class Stepper:
         """P2G of the step ``dt`` into the grid sums (with contact: every field's, and their
         first moments where they cannot wait for the masses' accumulation: mirror or crack
         faces; :meth:`parmpm.step.contact.ContactPhase.moments_where_fields_meet`)."""
-        C, T, err = self.contact, self.transfers, self.faults.err
+        C, T, err = self.fields_now, self.transfers, self.faults.err
         if C is None:
             T.p2g(self.grid, bforce, dt, err, self.ledger is not None)
         elif C.crack is not None:  # every field in one pass, each particle's per node
@@ -187,7 +208,7 @@ class Stepper:
 
     def p2g_momentum(self) -> None:
         """MUSL's momentum re-map into the grid sums (every field's)."""
-        C, T = self.contact, self.transfers
+        C, T = self.fields_now, self.transfers
         if C is None:
             T.p2g_momentum(self.grid, self.faults.err)
         elif C.crack is not None:
@@ -209,7 +230,7 @@ class Stepper:
         """G2P in ``mode``; keeps the next patches the specialised kernels found (the final
         positions only: not after MUSL's motion pass, which the deformation pass follows)."""
         locate = self.moves.locate_record(self.grid.inside)
-        C, T = self.contact, self.transfers
+        C, T = self.fields_now, self.transfers
         if C is None:
             vmax, located = T.g2p(self.grid, mode, dt, self.faults.err, locate)
             if located is not None and mode != G2P_MUSL_MOTION:
@@ -258,7 +279,7 @@ class Stepper:
         """Fold, accumulate over the ghost layers, update the nodes (then the walls, as they are
         at the step's end ``t_end``) and fill the ghosts: the grid between P2G and G2P; returns
         the lap clock."""
-        plan, phase, C = self.plan, self.grid_phase, self.contact
+        plan, phase, C = self.plan, self.grid_phase, self.fields_now
         grids = self.field_grids
         rows = self._sum_rows()
         if C is not None and not momentum_only:  # the images' moments, from the unfolded mass
@@ -288,6 +309,8 @@ class Stepper:
             C.correct(self.disc, nodes, dt, gravity, heavy, phase.mass_eps, momentum_only)
             for grid in grids:
                 phase.reflect_beyond(grid)
+        elif self.contact is not None and not momentum_only:  # a whole crack scene's step
+            self.contact.untouched(nodes.own_lo.shape[0])
         if self.ledger is not None and not momentum_only:
             self.ledger.add(self, dt, gravity)
         t = self._lap("grid", t)
@@ -299,6 +322,8 @@ class Stepper:
         """Advance this rank's particles from ``time_now`` by ``dt`` (collective: every rank
         calls it); returns the largest ``c + |v|`` over all ranks for the next CFL step."""
         t = time.perf_counter()
+        if self.contact is not None:
+            self._fields_this_step()
         if self.walls is not None:
             self.walls.mark(self.disc, self.P, self.grid, self.plan, time_now)
         # scene loads at the step's midpoint (exact for a ramp), the manufactured forcing at its start
