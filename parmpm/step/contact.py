@@ -64,6 +64,9 @@ class ContactPhase:
         self.crack = None if crack is None else float(crack)
         self.K = self.fields * (1 if crack is None else 2)
         self.grad = np.zeros((0, 3))  # crack faces: every row's damage gradient
+        #: crack faces, this step: the slots near a crack (:meth:`_near_cracks`), or None
+        self.near: np.ndarray | None = None
+        self.far_boxes = self.near_boxes = None
         self.sides: Sides | None = None
         #: the largest damage of any particle on any rank, from the last step's end (inf: not
         #: known yet); below ``crack`` no node can have a crack
@@ -103,6 +106,10 @@ class ContactPhase:
             s, n, x = (b[:slots] for b in stacked)
             self.stacked = FieldGrid(s, n, K * nodes, d, grid.inside)
             self.stacked_x = FieldGrid(x, n, K * nodes, d, grid.inside)
+            # what the generic loops write of the slots near a crack (Stepper._on_sides)
+            s, x = (grid_block(spare, r, K * nodes)[0][:slots] for r in (rows, 1 + d))
+            self.stacked_near = FieldGrid(s, n, K * nodes, d, grid.inside)
+            self.stacked_x_near = FieldGrid(x, n, K * nodes, d, grid.inside)
             self.dsum = np.zeros((spare, 2, stride))    # Σ S m, Σ S m D, then D_i
             self.dmax = np.zeros((spare, 1, stride))    # the largest D reaching a node
             self.tsum = np.zeros((spare, d + d * (d + 1) // 2, stride))  # Σ S m g, Σ S m g gᵀ
@@ -143,6 +150,7 @@ class ContactPhase:
         self.sides = Sides(self.field, self.fields, self.grad, self.cnormal, self.nodes)
         if self.max_damage < self.crack:
             self.cnormal[:slots] = 0.0
+            self._near_cracks(P)
             return
         how, boxes, fields = transfers.records()
         dsum, dmax = _views(self.dsum[:slots], self.nodes), _views(self.dmax[:slots], self.nodes)
@@ -155,6 +163,28 @@ class ContactPhase:
         accumulate(plan, tsum)
         crack_normals(self.dim, nodes, self.tsum, self.dmax, self.crack, self.cnormal)
         fill(plan, _views(self.cnormal[:slots], self.nodes))
+        self._near_cracks(P)
+
+    def _near_cracks(self, P) -> None:
+        """This step's :attr:`near` (per slot: its node box, ghost copies included, holds a node
+        with a crack normal; None where a particle's field away from a crack is not field 0:
+        several bodies) and the (start, order) of the slots it marks and of the others."""
+        self.near = self.far_boxes = self.near_boxes = None
+        if self.fields != 1:
+            return
+        slots = self.grids[0].gsum_block.shape[0]
+        self.near = np.any(self.cnormal[:slots, :, :self.nodes] != 0.0, axis=(1, 2))
+        self.far_boxes = self.slot_boxes(P.start, P.order(), ~self.near)
+        self.near_boxes = self.slot_boxes(P.start, P.order(), self.near)
+
+    @staticmethod
+    def slot_boxes(start: np.ndarray, order: np.ndarray,
+                   keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(start, order) of the slots ``keep`` marks (the others empty)."""
+        counts = np.diff(start)
+        kept = np.zeros_like(start)
+        np.cumsum(counts * keep, out=kept[1:])
+        return kept, order[np.repeat(keep, counts)]
 
     def boxes(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Field ``k``'s (start, order)."""
@@ -174,11 +204,7 @@ class ContactPhase:
     def active_boxes(self, k: int, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Field ``k``'s (start, order) with only the slots ``active`` marks (the others
         empty)."""
-        start, order = self.boxes(k)
-        counts = np.diff(start)
-        kept = np.zeros_like(start)
-        np.cumsum(counts * active, out=kept[1:])
-        return kept, order[np.repeat(active, counts)]
+        return self.slot_boxes(*self.boxes(k), active)
 
     def moments_where_fields_meet(self, transfers, nodes, plan, eps: float,
                                   err: np.ndarray) -> None:

@@ -184,13 +184,13 @@ class Stepper:
             T.p2g(self.grid, bforce, dt, err, self.ledger is not None)
         elif C.crack is not None:  # every field in one pass, each particle's per node
             C.split(self.P)
+            T.use("generic")
             C.find_sides(T, self.P, self.plan, self.grid_phase.records()[0], err)
-            T.sides = C.sides
-            try:
-                T.p2g(C.stacked, bforce, dt, err, self.ledger is not None)
-                T.p2g_momentum(C.stacked_x, err, positions=True)
-            finally:
-                T.sides = None
+            ledger = self.ledger is not None
+            self._on_sides(lambda g: T.p2g(g, bforce, dt, err, ledger), C.stacked,
+                           C.stacked_near, slice(None))
+            self._on_sides(lambda g: T.p2g_momentum(g, err, positions=True), C.stacked_x,
+                           C.stacked_x_near, slice(1, 1 + self.disc.dim))
         else:
             C.split(self.P)
             C.late_moments = self.grid_phase.symmetry is None
@@ -212,11 +212,8 @@ class Stepper:
         if C is None:
             T.p2g_momentum(self.grid, self.faults.err)
         elif C.crack is not None:
-            T.sides = C.sides
-            try:
-                T.p2g_momentum(C.stacked, self.faults.err)
-            finally:
-                T.sides = None
+            self._on_sides(lambda g: T.p2g_momentum(g, self.faults.err), C.stacked,
+                           C.stacked_near, slice(1, 1 + self.disc.dim))
         else:
             try:
                 for k in range(C.K):
@@ -225,6 +222,40 @@ class Stepper:
             finally:
                 T.subset = None
         self._check("p2g")
+
+    def _on_sides(self, transfer, grid, spare=None, rows=None) -> list:
+        """``transfer(grid)`` over the stacked grid of crack faces: the slots whose node box
+        (ghost copies included) holds no node with a crack normal on the specialised kernels —
+        in a scene of one body, their particles are in its field, field 0's copies, at every node —
+        and the others on the generic loops with each particle's field per node; those write into
+        ``spare`` (a grid like ``grid``: every pass zeroes its sums first), whose ``rows`` of
+        those slots are then copied into ``grid`` (None: the transfer writes no grid). Each
+        slot's sums are its own particles' in canonical order, whichever kernels, so the same on
+        any number of ranks. Returns what each pass returned."""
+        C, T = self.fields_now, self.transfers
+        near = C.near
+        out = []
+        try:
+            if near is not None and not near.all():
+                T.use(self._kernels)
+                T.subset = C.far_boxes
+                out.append(transfer(grid))
+                if not near.any():
+                    return out
+                T.subset = C.near_boxes
+                target = grid if spare is None else spare
+            else:
+                target = grid
+            T.use("generic")
+            T.sides = C.sides
+            out.append(transfer(target))
+            if target is not grid:
+                grid.gsum_block[near, rows] = target.gsum_block[near, rows]
+        finally:
+            T.subset = None
+            T.sides = None
+            T.use("generic")
+        return out
 
     def g2p(self, mode: int, dt: float) -> float:
         """G2P in ``mode``; keeps the next patches the specialised kernels found (the final
@@ -238,13 +269,10 @@ class Stepper:
             return vmax
         vmax = 0.0
         if C.crack is not None:
-            T.sides = C.sides
-            try:
-                vmax = T.g2p(C.stacked, mode, dt, self.faults.err, locate)[0]
-            finally:
-                T.sides = None
+            speeds = self._on_sides(lambda g: T.g2p(g, mode, dt, self.faults.err, locate)[0],
+                                    C.stacked)
             self.moves.located = None
-            return vmax
+            return max(speeds)
         # each field's particles from its own grid; every particle is in one field's share, so
         # the fields' G2P together find every next patch, as one field's does (the migration
         # looks again only when a particle left the grid: its message names the first in
