@@ -15,13 +15,15 @@ field, the far side of a crack, and a particle's field is chosen per node inside
 loops: the grids of all fields are then one stacked grid (field ``k``'s node ``j`` at
 ``j + k · stride``, the arrays laid out (slots, rows, fields, stride)) that one pass of the
 generic transfers fills, and each field's grid a view into it. Until a particle can crack, a
-scene of one body steps without them (:attr:`parmpm.step.stepper.Stepper.fields_now`).
+scene of one body steps without them (:meth:`ContactPhase.whole`).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from decomposition import accumulate, accumulate_max, fill
+from decomposition import accumulate, accumulate_max, allreduce_max, fill
 from parmpm.core.records import Sides
 from parmpm.grid.contact import (GAP_MODES, NORMAL_MODES, contact_correct, contact_extents,
                                  contact_mask, contact_normals, field_of_rows, split_by_field)
@@ -185,6 +187,51 @@ class ContactPhase:
         kept = np.zeros_like(start)
         np.cumsum(counts * keep, out=kept[1:])
         return kept, order[np.repeat(keep, counts)]
+
+    def whole(self, damage: np.ndarray, comm) -> bool:
+        """A crack scene of one body with no particle anywhere damaged to ``crack`` (the last
+        step's largest damage, the same on every rank; at a run's first step, a restart's
+        included, the particles' own ``damage``: collective): every particle is then in its
+        body's field at every node and the far side is empty, so the step is one field's."""
+        if self.crack is None or self.fields != 1:
+            return False
+        if not math.isfinite(self.max_damage):
+            local = np.array([float(damage.max(initial=0.0))])
+            self.max_damage = float(allreduce_max(comm, local)[0])
+        return self.max_damage < self.crack
+
+    def on_sides(self, transfers, kernels: str, transfer, grid, spare=None, rows=None) -> list:
+        """``transfer(grid)`` over the stacked grid of crack faces: the slots whose node box
+        (ghost copies included) holds no node with a crack normal on the ``kernels`` asked for
+        (the specialised ones by default) — in a scene of one body their particles are in its
+        field, field 0's copies, at every node — and the others on the generic loops with each
+        particle's field per node; those write into ``spare`` (a grid like ``grid``: every pass
+        zeroes its sums first), whose ``rows`` of those slots are then copied into ``grid``
+        (``spare`` None: the transfer writes no grid). Each slot's sums are its own particles'
+        in canonical order, whichever kernels, so the same on any number of ranks. Returns what
+        each pass returned."""
+        T, near = transfers, self.near
+        out = []
+        try:
+            target = grid
+            if near is not None and not near.all():
+                T.use(kernels)
+                T.subset = self.far_boxes
+                out.append(transfer(grid))
+                if not near.any():
+                    return out
+                T.subset = self.near_boxes
+                target = grid if spare is None else spare
+            T.use("generic")
+            T.sides = self.sides
+            out.append(transfer(target))
+            if target is not grid:
+                grid.gsum_block[near, rows] = target.gsum_block[near, rows]
+        finally:
+            T.subset = None
+            T.sides = None
+            T.use("generic")
+        return out
 
     def boxes(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Field ``k``'s (start, order)."""

@@ -139,18 +139,12 @@ class Stepper:
 
     def _fields_this_step(self) -> None:
         """Which fields this step runs, into :attr:`fields_now`: the contact phase's, or none —
-        one field on the specialised kernels — while a crack scene of one body has no particle
-        anywhere damaged enough for a crack (``max_damage``, the same on every rank: the last
-        step's, or at a run's first step, a restart's included, the particles' own), where every
-        particle is in its body's field at every node and the far side is empty (the crack
-        passes would find that). A crack's sides are per node: the generic loops."""
+        one field on the specialised kernels — where :meth:`ContactPhase.whole
+        <parmpm.step.contact.ContactPhase.whole>` says a crack scene has no crack yet. A crack's
+        sides are per node: the generic loops."""
         C = self.contact
-        if C is not None and C.crack is not None and C.fields == 1:
-            if not math.isfinite(C.max_damage):  # collective: every rank's first step
-                local = np.array([float(self.P.rows.damage.max(initial=0.0))])
-                C.max_damage = float(allreduce_max(self.comm, local)[0])
-            if C.max_damage < C.crack:
-                C = None
+        if C is not None and C.whole(self.P.rows.damage, self.comm):
+            C = None
         self.fields_now = C
         self.transfers.use("generic" if C is not None and C.crack is not None
                            else self._kernels)
@@ -187,10 +181,11 @@ class Stepper:
             T.use("generic")
             C.find_sides(T, self.P, self.plan, self.grid_phase.records()[0], err)
             ledger = self.ledger is not None
-            self._on_sides(lambda g: T.p2g(g, bforce, dt, err, ledger), C.stacked,
-                           C.stacked_near, slice(None))
-            self._on_sides(lambda g: T.p2g_momentum(g, err, positions=True), C.stacked_x,
-                           C.stacked_x_near, slice(1, 1 + self.disc.dim))
+            d, kernels = self.disc.dim, self._kernels
+            C.on_sides(T, kernels, lambda g: T.p2g(g, bforce, dt, err, ledger), C.stacked,
+                       C.stacked_near, slice(None))
+            C.on_sides(T, kernels, lambda g: T.p2g_momentum(g, err, positions=True),
+                       C.stacked_x, C.stacked_x_near, slice(1, 1 + d))
         else:
             C.split(self.P)
             C.late_moments = self.grid_phase.symmetry is None
@@ -212,8 +207,8 @@ class Stepper:
         if C is None:
             T.p2g_momentum(self.grid, self.faults.err)
         elif C.crack is not None:
-            self._on_sides(lambda g: T.p2g_momentum(g, self.faults.err), C.stacked,
-                           C.stacked_near, slice(1, 1 + self.disc.dim))
+            C.on_sides(T, self._kernels, lambda g: T.p2g_momentum(g, self.faults.err),
+                       C.stacked, C.stacked_near, slice(1, 1 + self.disc.dim))
         else:
             try:
                 for k in range(C.K):
@@ -222,40 +217,6 @@ class Stepper:
             finally:
                 T.subset = None
         self._check("p2g")
-
-    def _on_sides(self, transfer, grid, spare=None, rows=None) -> list:
-        """``transfer(grid)`` over the stacked grid of crack faces: the slots whose node box
-        (ghost copies included) holds no node with a crack normal on the specialised kernels —
-        in a scene of one body, their particles are in its field, field 0's copies, at every node —
-        and the others on the generic loops with each particle's field per node; those write into
-        ``spare`` (a grid like ``grid``: every pass zeroes its sums first), whose ``rows`` of
-        those slots are then copied into ``grid`` (None: the transfer writes no grid). Each
-        slot's sums are its own particles' in canonical order, whichever kernels, so the same on
-        any number of ranks. Returns what each pass returned."""
-        C, T = self.fields_now, self.transfers
-        near = C.near
-        out = []
-        try:
-            if near is not None and not near.all():
-                T.use(self._kernels)
-                T.subset = C.far_boxes
-                out.append(transfer(grid))
-                if not near.any():
-                    return out
-                T.subset = C.near_boxes
-                target = grid if spare is None else spare
-            else:
-                target = grid
-            T.use("generic")
-            T.sides = C.sides
-            out.append(transfer(target))
-            if target is not grid:
-                grid.gsum_block[near, rows] = target.gsum_block[near, rows]
-        finally:
-            T.subset = None
-            T.sides = None
-            T.use("generic")
-        return out
 
     def g2p(self, mode: int, dt: float) -> float:
         """G2P in ``mode``; keeps the next patches the specialised kernels found (the final
@@ -269,8 +230,9 @@ class Stepper:
             return vmax
         vmax = 0.0
         if C.crack is not None:
-            speeds = self._on_sides(lambda g: T.g2p(g, mode, dt, self.faults.err, locate)[0],
-                                    C.stacked)
+            speeds = C.on_sides(T, self._kernels,
+                                lambda g: T.g2p(g, mode, dt, self.faults.err, locate)[0],
+                                C.stacked)
             self.moves.located = None
             return max(speeds)
         # each field's particles from its own grid; every particle is in one field's share, so
