@@ -108,12 +108,14 @@ class ContactPhase:
             s, n, x = (b[:slots] for b in stacked)
             self.stacked = FieldGrid(s, n, K * nodes, d, grid.inside)
             self.stacked_x = FieldGrid(x, n, K * nodes, d, grid.inside)
-            # what the generic loops write of the slots near a crack (Stepper._on_sides)
-            s, x = (grid_block(spare, r, K * nodes)[0][:slots] for r in (rows, 1 + d))
-            self.stacked_near = FieldGrid(s, n, K * nodes, d, grid.inside)
-            self.stacked_x_near = FieldGrid(x, n, K * nodes, d, grid.inside)
+            # what the generic loops write of the slots near a crack (on_sides)
+            near = grid_block(spare, rows, K * nodes)[0][:slots]
+            self.stacked_near = FieldGrid(near, n, K * nodes, d, grid.inside)
             self.dsum = np.zeros((spare, 2, stride))    # Σ S m, Σ S m D, then D_i
             self.dmax = np.zeros((spare, 1, stride))    # the largest D reaching a node
+            self.dsum_spare = np.zeros((spare, 2, stride))  # see _damage_sums
+            self.dmax_spare = np.zeros((spare, 1, stride))
+            self.reached = np.zeros((spare, 1, stride))  # Σ S m D of the damaged slots
             self.tsum = np.zeros((spare, d + d * (d + 1) // 2, stride))  # Σ S m g, Σ S m g gᵀ
             self.cnormal = np.zeros((spare, 3, stride))  # the crack normal; 0: no crack
         self.normal = np.zeros((K, spare, 2 * d, stride))  # two candidates
@@ -141,7 +143,7 @@ class ContactPhase:
 
     def find_sides(self, transfers, P, plan, nodes, err: np.ndarray) -> None:
         """Crack faces: the damage field, every particle's damage gradient and every node's
-        crack normal (collective: four halo exchanges), as :attr:`sides` for this step's transfers
+        crack normal (collective: six halo exchanges), as :attr:`sides` for this step's transfers
         (:mod:`parmpm.grid.crack`). While no particle anywhere is damaged enough for a crack
         (:attr:`max_damage`, the same on every rank) every node's normal is zero without a
         pass: what the passes would find."""
@@ -154,18 +156,59 @@ class ContactPhase:
             self.cnormal[:slots] = 0.0
             self._near_cracks(P)
             return
-        how, boxes, fields = transfers.records()
         dsum, dmax = _views(self.dsum[:slots], self.nodes), _views(self.dmax[:slots], self.nodes)
-        damage_sums(how, boxes, fields, P.rows.damage, dsum, dmax, err)
+        damage = P.rows.damage
+        wet = self._damage_sums(transfers, P, plan, damage, slots, err)
         accumulate(plan, dsum, maxima=(dmax,))
         nodal_damage(nodes, self.dsum)
         fill(plan, dsum[:, :, 1:])
         tsum = _views(self.tsum[:slots], self.nodes)
-        damage_gradients(how, boxes, fields, dsum[:, :, 1:], self.grad, tsum, err)
+        try:  # a particle of any other slot has no damage gradient
+            self.grad[:] = 0.0
+            transfers.subset = self.slot_boxes(P.start, P.order(), wet)
+            how, boxes, fields = transfers.records()
+            damage_gradients(how, boxes, fields, dsum[:, :, 1:], self.grad, tsum, err)
+        finally:
+            transfers.subset = None
         accumulate(plan, tsum)
         crack_normals(self.dim, nodes, self.tsum, self.dmax, self.crack, self.cnormal)
         fill(plan, _views(self.cnormal[:slots], self.nodes))
         self._near_cracks(P)
+
+    def _damage_sums(self, transfers, P, plan, damage, slots: int, err) -> np.ndarray:
+        """Every slot's partial damage sums (:func:`damage_sums`) where they can matter; returns
+        the slots whose node box (ghost copies included) a damaged particle reaches. Elsewhere
+        every node's damage is 0 whatever its mass, so the slots whose box no damaged particle
+        reaches are left out (their sums zero): first the slots holding a damaged particle, then
+        — once their ``Σ S m D``, summed and filled over the ghost layers (collective: on every
+        rank, whatever it holds), shows which boxes they reach — the other slots of those boxes,
+        each slot's sums its own particles' in canonical order as in one pass over all, so every
+        node's damage is that pass's, bit for bit."""
+        counts = np.diff(P.start)
+        order = P.order()
+        damaged = np.zeros(slots, bool)
+        damaged[np.repeat(np.arange(slots), counts)[damage[order] > 0.0]] = True
+        dsum, dmax = _views(self.dsum[:slots], self.nodes), _views(self.dmax[:slots], self.nodes)
+        try:
+            transfers.subset = self.slot_boxes(P.start, order, damaged)
+            how, boxes, fields = transfers.records()
+            damage_sums(how, boxes, fields, damage, dsum, dmax, err)
+            reach = _views(self.reached[:slots], self.nodes)
+            np.copyto(reach[:, :, 0], dsum[:, :, 1])
+            accumulate(plan, reach)
+            fill(plan, reach)
+            wet = np.any(reach[:, :, 0] > 0.0, axis=1)
+            others = wet & ~damaged
+            if others.any():
+                transfers.subset = self.slot_boxes(P.start, order, others)
+                how, boxes, fields = transfers.records()
+                spare, spare_max = (_views(b[:slots], self.nodes)
+                                    for b in (self.dsum_spare, self.dmax_spare))
+                damage_sums(how, boxes, fields, damage, spare, spare_max, err)
+                self.dsum[:slots][others] = self.dsum_spare[:slots][others]
+            return wet
+        finally:
+            transfers.subset = None
 
     def _near_cracks(self, P) -> None:
         """This step's :attr:`near` (per slot: its node box, ghost copies included, holds a node
@@ -200,7 +243,8 @@ class ContactPhase:
             self.max_damage = float(allreduce_max(comm, local)[0])
         return self.max_damage < self.crack
 
-    def on_sides(self, transfers, kernels: str, transfer, grid, spare=None, rows=None) -> list:
+    def on_sides(self, transfers, kernels: str, transfer, grid, spare=None, rows=None,
+                 far: bool = True) -> list:
         """``transfer(grid)`` over the stacked grid of crack faces: the slots whose node box
         (ghost copies included) holds no node with a crack normal on the ``kernels`` asked for
         (the specialised ones by default) — in a scene of one body their particles are in its
@@ -208,20 +252,24 @@ class ContactPhase:
         particle's field per node; those write into ``spare`` (a grid like ``grid``: every pass
         zeroes its sums first), whose ``rows`` of those slots are then copied into ``grid``
         (``spare`` None: the transfer writes no grid). Each slot's sums are its own particles'
-        in canonical order, whichever kernels, so the same on any number of ranks. Returns what
-        each pass returned."""
+        in canonical order, whichever kernels, so the same on any number of ranks. ``far``
+        False: the slots near a crack only (the others' sums zero): where fields meet is at a
+        node with a crack normal, which every slot whose box holds it counts as near, so sums
+        read only there (the first moments) need no other slot. Returns what each pass
+        returned."""
         T, near = transfers, self.near
         out = []
         try:
             target = grid
             if near is not None and not near.all():
-                T.use(kernels)
-                T.subset = self.far_boxes
-                out.append(transfer(grid))
-                if not near.any():
-                    return out
+                if far:
+                    T.use(kernels)
+                    T.subset = self.far_boxes
+                    out.append(transfer(grid))
+                    if not near.any():
+                        return out
+                    target = grid if spare is None else spare
                 T.subset = self.near_boxes
-                target = grid if spare is None else spare
             T.use("generic")
             T.sides = self.sides
             out.append(transfer(target))

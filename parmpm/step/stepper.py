@@ -181,11 +181,11 @@ class Stepper:
             T.use("generic")
             C.find_sides(T, self.P, self.plan, self.grid_phase.records()[0], err)
             ledger = self.ledger is not None
-            d, kernels = self.disc.dim, self._kernels
+            kernels = self._kernels
             C.on_sides(T, kernels, lambda g: T.p2g(g, bforce, dt, err, ledger), C.stacked,
                        C.stacked_near, slice(None))
             C.on_sides(T, kernels, lambda g: T.p2g_momentum(g, err, positions=True),
-                       C.stacked_x, C.stacked_x_near, slice(1, 1 + d))
+                       C.stacked_x, far=False)
         else:
             C.split(self.P)
             C.late_moments = self.grid_phase.symmetry is None
