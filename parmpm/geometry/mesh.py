@@ -44,6 +44,10 @@ CORNERS = {"quad": np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float),
                                    [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], float)}
 #: relative size (of L^d, L the element's largest node distance) below which it has no volume
 DEGENERATE = 1e-12
+#: particles made at a time: each element's Jacobians and checks are its own, so blocks give the
+#: same bits as one pass with a fraction of its temporaries (a 10⁶-particle quad mesh: 119 MB
+#: peak in one pass)
+BLOCK_PARTICLES = 65_536
 
 
 def _simplex_rule(d: int) -> tuple[np.ndarray, np.ndarray]:
@@ -183,13 +187,16 @@ def element_particles(points, cell_type: str, conn, split: int = 1, label: str =
     (see the module docstring for the rules). A bad element raises a one-line SceneError starting
     with ``label`` and naming the element's index."""
     points, conn, d, split = _check_inputs(points, cell_type, conn, split, label)
-    if len(conn) == 0:
-        return np.empty((0, d)), np.empty(0), np.empty(0, np.int64)
-    with np.errstate(over="ignore", invalid="ignore"):
-        x, vol = _particles(points, cell_type, conn, split, label, first)
-    n = vol.shape[1]
-    return (np.ascontiguousarray(x.reshape(-1, d)), np.ascontiguousarray(vol.reshape(-1)),
-            np.repeat(np.arange(first, first + len(conn), dtype=np.int64), n))
+    n = particles_per_element(cell_type, split)
+    x, vol = np.empty((len(conn) * n, d)), np.empty(len(conn) * n)
+    step = max(1, BLOCK_PARTICLES // n)  # elements at a time: the temporaries stay O(block)
+    for a in range(0, len(conn), step):
+        b = min(a + step, len(conn))
+        with np.errstate(over="ignore", invalid="ignore"):
+            xb, vb = _particles(points, cell_type, conn[a:b], split, label, first + a)
+        x[a * n:b * n] = xb.reshape(-1, d)
+        vol[a * n:b * n] = vb.reshape(-1)
+    return x, vol, np.repeat(np.arange(first, first + len(conn), dtype=np.int64), n)
 
 
 def _particles(points, cell_type, conn, split, label, first):

@@ -108,6 +108,34 @@ def test_refined_meshes_approach_the_exact_body_as_h2(r_in):
     assert np.all(np.abs(order[:, [0, 2]] - 2.0) < 0.1)
 
 
+@pytest.mark.parametrize("cell_type", ["triangle", "quad", "tetra", "hexahedron"])
+def test_particles_made_in_blocks_are_the_one_pass_bits(monkeypatch, cell_type):
+    """The elements are made a block at a time (bounded temporaries): any block size gives the
+    same bits, in the same order, and an element's error names its index in the whole mesh."""
+    import parmpm.geometry.mesh as mesh_module
+
+    if cell_type in ("triangle", "quad"):
+        pts, conn, _ = polar(0.5, 1.5, 5, 24)
+        if cell_type == "triangle":
+            conn = np.concatenate([conn[:, [0, 1, 2]], conn[:, [0, 2, 3]]])
+    else:
+        pts, conn = cube_grid(3)
+        pts = pts + np.random.default_rng(3).uniform(-0.05, 0.05, pts.shape)
+        if cell_type == "tetra":
+            conn = kuhn_tets(pts, conn)
+    whole = element_particles(pts, cell_type, conn, split=2)
+    for block in (1, 7, 5 * particles_per_element(cell_type, 2) + 3):
+        monkeypatch.setattr(mesh_module, "BLOCK_PARTICLES", block)
+        for a, b in zip(element_particles(pts, cell_type, conn, split=2), whole):
+            assert a.dtype == b.dtype and np.array_equal(a, b)
+        flipped = conn.copy()
+        flip = {"triangle": [0, 2, 1], "quad": [3, 2, 1, 0], "tetra": [1, 0, 2, 3],
+                "hexahedron": [4, 5, 6, 7, 0, 1, 2, 3]}[cell_type]
+        flipped[-2] = flipped[-2, flip]  # in the last block or the one before: inverted
+        one_line(fails(pts, cell_type, flipped, split=2, first=10),
+                 f"element {10 + len(conn) - 2} ({cell_type}")
+
+
 # ---------------------------------------------------------------- split
 
 
