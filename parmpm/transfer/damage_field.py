@@ -6,7 +6,7 @@ Both walk the particles as the generic transfers do (:func:`parmpm.transfer.gene
 patch by patch in canonical order), so every node's sums are the same on any number of ranks.
 """
 from parmpm.core.jit import inline_kernel, kernel, loop_kernel
-from parmpm.transfer.generic import each_particle, loop_scratch
+from parmpm.transfer.generic import each_particle, loop_scratch, zero_node_major
 
 
 @kernel
@@ -20,8 +20,8 @@ def damage_sums(how, boxes, fields, damage, sums, dmax, err):
 @loop_kernel
 def _damage_sums_loop(how, boxes, order, fields, damage, out, err, scratch):
     sums, dmax = out
-    sums[:] = 0.0
-    dmax[:] = 0.0
+    zero_node_major(sums)
+    zero_node_major(dmax)
     each_particle(_damage_one, len(how.axes), how, boxes, order, fields, err, scratch, out, damage, 0,
                   None)
 
@@ -53,7 +53,7 @@ def damage_gradients(how, boxes, fields, dnode, grad, tsum, err):
 
 @loop_kernel
 def _gradients_loop(how, boxes, order, fields, dnode, out, err, scratch):
-    out[1][:] = 0.0
+    zero_node_major(out[1])
     each_particle(_gradient_one, len(how.axes), how, boxes, order, fields, err, scratch, out, dnode,
                   0, None)
 

@@ -155,6 +155,17 @@ def each_particle(body, d, how, boxes, order, fields, err, scratch, out, args, a
     return acc
 
 
+@helper_kernel
+def zero_node_major(a):
+    """``a[:] = 0`` for a node-major view ``(slots, nodes, rows)`` of a ``(slots, rows, stride)``
+    block, walked in memory order: numba's ``a[:] = 0.0`` steps through such a view node by node
+    across the rows, 3-4x slower (a crack scene's stacked grid: 50-100 µs a pass, every pass)."""
+    for p in range(a.shape[0]):
+        for r in range(a.shape[2]):
+            for j in range(a.shape[1]):
+                a[p, j, r] = 0.0
+
+
 @kernel
 def p2g(how, boxes, fields, bforce, dt, out, err, sides):
     """``out = (gm, gmv, gf)`` (node-major views of this rank's patch slots) from the particles;
@@ -169,9 +180,9 @@ def p2g(how, boxes, fields, bforce, dt, out, err, sides):
 def _p2g_loop(how, boxes, order, fields, bforce, dt, out, err, scratch, sides):
     d = len(how.axes)  # a compile-time constant (the dimension is in how's type)
     gm, gmv, gf = out
-    gm[:] = 0.0
-    gmv[:] = 0.0
-    gf[:] = 0.0
+    zero_node_major(gm)
+    zero_node_major(gmv)
+    zero_node_major(gf)
     each_particle(_p2g_one, d, how, boxes, order, fields, err, scratch, out, (bforce, dt), 0,
                   sides)
 
@@ -221,7 +232,7 @@ def p2g_momentum(how, boxes, fields, gmv, err, sides):
 @loop_kernel
 def _p2g_momentum_loop(how, boxes, order, fields, gmv, err, scratch, sides):
     d = len(how.axes)  # a compile-time constant (the dimension is in how's type)
-    gmv[:] = 0.0
+    zero_node_major(gmv)
     each_particle(_p2g_momentum_one, d, how, boxes, order, fields, err, scratch, gmv, None, 0,
                   sides)
 
