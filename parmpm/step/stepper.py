@@ -192,11 +192,9 @@ class Stepper:
             try:
                 for k in range(C.K):
                     T.subset = C.boxes(k)
-                    if C.late_moments:  # taken after the masses' accumulation (_grid)
-                        T.p2g(C.grids[k], bforce, dt, err, self.ledger is not None)
-                    else:
-                        T.p2g_and_moments(C.grids[k], C.moments[k], bforce, dt, err,
-                                          self.ledger is not None)
+                    T.p2g(C.grids[k], bforce, dt, err, self.ledger is not None)
+                    if not C.late_moments:  # else taken after the masses' accumulation (_grid)
+                        T.p2g_momentum(C.moments[k], err, positions=True)
             finally:
                 T.subset = None
         self._check("p2g")

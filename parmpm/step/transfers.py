@@ -19,9 +19,8 @@ from parmpm.transfer.generic import g2p, p2g, p2g_momentum
 from parmpm.transfer.kernels2d import KERNELS_2D, MLS_KERNELS_2D
 from parmpm.transfer.kernels3d import KERNELS_3D, MLS_KERNELS_3D
 
-#: one interpolator's specialised kernels, by name; ``p2g_moments``: P2G and contact's first
-#: moments in one pass (None: MLS, whose P2G differs; the two passes then)
-Kernels = namedtuple("Kernels", ("p2g", "p2g_momentum", "g2p", "p2g_moments"), defaults=(None,))
+#: one interpolator's specialised kernels, by name
+Kernels = namedtuple("Kernels", ("p2g", "p2g_momentum", "g2p"))
 
 #: dimension → {interpolator code → Kernels} of the hand-specialised kernels
 SPECIALISED = {dim: {code: Kernels(*triple) for code, triple in table.items()}
@@ -110,21 +109,6 @@ class Transfers:
             self.kernels.p2g_momentum(how.lcr, boxes, boxes.order, fields, grid.gsum_block, err)
         else:
             p2g_momentum(how, boxes, fields, grid.gmv, err, self.sides)
-
-    def p2g_and_moments(self, grid, xgrid, bforce: np.ndarray, dt: float, err: np.ndarray,
-                        account: bool) -> None:
-        """:meth:`p2g` into ``grid`` and contact's first moments (:meth:`p2g_momentum` of the
-        positions) into ``xgrid``: one pass over the particles where the specialised kernels
-        have it, the same sums as the two passes."""
-        k = self.kernels
-        if k is None or self.mls or k.p2g_moments is None:
-            self.p2g(grid, bforce, dt, err, account)
-            self.p2g_momentum(xgrid, err, positions=True)
-            return
-        how, boxes, fields = self.records()
-        xfields = fields._replace(v=fields.x, affine=self._no_affine(fields.affine))
-        k.p2g_moments(how.lcr, boxes, boxes.order, fields, xfields, bforce, grid.gsum_block,
-                      xgrid.gsum_block, err)
 
     def _no_affine(self, affine: np.ndarray) -> np.ndarray:
         """Zero affine matrices shaped like ``affine`` (kept: a fresh one each step would be

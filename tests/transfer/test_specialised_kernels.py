@@ -126,8 +126,8 @@ def _registered(dim, st):
 def test_registry_names_registered_interpolators():
     assert DIMS == [2, 3]
     for kernels in SPECIALISED.values():
-        for code, four in kernels.items():  # p2g, p2g_momentum, g2p and the one-pass p2g_moments
-            assert code in NAME and len(four) == 4 and all(callable(k) for k in four)
+        for code, three in kernels.items():  # p2g, p2g_momentum, g2p
+            assert code in NAME and len(three) == 3 and all(callable(k) for k in three)
 
 
 @pytest.mark.parametrize("dim", DIMS)

@@ -14,24 +14,19 @@ line, and no two fields sit at the same offset modulo 4 KiB):
 ``gsum[s, node, :] = (m, mv_x, mv_y, f_x, f_y)`` (P2G output) and
 ``gnew[s, node, :] = (v_x, v_y, Δv_x, Δv_y)`` (grid update output, G2P input).
 """
-from parmpm.transfer.kernels2d.bspline import (g2p_bspline, p2g_bspline, p2g_moments_bspline,
-                                               p2g_momentum_bspline)
-from parmpm.transfer.kernels2d.cpdi import (g2p_cpdi, p2g_cpdi, p2g_moments_cpdi,
-                                            p2g_momentum_cpdi)
-from parmpm.transfer.kernels2d.cpdi2 import (g2p_cpdi2, p2g_cpdi2, p2g_moments_cpdi2,
-                                             p2g_momentum_cpdi2)
-from parmpm.transfer.kernels2d.hat import (g2p_hat, p2g_hat, p2g_moments_hat,
-                                           p2g_momentum_hat)
+from parmpm.transfer.kernels2d.bspline import g2p_bspline, p2g_bspline, p2g_momentum_bspline
+from parmpm.transfer.kernels2d.cpdi import g2p_cpdi, p2g_cpdi, p2g_momentum_cpdi
+from parmpm.transfer.kernels2d.cpdi2 import g2p_cpdi2, p2g_cpdi2, p2g_momentum_cpdi2
+from parmpm.transfer.kernels2d.hat import g2p_hat, p2g_hat, p2g_momentum_hat
 from parmpm.transfer.kernels2d.mls import g2p_mls, p2g_mls
 from parmpm.shapes import BSPLINE, CPDI, CPDI2, MPM
 
-#: interpolator code → (p2g, p2g_momentum, g2p, p2g_moments) specialised for 2D
-#: (``p2g_moments``: P2G and contact's first moments in one pass)
+#: interpolator code → (p2g, p2g_momentum, g2p) specialised for 2D
 KERNELS_2D = {
-    CPDI: (p2g_cpdi, p2g_momentum_cpdi, g2p_cpdi, p2g_moments_cpdi),
-    MPM: (p2g_hat, p2g_momentum_hat, g2p_hat, p2g_moments_hat),
-    BSPLINE: (p2g_bspline, p2g_momentum_bspline, g2p_bspline, p2g_moments_bspline),  # FLIP and APIC
-    CPDI2: (p2g_cpdi2, p2g_momentum_cpdi2, g2p_cpdi2, p2g_moments_cpdi2),
+    CPDI: (p2g_cpdi, p2g_momentum_cpdi, g2p_cpdi),
+    MPM: (p2g_hat, p2g_momentum_hat, g2p_hat),
+    BSPLINE: (p2g_bspline, p2g_momentum_bspline, g2p_bspline),  # FLIP and APIC
+    CPDI2: (p2g_cpdi2, p2g_momentum_cpdi2, g2p_cpdi2),
 }
 
 #: bspline with ``method.transfer = "mls"``: (p2g, p2g_momentum, g2p); its P2G takes the step and

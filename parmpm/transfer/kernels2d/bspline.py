@@ -17,8 +17,7 @@ shares this G2P with ``L_p = C_p`` in place of the gradient sums. The loops are
 from parmpm.core.jit import inline_kernel, loop_kernel
 from parmpm.shapes.bspline import nearest_node, spline_weights
 from parmpm.transfer.kernels2d.hat import add_force, body_force, volume_stress
-from parmpm.transfer.kernels2d.loops import (centre_support, each_particle,
-                                             each_particle_and_moments, each_particle_g2p, stays)
+from parmpm.transfer.kernels2d.loops import centre_support, each_particle, each_particle_g2p, stays
 
 
 @inline_kernel
@@ -189,15 +188,3 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
                              (mode, dt, flip, fields.affine.shape[0] > 0), boxes, order, gnew,
                              err, locate, lcr, fields, material)
 
-
-@loop_kernel
-def p2g_moments_bspline(lcr, boxes, order, fields, xfields, bforce, gsum, xsum, err):
-    """:func:`p2g_bspline` and contact's first moments (:func:`p2g_momentum_bspline` of the positions: ``xfields``) into
-    ``xsum``, in one pass over the particles."""
-    gsum[:] = 0.0
-    xsum[:, 1:3, :] = 0.0
-    ihx, ihy = boxes.inv_h[0], boxes.inv_h[1]
-    each_particle_and_moments(
-        support, scatter, scatter_momentum, boxes, order, gsum, xsum, err, lcr, fields, xfields,
-        (bforce, bforce.shape[0] > 0, fields.affine.shape[0] > 0, 1.0 / ihx, 1.0 / ihy),
-        (xfields.affine.shape[0] > 0, 1.0 / ihx, 1.0 / ihy))

@@ -22,8 +22,7 @@ from parmpm.shapes.cpdi import cofactor_2d
 from parmpm.shapes.scaling import cap_2d
 from parmpm.transfer.kernels2d.cells import cells_of4
 from parmpm.transfer.kernels2d.hat import body_force
-from parmpm.transfer.kernels2d.loops import (NO_AFFINE, each_particle, each_particle_and_moments,
-                                            each_particle_g2p, stays)
+from parmpm.transfer.kernels2d.loops import NO_AFFINE, each_particle, each_particle_g2p, stays
 from parmpm.transfer.update_order import G2P_MUSL_MOTION
 
 
@@ -225,12 +224,3 @@ def g2p_cpdi(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, loc
     return each_particle_g2p(support, gather, stays, (mode, dt, flip, False), boxes, order, gnew,
                              err, locate, lcr, fields, material)
 
-
-@loop_kernel
-def p2g_moments_cpdi(lcr, boxes, order, fields, xfields, bforce, gsum, xsum, err):
-    """:func:`p2g_cpdi` and contact's first moments (:func:`p2g_momentum_cpdi` of the positions: ``xfields``) into
-    ``xsum``, in one pass over the particles."""
-    gsum[:] = 0.0
-    xsum[:, 1:3, :] = 0.0
-    each_particle_and_moments(support, scatter, scatter_momentum, boxes, order, gsum, xsum, err,
-                              lcr, fields, xfields, (bforce, bforce.shape[0] > 0), None)

@@ -29,8 +29,7 @@ from parmpm.materials.kinematics import det_2d
 from parmpm.transfer.kernels2d.cells import cells_of4
 from parmpm.transfer.kernels2d.cpdi import gather4, scatter5, scatter_mv
 from parmpm.transfer.kernels2d.hat import body_force
-from parmpm.transfer.kernels2d.loops import (NO_AFFINE, each_particle, each_particle_and_moments,
-                                            each_particle_g2p)
+from parmpm.transfer.kernels2d.loops import NO_AFFINE, each_particle, each_particle_g2p
 from parmpm.transfer.update_order import G2P_MUSL_MOTION
 
 
@@ -212,12 +211,3 @@ def g2p_cpdi2(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, lo
     return each_particle_g2p(support, gather, follow, (mode, dt, flip, False), boxes, order, gnew,
                              err, locate, lcr, fields, material)
 
-
-@loop_kernel
-def p2g_moments_cpdi2(lcr, boxes, order, fields, xfields, bforce, gsum, xsum, err):
-    """:func:`p2g_cpdi2` and contact's first moments (:func:`p2g_momentum_cpdi2` of the positions: ``xfields``) into
-    ``xsum``, in one pass over the particles."""
-    gsum[:] = 0.0
-    xsum[:, 1:3, :] = 0.0
-    each_particle_and_moments(support, scatter, scatter_momentum, boxes, order, gsum, xsum, err,
-                              lcr, fields, xfields, (bforce, bforce.shape[0] > 0), None)

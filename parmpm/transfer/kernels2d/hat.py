@@ -11,7 +11,7 @@ from parmpm.core.jit import inline_kernel, loop_kernel
 from parmpm.materials.kinematics import det_2d
 from parmpm.transfer.kernels2d.cells import hat_cell_of
 from parmpm.transfer.kernels2d.loops import (NO_AFFINE, centre_support, each_particle,
-                                             each_particle_and_moments, each_particle_g2p, stays)
+                                             each_particle_g2p, stays)
 
 
 @inline_kernel
@@ -135,12 +135,3 @@ def g2p_hat(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, loca
     return each_particle_g2p(support, gather, stays, (mode, dt, flip, False), boxes, order, gnew,
                              err, locate, lcr, fields, material)
 
-
-@loop_kernel
-def p2g_moments_hat(lcr, boxes, order, fields, xfields, bforce, gsum, xsum, err):
-    """:func:`p2g_hat` and contact's first moments (:func:`p2g_momentum_hat` of the positions: ``xfields``) into
-    ``xsum``, in one pass over the particles."""
-    gsum[:] = 0.0
-    xsum[:, 1:3, :] = 0.0
-    each_particle_and_moments(support, scatter, scatter_momentum, boxes, order, gsum, xsum, err,
-                              lcr, fields, xfields, (bforce, bforce.shape[0] > 0), None)

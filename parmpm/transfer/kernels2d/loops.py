@@ -96,26 +96,6 @@ def each_particle(support, scatter, boxes, order, grid, err, shape, fields, args
 
 
 @inline_kernel
-def each_particle_and_moments(support, scatter, moments, boxes, order, grid, xgrid, err, shape,
-                              fields, xfields, args, xargs):
-    """:func:`each_particle` that also scatters, from the same support, ``moments`` (the
-    momentum hook) of ``xfields`` into the slot's ``xgrid`` rows: contact's first moments
-    ``Σ S m x`` (``xfields``: the particles with their positions for velocities) in P2G's own
-    pass, each node's sums in the order the two passes gave them."""
-    start = boxes.start
-    frame = frame_2d(boxes)
-    for p in range(start.size - 1):
-        g = grid[p]
-        gx = xgrid[p]
-        slot = slot_2d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i, code, st = particle_at(support, order, kk, frame, slot, shape, fields, err)
-            if code >= 0:
-                scatter(i, g, frame, st, fields, args)
-                moments(i, gx, frame, st, xfields, xargs)
-
-
-@inline_kernel
 def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, where, shape,
                       fields, material):
     """G2P of every particle in mode ``step[0]``; returns the largest ``c_p + |v_p|`` (when the

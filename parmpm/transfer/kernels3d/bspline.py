@@ -12,8 +12,7 @@ from parmpm.shapes.bspline import spline_weights
 from parmpm.transfer.kernels2d.bspline import spline_of
 from parmpm.transfer.kernels2d.loops import stays
 from parmpm.transfer.kernels3d.hat import add_force, body_force, volume_stress
-from parmpm.transfer.kernels3d.loops import (centre_support, each_particle,
-                                            each_particle_and_moments, each_particle_g2p)
+from parmpm.transfer.kernels3d.loops import centre_support, each_particle, each_particle_g2p
 
 
 @inline_kernel
@@ -208,16 +207,3 @@ def g2p_bspline(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, 
                              (mode, dt, flip, fields.affine.shape[0] > 0), boxes, order, gnew,
                              err, locate, lcr, fields, material)
 
-
-@loop_kernel
-def p2g_moments_bspline(lcr, boxes, order, fields, xfields, bforce, gsum, xsum, err):
-    """:func:`p2g_bspline` and contact's first moments (:func:`p2g_momentum_bspline` of the positions: ``xfields``) into
-    ``xsum``, in one pass over the particles."""
-    gsum[:] = 0.0
-    xsum[:, 1:4, :] = 0.0
-    ih = boxes.inv_h
-    each_particle_and_moments(
-        support, scatter, scatter_momentum, boxes, order, gsum, xsum, err, lcr, fields, xfields,
-        (bforce, bforce.shape[0] > 0, fields.affine.shape[0] > 0, 1.0 / ih[0], 1.0 / ih[1],
-         1.0 / ih[2]),
-        (xfields.affine.shape[0] > 0, 1.0 / ih[0], 1.0 / ih[1], 1.0 / ih[2]))

@@ -28,8 +28,7 @@ from parmpm.shapes.scaling import cap_3d
 from parmpm.transfer.kernels2d.loops import stays
 from parmpm.transfer.kernels3d.cells import cells_of8
 from parmpm.transfer.kernels3d.hat import body_force
-from parmpm.transfer.kernels3d.loops import (ZERO9, each_particle, each_particle_and_moments,
-                                            each_particle_g2p)
+from parmpm.transfer.kernels3d.loops import ZERO9, each_particle, each_particle_g2p
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
 
@@ -308,12 +307,3 @@ def g2p_cpdi(mode, lcr, boxes, order, dt, flip, fields, material, gnew, err, loc
     return each_particle_g2p(support, gather, stays, (mode, dt, flip, False), boxes, order, gnew,
                              err, locate, lcr, fields, material)
 
-
-@loop_kernel
-def p2g_moments_cpdi(lcr, boxes, order, fields, xfields, bforce, gsum, xsum, err):
-    """:func:`p2g_cpdi` and contact's first moments (:func:`p2g_momentum_cpdi` of the positions: ``xfields``) into
-    ``xsum``, in one pass over the particles."""
-    gsum[:] = 0.0
-    xsum[:, 1:4, :] = 0.0
-    each_particle_and_moments(support, scatter, scatter_momentum, boxes, order, gsum, xsum, err,
-                              lcr, fields, xfields, (bforce, bforce.shape[0] > 0), None)

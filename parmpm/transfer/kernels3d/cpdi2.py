@@ -23,8 +23,7 @@ from parmpm.shapes.cpdi2 import (GAUSS, SCRATCH_SHAPE, WF, WG, add_point_weights
 from parmpm.transfer.kernels2d.cells import cell_of
 from parmpm.transfer.kernels3d.cpdi import gather6, scatter7, scatter_mv
 from parmpm.transfer.kernels3d.hat import body_force, volume_stress
-from parmpm.transfer.kernels3d.loops import (ZERO9, each_particle, each_particle_and_moments,
-                                            each_particle_g2p)
+from parmpm.transfer.kernels3d.loops import ZERO9, each_particle, each_particle_g2p
 
 
 @inline_kernel
@@ -236,21 +235,6 @@ def p2g_momentum_cpdi2(lcr, boxes, order, fields, gsum, err):
 def _p2g_momentum_loop(boxes, order, fields, gsum, err, shape):
     gsum[:, 1:4, :] = 0.0
     each_particle(support, scatter_momentum, boxes, order, gsum, err, shape, fields, None)
-
-
-@kernel
-def p2g_moments_cpdi2(lcr, boxes, order, fields, xfields, bforce, gsum, xsum, err):
-    """:func:`p2g_cpdi2` and contact's first moments (:func:`p2g_momentum_cpdi2` of the
-    positions: ``xfields``) into ``xsum``, in one pass over the particles."""
-    _p2g_moments_loop(boxes, order, fields, xfields, bforce, gsum, xsum, err, _scratch(lcr))
-
-
-@loop_kernel
-def _p2g_moments_loop(boxes, order, fields, xfields, bforce, gsum, xsum, err, shape):
-    gsum[:] = 0.0
-    xsum[:, 1:4, :] = 0.0
-    each_particle_and_moments(support, scatter, scatter_momentum, boxes, order, gsum, xsum, err,
-                              shape, fields, xfields, (bforce, bforce.shape[0] > 0), None)
 
 
 @kernel

@@ -51,23 +51,6 @@ def each_particle(support, scatter, boxes, order, grid, err, shape, fields, args
 
 
 @inline_kernel
-def each_particle_and_moments(support, scatter, moments, boxes, order, grid, xgrid, err, shape,
-                              fields, xfields, args, xargs):
-    """:func:`parmpm.transfer.kernels2d.loops.each_particle_and_moments` in 3D."""
-    start = boxes.start
-    frame = frame_3d(boxes)
-    for p in range(start.size - 1):
-        g = grid[p]
-        gx = xgrid[p]
-        slot = slot_3d(boxes, p)
-        for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
-            i, code, st = particle_at(support, order, kk, frame, slot, shape, fields, err)
-            if code >= 0:
-                scatter(i, g, frame, st, fields, args)
-                moments(i, gx, frame, st, xfields, xargs)
-
-
-@inline_kernel
 def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, where, shape,
                       fields, material):
     """:func:`parmpm.transfer.kernels2d.loops.each_particle_g2p` in 3D."""
