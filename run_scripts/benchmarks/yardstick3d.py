@@ -88,6 +88,20 @@ def _cell(c, inv_h):
 
 
 @njit(inline="always")
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(inline="always")
+def _domain(r, p):
+    """Particle p's domain vectors r1, r2, r3 and their cross products r2×r3, r3×r1, r1×r2."""
+    r1 = (r[0, p], r[1, p], r[2, p])
+    r2 = (r[3, p], r[4, p], r[5, p])
+    r3 = (r[6, p], r[7, p], r[8, p])
+    return r1, r2, r3, _cross(r2, r3), _cross(r3, r1), _cross(r1, r2)
+
+
+@njit(inline="always")
 def _add(g, node, w, m, mx, my, mz, fx, fy, fz):
     g[node, 0] += w * m
     g[node, 1] += w * mx
@@ -129,15 +143,7 @@ def _gather(g, b, nodes, x0, x1, y0, y1, z0, z1):
 @njit(**JIT)
 def p2g_cpdi(x, v, r, stress, mass, g, nodes, inv_h):
     for p in range(x.shape[1]):
-        r1 = (r[0, p], r[1, p], r[2, p])
-        r2 = (r[3, p], r[4, p], r[5, p])
-        r3 = (r[6, p], r[7, p], r[8, p])
-        c23 = (r2[1] * r3[2] - r2[2] * r3[1], r2[2] * r3[0] - r2[0] * r3[2],
-               r2[0] * r3[1] - r2[1] * r3[0])
-        c31 = (r3[1] * r1[2] - r3[2] * r1[1], r3[2] * r1[0] - r3[0] * r1[2],
-               r3[0] * r1[1] - r3[1] * r1[0])
-        c12 = (r1[1] * r2[2] - r1[2] * r2[1], r1[2] * r2[0] - r1[0] * r2[2],
-               r1[0] * r2[1] - r1[1] * r2[0])
+        r1, r2, r3, c23, c31, c12 = _domain(r, p)
         sxx, syy, szz = stress[0, p], stress[1, p], stress[2, p]
         sxy, syz, szx = stress[3, p], stress[4, p], stress[5, p]
         m8 = 0.125 * mass[p]
@@ -245,15 +251,7 @@ def g2p_cpdi(x, v, F, r0, r, stress, g, nodes, inv_h, dt, flip):
     vpic = np.empty(3)
     dvp = np.empty(3)
     for p in range(x.shape[1]):
-        r1 = (r[0, p], r[1, p], r[2, p])
-        r2 = (r[3, p], r[4, p], r[5, p])
-        r3 = (r[6, p], r[7, p], r[8, p])
-        c23 = (r2[1] * r3[2] - r2[2] * r3[1], r2[2] * r3[0] - r2[0] * r3[2],
-               r2[0] * r3[1] - r2[1] * r3[0])
-        c31 = (r3[1] * r1[2] - r3[2] * r1[1], r3[2] * r1[0] - r3[0] * r1[2],
-               r3[0] * r1[1] - r3[1] * r1[0])
-        c12 = (r1[1] * r2[2] - r1[2] * r2[1], r1[2] * r2[0] - r1[0] * r2[2],
-               r1[0] * r2[1] - r1[1] * r2[0])
+        r1, r2, r3, c23, c31, c12 = _domain(r, p)
         inv_V = 1.0 / (8.0 * (r1[0] * c23[0] + r1[1] * c23[1] + r1[2] * c23[2]))
         L[:] = 0.0
         vpic[:] = 0.0
