@@ -378,6 +378,11 @@ def main() -> None:
     ap.add_argument("--flip", type=float, default=0.95)
     ap.add_argument("--compare", action="store_true", help="parmpm bench beside this step")
     a = ap.parse_args()
+    if not (math.isfinite(a.n) and 1 <= a.n <= 1e9) or a.steps < 1 or a.reps < 1:
+        ap.error(f"--n {a.n:g}, --steps {a.steps}, --reps {a.reps}: expected 1 <= n <= 1e9 "
+                 "particles and at least one step and one repeat")
+    if not 0.0 <= a.flip <= 1.0:
+        ap.error(f"--flip {a.flip:g}: expected a number in [0, 1]")
     if a.compare:
         compare(a.n, a.reps, a.steps)
         return
