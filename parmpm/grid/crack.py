@@ -160,3 +160,19 @@ def crack_normals(d, nodes, tsum, dmax, threshold, normal):
                     sign = -1.0 if s < 0.0 else 1.0
                     for a in range(d):
                         normal[p, a, node] = sign * n[a]
+
+
+@kernel
+def slots_with_crack(normal, slots, nodes):
+    """Per slot of ``normal`` (slots, rows, stride; the first ``nodes`` of each row used): whether
+    any of its nodes has a crack normal (stops at the first)."""
+    out = np.zeros(slots, np.bool_)
+    for p in range(slots):
+        for a in range(normal.shape[1]):
+            for j in range(nodes):
+                if normal[p, a, j] != 0.0:
+                    out[p] = True
+                    break
+            if out[p]:
+                break
+    return out

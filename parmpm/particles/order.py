@@ -120,3 +120,32 @@ def move_runs(order, src, size, dst, out):
     for r in range(src.size):
         for k in range(size[r]):
             out[dst[r] + k] = order[src[r] + k]
+
+
+@kernel
+def slot_subset(start, order, keep):
+    """(start, order) of the slots ``keep`` marks, the others empty: ``order``'s runs of the kept
+    slots in slot order (what ``order[np.repeat(keep, counts)]`` gives, without its n-long
+    temporaries; a pass over the kept rows only)."""
+    slots = start.size - 1
+    kept = np.zeros_like(start)
+    for p in range(slots):
+        kept[p + 1] = kept[p] + (start[p + 1] - start[p] if keep[p] else 0)
+    out = np.empty(kept[slots], order.dtype)
+    for p in range(slots):
+        if keep[p]:
+            out[kept[p]:kept[p + 1]] = order[start[p]:start[p + 1]]
+    return kept, out
+
+
+@kernel
+def slots_holding_positive(start, order, values):
+    """Per slot: whether any of its rows has ``values > 0`` (stops at the first)."""
+    slots = start.size - 1
+    out = np.zeros(slots, np.bool_)
+    for p in range(slots):
+        for kk in range(start[p], start[p + 1]):
+            if values[order[kk]] > 0.0:
+                out[p] = True
+                break
+    return out

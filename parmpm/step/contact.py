@@ -27,8 +27,9 @@ from decomposition import accumulate, accumulate_max, allreduce_max, fill
 from parmpm.core.records import Sides
 from parmpm.grid.contact import (GAP_MODES, NORMAL_MODES, contact_correct, contact_extents,
                                  contact_mask, contact_normals, field_of_rows, split_by_field)
-from parmpm.grid.crack import crack_normals, nodal_damage
+from parmpm.grid.crack import crack_normals, nodal_damage, slots_with_crack
 from parmpm.grid.update import grid_block
+from parmpm.particles.order import slot_subset, slots_holding_positive
 from parmpm.transfer.damage_field import damage_gradients, damage_sums
 
 
@@ -184,10 +185,8 @@ class ContactPhase:
         rank, whatever it holds), shows which boxes they reach — the other slots of those boxes,
         each slot's sums its own particles' in canonical order as in one pass over all, so every
         node's damage is that pass's, bit for bit."""
-        counts = np.diff(P.start)
         order = P.order()
-        damaged = np.zeros(slots, bool)
-        damaged[np.repeat(np.arange(slots), counts)[damage[order] > 0.0]] = True
+        damaged = slots_holding_positive(P.start, order, damage)
         dsum, dmax = _views(self.dsum[:slots], self.nodes), _views(self.dmax[:slots], self.nodes)
         try:
             transfers.subset = self.slot_boxes(P.start, order, damaged)
@@ -218,7 +217,7 @@ class ContactPhase:
         if self.fields != 1:
             return
         slots = self.grids[0].gsum_block.shape[0]
-        self.near = np.any(self.cnormal[:slots, :, :self.nodes] != 0.0, axis=(1, 2))
+        self.near = slots_with_crack(self.cnormal, slots, self.nodes)
         self.far_boxes = self.slot_boxes(P.start, P.order(), ~self.near)
         self.near_boxes = self.slot_boxes(P.start, P.order(), self.near)
 
@@ -226,10 +225,7 @@ class ContactPhase:
     def slot_boxes(start: np.ndarray, order: np.ndarray,
                    keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(start, order) of the slots ``keep`` marks (the others empty)."""
-        counts = np.diff(start)
-        kept = np.zeros_like(start)
-        np.cumsum(counts * keep, out=kept[1:])
-        return kept, order[np.repeat(keep, counts)]
+        return slot_subset(start, order, keep)
 
     def whole(self, damage: np.ndarray, comm) -> bool:
         """A crack scene of one body with no particle anywhere damaged to ``crack`` (the last

@@ -22,6 +22,12 @@ Measured at each output time (an observer gathering the particles on rank 0), an
 * against the measured surface (``tests/data/bui2008_final_surface.csv``): the run-out error
   against the last measured point (0.4423 m), and the RMS of simulated minus measured height at
   the 23 measured x (an empty bin counts as height 0);
+* how the deposit's mass ends: ``beyond_toe``, the share of its area (``Σ J V₀``) beyond the
+  last measured point, and ``thin_at_m``, the start of the first 1 cm bin past 0.3 m whose mean
+  thickness (area per unit length) is under ``THIN`` (3 mm: two rods of the experiment's 1.5 and
+  2 mm; its last point is 1.5 mm high). Unlike the edge these do not follow the sheet:
+  2026-11-30, n = 20, 30, 40, 60: ``beyond_toe`` 0.71, 1.76, 2.13, 2.22 %, ``thin_at_m`` 0.47,
+  0.48, 0.47, 0.48 m;
 * the failure line: in the initial configuration, the top of the particles that moved less than
   1 mm horizontally (per column of particles), its least-squares angle against the measured
   32.9°;
@@ -68,6 +74,7 @@ WIDTH, HEIGHT, LENGTH = 0.2, 0.1, 1.2  # the column, and the grid's length (m: a
 #                                        particles runs ahead of the toe, 0.78 m at Δx = 2.5 mm)
 PPC = 2
 MOVED = 1e-3  # m: a particle that moved less than this horizontally is in the static wedge
+THIN, THIN_BIN = 3e-3, 0.01  # m: the mean thickness under which the deposit has ended, its bins
 FAILURE_ANGLE = 32.9  # degrees, the least-squares line of the measured failure points
 
 
@@ -99,6 +106,19 @@ def surface(x: np.ndarray, F: np.ndarray, dx: float) -> tuple[np.ndarray, np.nda
     empty = np.flatnonzero(height == 0.0)
     last = (empty[0] if empty.size else nbins) - 1  # the deposit: occupied bins from the wall
     return (np.arange(nbins) + 0.5) * dx, height, float(right[k <= last].max())
+
+
+def mass_end(x: np.ndarray, F: np.ndarray, dx: float, toe: float) -> tuple[float, float]:
+    """(share of the deposit's area beyond ``toe``, start of the first :data:`THIN_BIN` bin past
+    0.3 m whose mean thickness is under :data:`THIN`) of one state: the module docstring's
+    definitions."""
+    area = np.abs(np.linalg.det(F)) * (dx / PPC) ** 2
+    edges = np.arange(0.0, LENGTH + THIN_BIN, THIN_BIN)
+    thick = np.histogram(x[:, 0], edges, weights=area)[0] / THIN_BIN
+    k0 = int(round(0.3 / THIN_BIN))
+    thin = np.flatnonzero(thick[k0:] < THIN)
+    end = round(float(edges[k0 + thin[0]]), 9) if thin.size else math.inf
+    return float(area[x[:, 0] > toe].sum() / area.sum()), end
 
 
 def failure_line(x0: np.ndarray, x: np.ndarray, dx: float) -> tuple[np.ndarray, float]:
@@ -164,10 +184,12 @@ def run(method: str, n: int, end: float, runs: Path, comm) -> dict:
     pts, angle = failure_line(g["x0"], g["x"], dx)
     t, ke = kinetic(out / "history.csv")
     target = float(meas["surface"][-1, 0])
+    beyond, thin_at = mass_end(g["x"], g["F"], dx, target)
     row.update({"runout_m": runout, "runout_unc_m": dx / PPC, "runout_beyond_toe_m": runout - WIDTH,
                 "runout_error": (runout - target) / target,
                 "runout_error_beyond_toe": (runout - target) / (target - WIDTH),
                 "x99_m": float(np.quantile(g["x"][:, 0], 0.99)),
+                "beyond_toe": beyond, "thin_at_m": thin_at,
                 "rms_surface_m": rms, "rms_surface_rel_height": rms / HEIGHT,
                 "height_at_wall_m": float(h[0]), "failure_angle_deg": angle,
                 "max_plastic_strain": float(g["epsp"].max()),

@@ -129,3 +129,35 @@ def test_an_exchange_needs_grouped_rows():
     P = Particles(2, 5)
     with pytest.raises(ValueError, match="grouped"):
         P.group_by_patch(P.rows.patch, np.arange(1), 1, keep=np.arange(3))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_slot_subsets_are_the_numpy_selections(seed):
+    """The compiled slot bookkeeping of the contact and crack passes gives what numpy's
+    selections give: the kept slots' runs of the order (empty slots and none kept included),
+    the slots holding a positive value, the slots with a nonzero crack normal."""
+    from parmpm.grid.crack import slots_with_crack
+    from parmpm.particles.order import slot_subset, slots_holding_positive
+
+    rng = np.random.default_rng(seed)
+    slots = int(rng.integers(1, 9))
+    counts = rng.integers(0, 5, slots)
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    order = rng.permutation(start[-1]).astype(np.uint64)
+    for keep in (rng.random(slots) < 0.5, np.zeros(slots, bool), np.ones(slots, bool)):
+        kept, sub = slot_subset(start, order, keep)
+        want = np.zeros_like(start)
+        np.cumsum(counts * keep, out=want[1:])
+        np.testing.assert_array_equal(kept, want)
+        assert sub.dtype == order.dtype
+        np.testing.assert_array_equal(sub, order[np.repeat(keep, counts)])
+    values = np.where(rng.random(start[-1]) < 0.2, rng.random(start[-1]), 0.0)
+    values[rng.random(start[-1]) < 0.1] = -1.0
+    want = np.zeros(slots, bool)
+    want[np.repeat(np.arange(slots), counts)[values[order] > 0.0]] = True
+    np.testing.assert_array_equal(slots_holding_positive(start, order, values), want)
+    normal = np.where(rng.random((slots + 2, 3, 11)) < 0.05, rng.standard_normal((slots + 2, 3, 11)), 0.0)
+    normal[-2:] = 1.0  # spare slots past the patches' are not looked at
+    normal[:, :, 9:] = np.where(rng.random((slots + 2, 3, 2)) < 0.5, 1.0, 0.0)  # nor the stride's tail
+    want = np.any(normal[:slots, :, :9] != 0.0, axis=(1, 2))
+    np.testing.assert_array_equal(slots_with_crack(normal, slots, 9), want)

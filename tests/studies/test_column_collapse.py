@@ -132,3 +132,24 @@ def test_the_study_measures_what_it_says(tmp_path):
     assert num(row["height_at_wall_m"]) == pytest.approx(0.1, abs=DX / 2)
     for name in ("column_collapse_deposit.png", "column_collapse_surfaces.png"):
         assert 20_000 < (out / name).stat().st_size < 300_000, name
+
+
+def test_the_mass_end_measures_a_known_deposit():
+    """The study's ``mass_end`` on a deposit built by hand (particles ``ℓ = Δx/2`` apart, 1 mm):
+    10 mm thick to 0.4 m, then 2 mm to 0.5 m. The first 1 cm bin under 3 mm is the one at 0.40 m;
+    beyond the measured toe (0.4423 m) lie the thin strip's 58 columns of 2 particles of the
+    4200. Stretched along x (``F_xx`` = 2, so each particle's area doubles) the strip is 4 mm
+    thick: the deposit then ends where the particles do, at 0.50 m."""
+    from studies import column_collapse as cc
+
+    dx = 2e-3
+    s = dx / cc.PPC
+    pts = [((i + 0.5) * s, (j + 0.5) * s) for i in range(400) for j in range(10)]
+    pts += [((i + 0.5) * s, (j + 0.5) * s) for i in range(400, 500) for j in range(2)]
+    x = np.array(pts)
+    F = np.tile(np.eye(2), (len(x), 1, 1))
+    share, end = cc.mass_end(x, F, dx, 0.4423)
+    assert share == pytest.approx(116 / 4200, rel=1e-12) and end == pytest.approx(0.40)
+    F[x[:, 0] > 0.4, 0, 0] = 2.0
+    share, end = cc.mass_end(x, F, dx, 0.4423)
+    assert share == pytest.approx(232 / 4400, rel=1e-12) and end == pytest.approx(0.50)
