@@ -166,7 +166,7 @@ class ContactPhase:
         tsum = _views(self.tsum[:slots], self.nodes)
         try:  # a particle of any other slot has no damage gradient
             self.grad[:] = 0.0
-            transfers.subset = self.slot_boxes(P.start, P.order(), wet)
+            transfers.subset = slot_subset(P.start, P.order(), wet)
             how, boxes, fields = transfers.records()
             damage_gradients(how, boxes, fields, dsum[:, :, 1:], self.grad, tsum, err)
         finally:
@@ -189,7 +189,7 @@ class ContactPhase:
         damaged = slots_holding_positive(P.start, order, damage)
         dsum, dmax = _views(self.dsum[:slots], self.nodes), _views(self.dmax[:slots], self.nodes)
         try:
-            transfers.subset = self.slot_boxes(P.start, order, damaged)
+            transfers.subset = slot_subset(P.start, order, damaged)
             how, boxes, fields = transfers.records()
             damage_sums(how, boxes, fields, damage, dsum, dmax, err)
             reach = _views(self.reached[:slots], self.nodes)
@@ -199,7 +199,7 @@ class ContactPhase:
             wet = np.any(reach[:, :, 0] > 0.0, axis=1)
             others = wet & ~damaged
             if others.any():
-                transfers.subset = self.slot_boxes(P.start, order, others)
+                transfers.subset = slot_subset(P.start, order, others)
                 how, boxes, fields = transfers.records()
                 spare, spare_max = (_views(b[:slots], self.nodes)
                                     for b in (self.dsum_spare, self.dmax_spare))
@@ -218,14 +218,8 @@ class ContactPhase:
             return
         slots = self.grids[0].gsum_block.shape[0]
         self.near = slots_with_crack(self.cnormal, slots, self.nodes)
-        self.far_boxes = self.slot_boxes(P.start, P.order(), ~self.near)
-        self.near_boxes = self.slot_boxes(P.start, P.order(), self.near)
-
-    @staticmethod
-    def slot_boxes(start: np.ndarray, order: np.ndarray,
-                   keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(start, order) of the slots ``keep`` marks (the others empty)."""
-        return slot_subset(start, order, keep)
+        self.far_boxes = slot_subset(P.start, P.order(), ~self.near)
+        self.near_boxes = slot_subset(P.start, P.order(), self.near)
 
     def whole(self, damage: np.ndarray, comm) -> bool:
         """A crack scene of one body with no particle anywhere damaged to ``crack`` (the last
@@ -295,7 +289,7 @@ class ContactPhase:
     def active_boxes(self, k: int, active: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Field ``k``'s (start, order) with only the slots ``active`` marks (the others
         empty)."""
-        return self.slot_boxes(*self.boxes(k), active)
+        return slot_subset(*self.boxes(k), active)
 
     def moments_where_fields_meet(self, transfers, nodes, plan, eps: float,
                                   err: np.ndarray) -> None:

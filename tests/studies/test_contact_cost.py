@@ -38,7 +38,8 @@ def test_it_runs_and_prints_the_ratio(monkeypatch, capsys):
 
 
 @pytest.mark.parametrize("bad", [["--steps", "0"], ["--repeat", "-1"], ["--cell", "nan"],
-                                 ["--cell", "0"], ["--patch", "-2"]])
+                                 ["--cell", "0"], ["--cell", "inf"], ["--cell", "10"],
+                                 ["--patch", "-2"]])
 def test_nonsense_is_refused_in_one_line(monkeypatch, bad):
     monkeypatch.setattr(sys, "argv", ["contact_cost", *bad])
     with pytest.raises(SystemExit) as e:
