@@ -1,15 +1,17 @@
-"""Mesh and particle-file bodies on several ranks: rank 0 reads the file, every rank holds its share.
+"""Particle-file bodies on several ranks: rank 0 reads the file, every rank holds its share.
 
-A meshio mesh can only be read whole, and a body's particles per patch need every particle's
-position, so one rank has to see the whole file; rather than every rank reading it (each holding
-and scanning all N rows), rank 0 alone does (the scene's check already did: the other ranks took
-its resolved scene, :func:`parmpm.scene.agreement.load_shared_scene`). At set-up rank 0 counts
-every body's particles per patch and broadcasts the counts (:func:`counted_by_root`); once the
-patches are dealt out it finds each listed particle's rank and sends each rank the rows of its own
-particles, one rank after another (:func:`share_listed`, :func:`decomposition.deal_from_root`).
-Every rank then builds its particles from its :class:`parmpm.particles.seeding.listed.Share` as
-before: the same global ids, the same bits, on any number of ranks. Rank 0's peak stays O(N) (the file, its patch ids, the rows it
-sends one rank at a time); every other rank's is O(N/P).
+A body's particles per patch need every particle's position, so one rank has to see the whole
+file; rather than every rank reading it (each holding and scanning all N rows), rank 0 alone does
+(the scene's check already did: the other ranks took its resolved scene,
+:func:`parmpm.scene.agreement.load_shared_scene`). At set-up rank 0 counts every body's particles
+per patch and broadcasts the counts (:func:`counted_by_root`); once the patches are dealt out it
+finds each listed particle's rank and sends each rank the rows of its own particles, one rank
+after another (:func:`share_listed`, :func:`decomposition.deal_from_root`). Every rank then
+builds its particles from its :class:`parmpm.particles.seeding.listed.Share` as before: the same
+global ids, the same bits, on any number of ranks. Rank 0's peak stays O(N) (the file, its patch
+ids, the rows it sends one rank at a time); every other rank's is O(N/P). A mesh body's particles
+are not read but made from its elements, and those are made P ways
+(:mod:`parmpm.driver.mesh_slices`), its seeds awaiting their rows on every rank here.
 """
 from __future__ import annotations
 
@@ -29,15 +31,17 @@ def shared_listing(comm, bodies) -> bool:
 
 
 def seeded_by_root(comm, grid, bodies, material_rows: dict) -> Seeds:
-    """:func:`parmpm.particles.seeding.seed_bodies`, the listed bodies' files read on rank 0
-    only (the others' seeds await their rows); a problem on any rank is raised on every rank
+    """:func:`parmpm.particles.seeding.seed_bodies`, the particle files read on rank 0 only (the
+    others' seeds await their rows; a mesh's seeds await theirs on every rank:
+    :mod:`parmpm.driver.mesh_slices`); a problem on any rank is raised on every rank
     (collective)."""
     seeds, problem, kind = None, None, ParmpmError
     try:
-        seeds = seed_bodies(grid, bodies, material_rows, read_listed=comm.Get_rank() == 0)
+        seeds = seed_bodies(grid, bodies, material_rows,
+                            read_listed=("particles",) if comm.Get_rank() == 0 else ())
     except ParmpmError as exc:
         problem, kind = str(exc), type(exc)
-    _agree(comm, problem, kind)
+    raise_lowest(comm, problem, kind)
     return seeds
 
 
@@ -63,8 +67,8 @@ def share_listed(comm, seeds: Seeds, disc, rank_of: np.ndarray) -> None:
     rows of its own particles, one rank after another, so that rank 0 holds one rank's rows
     at a time besides the file (collective)."""
     rank, size = comm.Get_rank(), comm.Get_size()
-    for k, (src, *rest) in enumerate(seeds.chunks):
-        if not isinstance(src, Listed):
+    for k, (src, body, *rest) in enumerate(seeds.chunks):
+        if body.shape != "particles":  # a mesh's: parmpm.driver.mesh_slices
             continue
         order = edges = None
         if rank == 0:
@@ -73,7 +77,7 @@ def share_listed(comm, seeds: Seeds, disc, rank_of: np.ndarray) -> None:
             edges = np.searchsorted(owner[order], np.arange(size + 1))
             del owner
         mine = deal_from_root(comm, _rank_rows(src, order, edges), root=0)
-        seeds.chunks[k] = (Share(len(src), *mine), *rest)
+        seeds.chunks[k] = (Share(len(src), *mine), body, *rest)
 
 
 def _rank_rows(src: Listed, order, edges):
@@ -88,7 +92,7 @@ def _rows(src: Listed, ids: np.ndarray) -> tuple:
     return (ids, src.x[ids], src.vol[ids], *pick)
 
 
-def _agree(comm, problem: str | None, kind: type) -> None:
+def raise_lowest(comm, problem: str | None, kind: type) -> None:
     """Raise the lowest rank's problem, as its own class, on every rank."""
     found = [(p, k) for p, k in comm.allgather((problem, kind)) if p]
     if found:

@@ -181,32 +181,36 @@ def _measure_checks(label, cell_type, conn, X, total, corner_det, first):
 
 
 def element_particles(points, cell_type: str, conn, split: int = 1, label: str = "mesh",
-                      first: int = 0):
+                      first: int = 0, nodes=None):
     """Particles of the elements ``conn`` (E, nodes) over ``points`` (n, d): their positions
     x (N, d), volumes vol (N,) and element index (N,) (counted from ``first``), element by element
     (see the module docstring for the rules). A bad element raises a one-line SceneError starting
-    with ``label`` and naming the element's index."""
+    with ``label`` and naming the element's index and its nodes: ``nodes`` (E, nodes), the file's
+    numbers of ``conn``'s nodes where ``points`` holds only some of the file's (default ``conn``)."""
     points, conn, d, split = _check_inputs(points, cell_type, conn, split, label)
+    nodes = conn if nodes is None else np.asarray(nodes)
     n = particles_per_element(cell_type, split)
     x, vol = np.empty((len(conn) * n, d)), np.empty(len(conn) * n)
     step = max(1, BLOCK_PARTICLES // n)  # elements at a time: the temporaries stay O(block)
     for a in range(0, len(conn), step):
         b = min(a + step, len(conn))
         with np.errstate(over="ignore", invalid="ignore"):
-            xb, vb = _particles(points, cell_type, conn[a:b], split, label, first + a)
+            xb, vb = _particles(points, cell_type, conn[a:b], split, label, first + a,
+                                nodes[a:b])
         x[a * n:b * n] = xb.reshape(-1, d)
         vol[a * n:b * n] = vb.reshape(-1)
     return x, vol, np.repeat(np.arange(first, first + len(conn), dtype=np.int64), n)
 
 
-def _particles(points, cell_type, conn, split, label, first):
-    """Positions (E, P, d) and volumes (E, P) of the particles of each element, after the checks."""
+def _particles(points, cell_type, conn, split, label, first, nodes):
+    """Positions (E, P, d) and volumes (E, P) of the particles of each element, after the checks
+    (``nodes``: ``conn`` as the file numbers it, for their messages)."""
     d = DIM[cell_type]
     X = points[conn]  # (E, nodes, d)
     if cell_type in ("triangle", "tetra"):
         edges = X[:, 1:, :] - X[:, :1, :]
         signed = np.linalg.det(edges.transpose(0, 2, 1)) / math.factorial(d)
-        _measure_checks(label, cell_type, conn, X, signed, None, first)
+        _measure_checks(label, cell_type, nodes, X, signed, None, first)
         lam, w = simplex_points(d, split)
         x = np.einsum("pk,ekd->epd", lam, X)
         vol = signed[:, None] * w[None, :]
@@ -218,8 +222,8 @@ def _particles(points, cell_type, conn, split, label, first):
         _, dNc = shape_functions(cell_type, CORNERS[cell_type])
         corner = np.linalg.det(np.einsum("pka,ekb->epba", dNc, X))
         signed = det @ w
-        _measure_checks(label, cell_type, conn, X, signed, np.concatenate([corner, det], axis=1),
-                        first)
+        _measure_checks(label, cell_type, nodes, X, signed,
+                        np.concatenate([corner, det], axis=1), first)
         vol = det * w[None, :]
     return x, vol
 

@@ -16,7 +16,9 @@ both values. The cost is one broadcast of a page of TOML and one allgather of 64
 Rank 0 resolves first; a rank whose input is rank 0's (the usual case) takes rank 0's resolved
 scene, and with it what rank 0 read of the bodies' mesh and particle files (bounds, counts), so
 that only rank 0 reads them (issue 43: set-up O(N/P)); the files' own checks and warnings are
-rank 0's, as every rank's were the same.
+rank 0's, as every rank's were the same. A mesh's element checks (degenerate, inverted, tangled)
+are left to the set-up, which makes each rank's share of its particles on that rank and checks
+their elements there (:func:`parmpm.scene.body_files.deferred_element_checks`).
 """
 from __future__ import annotations
 
@@ -30,7 +32,7 @@ from pathlib import Path
 from parmpm.core.collective import agree
 from parmpm.core.errors import ParmpmError, SceneError
 from parmpm.scene import load as scenes  # scenes.load_scene looked up at call time (tests replace it)
-from parmpm.scene.body_files import count
+from parmpm.scene.body_files import count, deferred_element_checks
 from parmpm.scene.load import (BOM, Scene, apply_overrides, read_scene_text, scene_from_toml,
                                scene_identity)
 from parmpm.scene.recorded_files import adopt, file_records
@@ -116,8 +118,9 @@ def load_shared_scene(comm, source: str | Path, overrides: Iterable[str] = ()) -
         elif read is None:
             read = read_scene_text(source)
         mine = input_digest(read, overrides)
-        if rank == 0:
-            scene = scene_from_toml(read[0], read[1], overrides, default_name=read[2])
+        if rank == 0:  # a mesh's element checks are the set-up's, on every rank's share
+            with deferred_element_checks():
+                scene = scene_from_toml(read[0], read[1], overrides, default_name=read[2])
         problem = None
     except ParmpmError as exc:
         problem = str(exc)
@@ -141,7 +144,8 @@ def _from_rank_0(comm, scene, mine, read, overrides, problem) -> Scene:
                 adopt(shared[3])
                 scene = Scene(shared[1], shared[2])
             elif shared is not None:  # rank 0's problem, if any, is raised below
-                scene = scene_from_toml(read[0], read[1], overrides, default_name=read[2])
+                with deferred_element_checks():
+                    scene = scene_from_toml(read[0], read[1], overrides, default_name=read[2])
         except ParmpmError as exc:
             problem = str(exc)
     agree(comm, problem, root=None, error=SceneError)

@@ -4,7 +4,8 @@ For each scene given: :func:`parmpm.scene.agreement.load_shared_scene` and
 :func:`parmpm.driver.set_up.set_up`, as ``parmpm run`` does; rank 0 writes every rank's particles
 gathered and sorted by global id (``NAME.npz``), and ``report.json``: per scene and rank the
 particles it holds, the body files its process read (the readers' caches: a rank that never read
-a file holds none), the warnings rank 0 logged and the error each rank raised.
+a file holds none), the mesh particles it made from elements (a parallel set-up's share,
+:mod:`parmpm.driver.mesh_slices`), the warnings rank 0 logged and the error each rank raised.
 """
 import json
 import logging
@@ -37,8 +38,19 @@ def main() -> None:
     from parmpm.scene.agreement import load_shared_scene
     from parmpm.scene.body_files import contents
 
+    from parmpm.driver import mesh_slices
+
     comm = world()
     rank = comm.Get_rank()
+    made = []  # the rows of mesh particles this rank made (parmpm.driver.mesh_slices)
+    make = mesh_slices.element_particles
+
+    def counted(*args, **kw):
+        out = make(*args, **kw)
+        made.append(len(out[1]))
+        return out
+
+    mesh_slices.element_particles = counted
     out = Path(sys.argv[1])
     lines = Lines()
     logging.getLogger("parmpm").addHandler(lines)
@@ -46,6 +58,7 @@ def main() -> None:
     for path in sys.argv[2:]:
         name = Path(path).stem
         lines.lines.clear()
+        made.clear()
         problem, own = None, 0
         try:
             state = set_up(load_shared_scene(comm, path), comm)
@@ -61,7 +74,8 @@ def main() -> None:
         except ParmpmError as exc:
             problem = f"{type(exc).__name__}: {exc}"
         reads = {r: getattr(contents, r).cache_info().currsize for r in READERS}
-        rows = comm.gather({"own": own, "reads": reads, "problem": problem}, root=0)
+        rows = comm.gather({"own": own, "reads": reads, "problem": problem, "made": sum(made)},
+                           root=0)
         if rank == 0:
             report[name] = {"ranks": rows, "warnings": list(lines.lines)}
     if rank == 0:

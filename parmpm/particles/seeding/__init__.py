@@ -237,7 +237,7 @@ class Seeds:
     def _ppa(disc) -> list[int]:
         return [int(n) for n in disc.layout.patches_per_axis]  # padded axes: 1
 
-    def _locate(self, disc, pts: np.ndarray, first: int) -> np.ndarray:
+    def locate(self, disc, pts: np.ndarray, first: int) -> np.ndarray:
         """Flat patch id of the block ``pts`` (global ids from ``first``) where the particles
         start; a particle outside the grid is an error naming it."""
         x = pts if self.motion is None else self.motion(pts)
@@ -268,7 +268,7 @@ class Seeds:
                 counts += np.einsum("k,j,i->kji", hist[2], hist[1], hist[0]).ravel()
             else:
                 for start, pts in _blocks(src):
-                    counts += np.bincount(self._locate(disc, pts, first + start),
+                    counts += np.bincount(self.locate(disc, pts, first + start),
                                           minlength=counts.size)
             first += len(src)
         return counts
@@ -277,7 +277,7 @@ class Seeds:
         """Flat patch id of every seed of body ``k``, block by block (rank 0 dealing a listed
         body's rows out: :mod:`parmpm.driver.listed_share`)."""
         first = sum(len(c[0]) for c in self.chunks[:k])
-        parts = [self._locate(disc, pts, first + start) for start, pts in _blocks(self.chunks[k][0])]
+        parts = [self.locate(disc, pts, first + start) for start, pts in _blocks(self.chunks[k][0])]
         return np.concatenate(parts) if parts else np.zeros(0, np.int64)
 
     def members(self, disc, owned: np.ndarray) -> np.ndarray:
@@ -303,7 +303,7 @@ class Seeds:
                     out.append(np.flatnonzero(owned[pid]) + (first + a))
             else:
                 for start, pts in _blocks(src):
-                    where = self._locate(disc, pts, first + start)
+                    where = self.locate(disc, pts, first + start)
                     out.append(np.flatnonzero(owned[where]) + (first + start))
             first += len(src)
         mine = np.concatenate(out) if out else np.zeros(0, np.int64)
@@ -366,12 +366,14 @@ def fmt_spacing(spacing) -> str:
     return ", ".join(f"{float(v):.4g}" for v in np.ravel(spacing))
 
 
-def seed_bodies(grid, bodies, material_rows: dict[str, int], read_listed: bool = True) -> Seeds:
+def seed_bodies(grid, bodies, material_rows: dict[str, int],
+                read_listed: tuple[str, ...] = ("mesh", "particles")) -> Seeds:
     """Every body's seeds: ``ppc`` per cell per axis, domains tiling the body (descriptions:
     the points are made block by block when asked for). ``grid``, ``bodies``: the scene's
     records (``scene.spec.grid``, ``scene.spec.bodies``); ``material_rows``: material name →
-    its row of the material table; ``read_listed`` False: a mesh or particle body's file is not
-    read, its seeds a :class:`Share` awaiting its rows (a parallel run's ranks but rank 0)."""
+    its row of the material table; ``read_listed``: the listed shapes (``mesh``, ``particles``)
+    whose files are read here; another's seeds are a :class:`Share` awaiting its rows (a
+    parallel run: :mod:`parmpm.driver.listed_share`, :mod:`parmpm.driver.mesh_slices`)."""
     d = len(grid.cells)
     h = np.asarray(grid.cell_size, float)
     origin = np.asarray(grid.origin, float)
@@ -400,8 +402,8 @@ def seed_bodies(grid, bodies, material_rows: dict[str, int], read_listed: bool =
                                  "enlarge the radius or raise ppc")
         elif body.shape in ("mesh", "particles"):  # listed, each point its own volume
             spacing = None
-            pts = (listed_seeds(body, d, material_rows, _block_edges) if read_listed
-                   else Share.awaiting(body.count(), d))
+            pts = (listed_seeds(body, d, material_rows, _block_edges)
+                   if body.shape in read_listed else Share.awaiting(body.count(), d))
         else:  # cylinder, polygon, CSG, surface: the same lattice, kept where the body is
             spacing = h / ppc
             bmin, bmax = (np.asarray(b, float) for b in body.bounds())

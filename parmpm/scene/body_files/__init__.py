@@ -9,11 +9,11 @@ grid" check, :meth:`parmpm.scene.records.Body.bounds`, the overlap check, the me
 seeding — asks this package. A relative ``file`` is relative to the scene file's folder (a
 scene given as text or a built-in: the working directory).
 """
-from parmpm.scene.body_files.contents import (Listed, bounds, count, inside, listed,
-                                              listed_volume, surface)
+from parmpm.scene.body_files.contents import (Listed, bounds, count, deferred_element_checks,
+                                              inside, listed, listed_volume, surface, volume_mesh)
 from parmpm.scene.body_files.keys import (FILE_DIMS, FILE_KEYS, MAX_MESH_PARTICLES, MAX_SPLIT,
                                           check_file_body, files_read, scene_folder)
 
 __all__ = ["FILE_DIMS", "FILE_KEYS", "MAX_MESH_PARTICLES", "MAX_SPLIT", "Listed", "bounds",
-           "check_file_body", "count", "files_read", "inside", "listed", "listed_volume",
-           "scene_folder", "surface"]
+           "check_file_body", "count", "deferred_element_checks", "files_read", "inside", "listed",
+           "listed_volume", "scene_folder", "surface", "volume_mesh"]

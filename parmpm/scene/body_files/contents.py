@@ -7,6 +7,8 @@ and whatever needs the contents refuses in one line.
 """
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
 import math
 from typing import NamedTuple
@@ -38,9 +40,41 @@ def _mesh_file(stamp: tuple, dim: int, groups: tuple | None):
     from parmpm.io.mesh_file import read_volume_mesh
 
     mesh = read_volume_mesh(stamp[0], dim, None if groups is None else list(groups))
-    used = np.unique(np.concatenate([b.cells.ravel() for b in mesh.blocks]))
+    used = np.zeros(len(mesh.points), bool)  # a mask, not np.unique: no sort of every cell's nodes
+    for b in mesh.blocks:
+        used[b.cells.ravel()] = True
     nodes = mesh.points[used]
     return mesh, (nodes.min(axis=0).tolist(), nodes.max(axis=0).tolist())
+
+
+def volume_mesh(body, dim: int):
+    """A mesh body's :class:`parmpm.io.mesh_file.VolumeMesh` (read once per process): the
+    elements a parallel set-up deals out (:mod:`parmpm.driver.mesh_slices`)."""
+    _attached(body, "making its particles")
+    return _mesh_file(_stamp(body.file), dim, _groups_of(body))[0]
+
+
+#: whether a mesh body's element checks wait for the set-up (:func:`deferred_element_checks`)
+_DEFERRED = contextvars.ContextVar("parmpm_deferred_element_checks", default=False)
+
+
+@contextlib.contextmanager
+def deferred_element_checks():
+    """Within: a mesh body's check reads the file (nodes, connectivity, groups, bounds, count)
+    but leaves its elements' checks (degenerate, inverted, tangled) to the set-up, which makes
+    every particle anyway. A parallel run's rank 0 resolves the scene so
+    (:func:`parmpm.scene.agreement.load_shared_scene`): its set-up makes each rank's share of the
+    particles on that rank (:mod:`parmpm.driver.mesh_slices`), and an element check here would
+    make them all on rank 0, the O(N) pass the ranks wait for."""
+    token = _DEFERRED.set(True)
+    try:
+        yield
+    finally:
+        _DEFERRED.reset(token)
+
+
+def element_checks_deferred() -> bool:
+    return _DEFERRED.get()
 
 
 @functools.lru_cache(maxsize=4)

@@ -18,7 +18,8 @@ import numpy as np
 from parmpm.core.errors import SceneError
 from parmpm.scene import recorded_files
 from parmpm.scene.body_files.contents import (_groups_of, _mesh, _mesh_file, _particles, _stamp,
-                                              _warn_once, bounds, count, listed, surface)
+                                              _warn_once, bounds, count, element_checks_deferred,
+                                              listed, surface)
 from parmpm.scene.check import Checker, show
 
 #: each file shape's own keys, and the dimensions it exists in
@@ -112,7 +113,8 @@ def check_file_body(c: Checker, key: str, t: dict, dim: int, shape: str,
         lo, hi = _check_surface(key, view) if shape == "surface" else bounds(view, dim)
         n = count(view, dim) if shape == "mesh" else 0
         if shape == "mesh" and n <= MAX_MESH_PARTICLES:  # its elements' checks (split 1: the same)
-            _mesh(_stamp(view.file), dim, _groups_of(view), 1)
+            if not element_checks_deferred():
+                _mesh(_stamp(view.file), dim, _groups_of(view), 1)
             _warn_repeats(fkey, view, dim)
         data = listed(view, dim) if shape == "particles" else None
     except SceneError as exc:
