@@ -52,3 +52,64 @@ def test_more_ranks_than_elements_leaves_some_empty():
     ranges = element_ranges([(2, 27)], 5)
     assert sum(bool(p) for p in ranges) == 2
     assert [p for p in ranges if p] == [[(0, 0, 1)], [(0, 1, 2)]]
+
+
+def _mesh():
+    from parmpm.io.mesh_file import MeshBlock, VolumeMesh
+    from mesh_harness import polar
+
+    pts, quads, fan = polar(0.0, 1.0, 3, 16)
+    blocks = tuple(MeshBlock(t, c.astype(np.int64), np.zeros(len(c), np.int64))
+                   for t, c in (("triangle", fan), ("quad", quads)))
+    return VolumeMesh(pts, blocks)
+
+
+@pytest.mark.parametrize("ranks", [1, 2, 3, 5])
+def test_slices_make_the_whole_meshs_particles_bit_for_bit(ranks):
+    """Each rank's part (its elements over only the nodes they use, renumbered) makes exactly
+    its run of the one-pass particles."""
+    from types import SimpleNamespace
+
+    from parmpm.driver.mesh_slices import _dealer, _made
+    from parmpm.geometry.mesh import mesh_particles
+
+    mesh = _mesh()
+    x, vol, _ = mesh_particles(mesh.points, mesh.blocks, 2)
+    deal = _dealer(mesh, 2, ranks, len(vol), "bodies.0.file")
+    body = SimpleNamespace(file="disk.vtu")
+    got = [_made(deal(r), body, 0, "s.toml") for r in range(ranks)]
+    begins = [g["begin"] for g in got if g["vol"].size]
+    assert begins == sorted(begins) and begins[0] == 0
+    np.testing.assert_array_equal(np.concatenate([g["x"] for g in got]), x)
+    np.testing.assert_array_equal(np.concatenate([g["vol"] for g in got]), vol)
+
+
+def test_a_bad_element_in_a_slice_names_the_files_nodes_and_the_body():
+    from types import SimpleNamespace
+
+    from parmpm.core.errors import SceneError
+    from parmpm.driver.mesh_slices import _dealer, _made
+    from parmpm.io.mesh_file import MeshBlock, VolumeMesh
+
+    mesh = _mesh()
+    quads = mesh.blocks[1].cells.copy()
+    quads[-1] = quads[-1][::-1]  # the last quad clockwise: inverted
+    mesh = VolumeMesh(mesh.points, (mesh.blocks[0], MeshBlock("quad", quads, mesh.blocks[1].group)))
+    deal = _dealer(mesh, 1, 2, 16 * 3 + 32 * 4, "bodies.3.file")
+    body = SimpleNamespace(file="disk.vtu")
+    _made(deal(0), body, 3, "s.toml")  # rank 0's half holds no bad element
+    with pytest.raises(SceneError) as err:
+        _made(deal(1), body, 3, "s.toml")
+    text = str(err.value)
+    assert text.startswith("scene 's.toml': bodies.3.file: mesh 'disk.vtu': element 47 (quad, "
+                           f"nodes {quads[-1].tolist()}"), text
+    assert "is inverted" in text
+
+
+def test_a_mesh_changed_since_the_scene_was_read_is_refused():
+    from parmpm.core.errors import SceneError
+    from parmpm.driver.mesh_slices import _dealer
+
+    with pytest.raises(SceneError, match="bodies.0.file: the mesh made 100 particles when the "
+                                         "scene was read and 176 now"):
+        _dealer(_mesh(), 1, 2, 100, "bodies.0.file")
