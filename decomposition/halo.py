@@ -20,6 +20,8 @@ rows in global order on both sides (so offsets agree without any handshake), wit
 """
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 from numba import njit
 
@@ -28,6 +30,8 @@ from decomposition.layout import PatchLayout
 from decomposition.partition import shift_patches
 
 TAG_ACCUMULATE, TAG_FILL = 101, 102
+#: the plans :meth:`HaloPlan.among` keeps
+AMONG_KEPT = 16
 
 
 def halo_pairs(layout: PatchLayout, ids: np.ndarray) -> np.ndarray:
@@ -108,6 +112,33 @@ class HaloPlan:
         self.ghost_rows = np.concatenate([self.slot_of[ghost[:, 1:2]], ghost[:, 5:11],
                                           gseg[:, None], goff[:, None]], axis=1).astype(np.int64)
         self._bufs: dict[int, tuple] = {}
+        self._among: dict[bytes, HaloPlan] = {}  # among()'s plans by their slots
+
+    def among(self, holding: np.ndarray) -> HaloPlan:
+        """This plan with only the pairs whose ghost copy lies in a slot of this rank that
+        ``holding`` (a bool per slot) marks; every pair with another rank's patch kept, so that
+        each rank's messages stay what its peers expect. For fields whose ghost copies are zero
+        or unread elsewhere: a contact field's sums and velocities outside the slots holding
+        its particles, contact's normals and extents outside the slots with a node where fields
+        meet. An exchange then costs those slots' pairs, not the grid's. The plans made are kept
+        (the last few ``holding``s: a step asks for the same ones again)."""
+        key = np.asarray(holding, bool).tobytes()
+        sub = self._among.get(key)
+        if sub is None:
+            if len(self._among) >= AMONG_KEPT:
+                self._among.clear()
+            rows = self.own_rows
+            q = rows[:, 1]
+            keep = (q < 0) | np.asarray(holding, bool)[np.maximum(q, 0)]
+            sub = copy.copy(self)  # the same buffers and remote rows
+            sub.own_rows = np.ascontiguousarray(rows[keep])
+            sub._among = {}
+            #: the slots whose owned nodes a kept pair reaches, or that hold the ghosts: where
+            #: such a field can be nonzero at all
+            sub.reached = np.array(holding, bool)
+            sub.reached[sub.own_rows[:, 0]] = True
+            self._among[key] = sub
+        return sub
 
     @property
     def n_local(self) -> int:

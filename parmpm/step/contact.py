@@ -33,6 +33,13 @@ from parmpm.particles.order import slot_subset, slots_holding_positive
 from parmpm.transfer.damage_field import damage_gradients, damage_sums
 
 
+def _within(nodes, slots: np.ndarray):
+    """``nodes`` (:class:`parmpm.core.records.OwnedNodes`) with the boxes of the slots
+    ``slots`` does not mark emptied: a pass over the nodes where fields meet visits those
+    slots' only."""
+    return nodes._replace(own_hi=np.where(slots[:, None], nodes.own_hi, nodes.own_lo))
+
+
 def _views(block: np.ndarray, nodes: int) -> np.ndarray:
     """The node-major view ``(slots, nodes, rows)`` of a ``(slots, rows, stride)`` block."""
     return block[:, :, :nodes].transpose(0, 2, 1)
@@ -87,12 +94,18 @@ class ContactPhase:
         #: stepper: not with crack faces (one stacked pass) nor mirror faces (whose fold needs
         #: the moments first)
         self.late_moments = False
+        #: the slots with a node where fields meet (ghost copies included) and the halo plan
+        #: among them, this step (:meth:`moments_where_fields_meet`, :meth:`detect`)
+        self.meeting = self.active = None
+        #: the slots whose owned nodes two fields reach, this step (:meth:`field_plans`)
+        self.meet = None
 
     def rebuild(self, disc, grid) -> None:
         """Allocate every field's grid like ``grid`` (the stepper's, rebuilt with the patch
         set)."""
         slots, rows, stride = grid.gsum_block.shape
         nodes, d, K = grid.gsum.shape[1], self.dim, self.K
+        self.meet = None  # this layout's: made again by field_plans
         spare = max(slots, 2)  # as GridBuffers: never a 0- or 1-slot array; the kernels visit
         # the patches' slots only, and a field's block is its first ``slots`` (C-contiguous)
         if self.crack is None:
@@ -271,6 +284,29 @@ class ContactPhase:
             T.use("generic")
         return out
 
+    def field_plans(self, plan) -> list:
+        """Per field, ``plan`` among the slots holding its particles
+        (:meth:`decomposition.HaloPlan.among`): a field's sums are zero in the other slots (its
+        P2G zeroes every slot and visits its own particles' only), and only its own particles
+        read its velocities' ghost copies, so its exchanges need no other pair; every owned
+        node's total, and every copy a particle reads, is the whole plan's, bit for bit. With
+        crack faces (one stacked grid that every particle may write): ``[plan]``."""
+        if self.crack is not None:
+            return [plan]
+        plans = [plan.among(self.starts[k, 1:] > self.starts[k, :-1]) for k in range(self.K)]
+        # fields can meet only at the owned nodes of slots two of them reach
+        self.meet = np.sum([p.reached for p in plans], axis=0) >= 2
+        return plans
+
+    def field_nodes(self, plans: list, nodes) -> list:
+        """Per field, the owned nodes (a :class:`parmpm.core.records.OwnedNodes`) of the slots
+        its :meth:`field_plans` plan reaches: elsewhere the field has no mass, and no particle of
+        it reads the nodes, so its grid update skips them (their box emptied). With crack faces:
+        every owned node, for every field."""
+        if len(plans) == 1:
+            return [nodes] * self.K
+        return [_within(nodes, p.reached) for p in plans]
+
     def boxes(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Field ``k``'s (start, order)."""
         return self.starts[k], self.orders[k, :self.starts[k, -1]]
@@ -297,9 +333,14 @@ class ContactPhase:
         where fields meet, accumulated over the ghost layers (collective). A particle of any
         other slot reaches no such node (its slot's copy of the node would be marked), so every
         marked node gets every term, in the order the whole pass adds them; the unmarked nodes'
-        moments are partial, and no reader looks at them."""
-        contact_mask(nodes, self.sum_all, eps, self.mask)
+        moments are partial, and no reader looks at them. A node where fields meet has every copy
+        in a marked slot (the mask is filled to the ghost copies), so the moments' ghost sums
+        are taken over the marked slots' pairs only (:meth:`decomposition.HaloPlan.among`), as
+        are :meth:`detect`'s exchanges after it."""
         slots = self.grids[0].gsum_block.shape[0]
+        meet = np.ones(slots, bool) if self.meet is None else self.meet
+        self.mask[:slots][~meet] = 0.0
+        contact_mask(_within(nodes, meet), self.sum_all, eps, self.mask)
         mask = _views(self.mask[:slots], self.nodes)
         fill(plan, mask)
         active = mask[:, :, 0].any(axis=1)
@@ -309,7 +350,8 @@ class ContactPhase:
                 transfers.p2g_momentum(self.moments[k], err, positions=True)
         finally:
             transfers.subset = None
-        accumulate(plan, *self.node_views("x"))
+        self.meeting, self.active = plan.among(active), active
+        accumulate(self.meeting, *self.node_views("x"))
 
     def detect(self, disc, P, nodes, plan, eps: float) -> None:
         """Normals at the owned nodes, filled to their ghost copies (and the mask where fields
@@ -317,12 +359,18 @@ class ContactPhase:
         fields' extremes along them from every particle near a node, their maxima over the
         ghost layers (collective)."""
         marked = self.late_moments
-        contact_normals(disc.dim, nodes, disc.origin3, disc.h3, self.sum_all, self.x_all, eps,
-                        self.normal_mode, self.normal, self.mask, marked)
+        contact_normals(disc.dim, _within(nodes, self.active) if marked else nodes, disc.origin3,
+                        disc.h3, self.sum_all, self.x_all, eps, self.normal_mode, self.normal,
+                        self.mask, marked)
         slots = self.grids[0].gsum_block.shape[0]
         mask = _views(self.mask[:slots], self.nodes)
-        fill(plan, *self.node_views("normal"), *(() if marked else (mask,)))
+        # the normals are read where fields meet only: every copy of such a node is in a slot
+        # the (filled) mask marks, so the marked slots' pairs carry them all
+        fill(self.meeting if marked else plan, *self.node_views("normal"),
+             *(() if marked else (mask,)))
         active = mask[:, :, 0].any(axis=1)  # slots with a node where fields meet
+        meeting = self.meeting if marked else plan.among(active)
+        self.active = active
         # only there are extremes read (a slot without such a node holds no copy of one)
         self.ext[:, :slots][:, active] = -np.inf
         R = P.rows
@@ -330,7 +378,7 @@ class ContactPhase:
                         disc.h3, self.reach, disc.base, disc.nloc, self.normal, self.mask,
                         active, self.ext, self.sides if self.crack is not None else None,
                         self.gap_mode)
-        accumulate_max(plan, *self.node_views("ext"))
+        accumulate_max(meeting, *self.node_views("ext"))
 
     def untouched(self, slots: int) -> None:
         """A step without the contact phase (a crack scene with no crack yet): no impulse and no
@@ -342,11 +390,12 @@ class ContactPhase:
 
     def correct(self, disc, nodes, dt: float, gravity: np.ndarray, heavy: float, eps: float,
                 momentum_only: bool) -> None:
-        """The contact correction of every field's updated velocities at the owned nodes."""
+        """The contact correction of every field's updated velocities at the owned nodes where
+        fields meet (those of the slots :meth:`detect` marked this step)."""
         g = np.zeros(3)
         g[:disc.dim] = gravity[:disc.dim]
-        sums = contact_correct(disc.dim, nodes, self.sum_all, self.new_all, self.normal,
-                               self.ext, self.mu, dt, g, heavy, eps, momentum_only,
+        sums = contact_correct(disc.dim, _within(nodes, self.active), self.sum_all, self.new_all,
+                               self.normal, self.ext, self.mu, dt, g, heavy, eps, momentum_only,
                                self.normal_mode, self.mask)
         if not momentum_only:
             self.sums = sums

@@ -46,9 +46,12 @@ class GridPhase:
                                   D.origin3, D.h3)
         return nodes, constraints
 
-    def update(self, grid, dt: float, gravity: np.ndarray, momentum_only: bool) -> None:
-        """Nodal velocities (and increments) from the summed blocks of ``grid``."""
-        nodes, constraints = self.records()
+    def update(self, grid, dt: float, gravity: np.ndarray, momentum_only: bool,
+               nodes: OwnedNodes | None = None) -> None:
+        """Nodal velocities (and increments) from the summed blocks of ``grid``, at ``nodes``
+        (default: every owned node; a contact field's: where it can have mass)."""
+        owned, constraints = self.records()
+        nodes = owned if nodes is None else nodes
         grid_update(AXES[self.disc.dim], nodes, constraints, dt, gravity, self.damping, self.mass_eps,
                     grid.gsum_block, grid.gnew_block, momentum_only, self.mls)
 

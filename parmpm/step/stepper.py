@@ -277,9 +277,16 @@ class Stepper:
             phase.fold(grid, rows, momentum_only)
         t = self._lap("p2g", t)
         sums = [g.gmv if momentum_only else g.gsum[:, :, :rows] for g in grids]
-        if C is not None and not momentum_only and not C.late_moments:
-            sums += C.node_views("x")
-        accumulate(plan, *sums)
+        plans = C.field_plans(plan) if C is not None else [plan]
+        if C is not None and not momentum_only and not C.late_moments:  # each with its field's
+            sums = [(s, x) for s, x in zip(sums, C.node_views("x"))]
+        else:
+            sums = [(s,) for s in sums]
+        if len(plans) == 1:
+            accumulate(plan, *(a for field in sums for a in field))
+        else:  # each field over the pairs whose ghost copies its particles fill
+            for field_plan, field in zip(plans, sums):
+                accumulate(field_plan, *field)
         t = self._lap("accumulate", t)
         nodes = phase.records()[0]
         heavy = -1.0 if self.mls else phase.mass_eps
@@ -288,8 +295,9 @@ class Stepper:
                 C.moments_where_fields_meet(self.transfers, nodes, plan, phase.mass_eps,
                                             self.faults.err)
             C.detect(self.disc, self.P, nodes, plan, phase.mass_eps)
+        owned = C.field_nodes(plans, nodes) if C is not None else [nodes]
         for k, grid in enumerate(grids):
-            phase.update(grid, dt, gravity, momentum_only)
+            phase.update(grid, dt, gravity, momentum_only, owned[k])
             if self.walls is not None:
                 self.walls.apply(self.disc, nodes, grid, dt, gravity, heavy, t_end,
                                  momentum_only, add=k > 0)
@@ -303,7 +311,12 @@ class Stepper:
             self.ledger.add(self, dt, gravity)
         t = self._lap("grid", t)
         # APIC and MLS read no Δv, nor does MUSL's deformation pass
-        fill(plan, *[g.gvel if (self.apic or momentum_only) else g.gnew for g in grids])
+        views = [g.gvel if (self.apic or momentum_only) else g.gnew for g in grids]
+        if len(plans) == 1:
+            fill(plan, *views)
+        else:  # each field's ghost copies where its particles read them
+            for field_plan, view in zip(plans, views):
+                fill(field_plan, view)
         return self._lap("fill", t)
 
     def step(self, dt: float, gravity: np.ndarray, time_now: float = 0.0) -> float:

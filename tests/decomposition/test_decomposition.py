@@ -354,3 +354,29 @@ def test_morton_partition_is_contiguous_and_balanced():
         assert imbalance(loads) < 0.02
     assert np.array_equal(split_contiguous(np.ones(4), 2), [0, 0, 1, 1])
     assert np.array_equal(split_contiguous(np.zeros(3), 3), [0, 1, 2])
+
+
+@pytest.mark.parametrize("case", LAYOUTS, ids=LAYOUT_IDS)
+def test_among_the_holding_slots_gives_their_copies_the_whole_plans_bits(case):
+    """``HaloPlan.among(holding)`` (contact's per-field exchanges): partial sums only in the
+    slots ``holding`` marks (zeros elsewhere, as a field's P2G leaves them), accumulated and
+    filled over the kept pairs, give every copy in those slots the bits of the whole plan's;
+    a slot the sub-plan does not mark ``reached`` gets nothing from the whole plan either."""
+    lay = _layout(case)
+    rng = np.random.default_rng([7, LAYOUTS.index(case)])
+    for trial in range(4):
+        holding = rng.random(lay.n_patches) < (0.2, 0.5, 0.8, 1.0)[trial]
+        f = _partials(lay, rng)
+        f[~holding] = 0.0
+        whole, part = f.copy(), f.copy()
+        plan = HaloPlan(lay)
+        sub = plan.among(holding)
+        assert plan.among(holding) is sub  # kept for the next step
+        accumulate(plan, whole)
+        unreached = ~sub.reached
+        assert np.all(whole[unreached] == 0.0)
+        fill(plan, whole)
+        accumulate(sub, part)
+        fill(sub, part)
+        np.testing.assert_array_equal(part[holding], whole[holding])
+        assert sub.own_rows.shape[0] <= plan.own_rows.shape[0]
