@@ -44,8 +44,7 @@ def element_ranges(sizes: list[tuple[int, int]], ranks: int) -> list[list[tuple[
     offset = 0
     for b, (e, q) in enumerate(sizes):
         # element i of this block starts at particle offset + i*q: its rank is the last cut <= that
-        first = [min(e, max(0, -(-(c - offset) // q))) for c in cuts]
-        first[-1] = e
+        first = [min(e, max(0, -(-(c - offset) // q))) for c in cuts]  # the last: e (n's cut)
         for r in range(ranks):
             if first[r + 1] > first[r]:
                 out[r].append((b, first[r], first[r + 1]))

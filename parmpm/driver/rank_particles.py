@@ -101,7 +101,7 @@ def _seeded(spec: SceneSpec, comm, D, params, rows, plastic=False, scene_source=
     if slices:
         counts = counts + slices.patch_counts(comm, D)
     patches = _patch_set(spec, comm, layout, counts)
-    _warn_idle_ranks(comm, D, counts, seeds, slices or None)
+    _warn_idle_ranks(comm, D, counts, seeds, slices)
     if shared:  # each rank receives its own particles' rows
         share_listed(comm, seeds, D, patches.rank_of)
         slices.share(comm, patches.rank_of)
@@ -197,6 +197,7 @@ def _warn_idle_ranks(comm, D: Discretisation, counts: np.ndarray, where, slices=
     every rank counts at the patch sizes the advice tries (then collective: every rank holds
     the same ``counts``, so all try the same sizes)."""
     rank = comm.Get_rank()
+    slices = slices or None  # no mesh body: rank 0's advice alone
     if comm.Get_size() == 1 or (rank != 0 and slices is None):
         return
 
