@@ -173,9 +173,12 @@ class ContactPhase:
         dsum, dmax = _views(self.dsum[:slots], self.nodes), _views(self.dmax[:slots], self.nodes)
         damage = P.rows.damage
         wet = self._damage_sums(transfers, P, plan, damage, slots, err)
-        accumulate(plan, dsum, maxima=(dmax,))
-        nodal_damage(nodes, self.dsum)
-        fill(plan, dsum[:, :, 1:])
+        # every sum below is zero in the other slots, and every copy of a node a damaged
+        # particle reaches lies in a wet slot: their exchanges and node passes need no other
+        wet_plan, wet_nodes = plan.among(wet), _within(nodes, wet)
+        accumulate(wet_plan, dsum, maxima=(dmax,))
+        nodal_damage(wet_nodes, self.dsum)
+        fill(wet_plan, dsum[:, :, 1:])
         tsum = _views(self.tsum[:slots], self.nodes)
         try:  # a particle of any other slot has no damage gradient
             self.grad[:] = 0.0
@@ -184,9 +187,10 @@ class ContactPhase:
             damage_gradients(how, boxes, fields, dsum[:, :, 1:], self.grad, tsum, err)
         finally:
             transfers.subset = None
-        accumulate(plan, tsum)
-        crack_normals(self.dim, nodes, self.tsum, self.dmax, self.crack, self.cnormal)
-        fill(plan, _views(self.cnormal[:slots], self.nodes))
+        accumulate(wet_plan, tsum)
+        self.cnormal[:slots][~wet] = 0.0  # a crack's node has every copy in a wet slot
+        crack_normals(self.dim, wet_nodes, self.tsum, self.dmax, self.crack, self.cnormal)
+        fill(wet_plan, _views(self.cnormal[:slots], self.nodes))
         self._near_cracks(P)
 
     def _damage_sums(self, transfers, P, plan, damage, slots: int, err) -> np.ndarray:
@@ -292,7 +296,9 @@ class ContactPhase:
         node's total, and every copy a particle reads, is the whole plan's, bit for bit. With
         crack faces (one stacked grid that every particle may write): ``[plan]``."""
         if self.crack is not None:
-            return [plan]
+            # one body's far side has mass only at nodes with a crack normal, whose every copy
+            # lies in a slot near a crack: its exchanges need those slots' pairs only
+            return [plan] if self.near is None else [plan, plan.among(self.near)]
         plans = [plan.among(self.starts[k, 1:] > self.starts[k, :-1]) for k in range(self.K)]
         # fields can meet only at the owned nodes of slots two of them reach
         self.meet = np.sum([p.reached for p in plans], axis=0) >= 2
@@ -305,6 +311,8 @@ class ContactPhase:
         every owned node, for every field."""
         if len(plans) == 1:
             return [nodes] * self.K
+        if self.crack is not None:  # the far side: where a crack can have it
+            return [nodes, _within(nodes, self.near)]
         return [_within(nodes, p.reached) for p in plans]
 
     def boxes(self, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -359,15 +367,21 @@ class ContactPhase:
         fields' extremes along them from every particle near a node, their maxima over the
         ghost layers (collective)."""
         marked = self.late_moments
-        contact_normals(disc.dim, _within(nodes, self.active) if marked else nodes, disc.origin3,
-                        disc.h3, self.sum_all, self.x_all, eps, self.normal_mode, self.normal,
-                        self.mask, marked)
         slots = self.grids[0].gsum_block.shape[0]
+        visit, filled = nodes, plan
+        if marked:
+            visit, filled = _within(nodes, self.active), self.meeting
+        elif self.crack is not None and self.near is not None:
+            # one body's crack faces meet only at nodes with a crack normal, each copy of which
+            # lies in a slot near a crack
+            self.mask[:slots][~self.near] = 0.0
+            visit, filled = _within(nodes, self.near), plan.among(self.near)
+        contact_normals(disc.dim, visit, disc.origin3, disc.h3, self.sum_all, self.x_all, eps,
+                        self.normal_mode, self.normal, self.mask, marked)
         mask = _views(self.mask[:slots], self.nodes)
         # the normals are read where fields meet only: every copy of such a node is in a slot
         # the (filled) mask marks, so the marked slots' pairs carry them all
-        fill(self.meeting if marked else plan, *self.node_views("normal"),
-             *(() if marked else (mask,)))
+        fill(filled, *self.node_views("normal"), *(() if marked else (mask,)))
         active = mask[:, :, 0].any(axis=1)  # slots with a node where fields meet
         meeting = self.meeting if marked else plan.among(active)
         self.active = active

@@ -39,6 +39,22 @@ class Migration:
             self.new_patch = np.zeros(self.P.n, np.int64)
         return Locate(self._loc, self._inv_psize, self.patches.local_ids, self.new_patch, inside)
 
+    def locate_rest(self, located, rows: np.ndarray) -> None:
+        """G2P's specialised kernels found the next patches of every particle but ``rows`` (their
+        ``located``: first off the grid, particles that changed patch): find those rows' here,
+        so that the migration need not look at every particle again. Left to that full search
+        (:attr:`located` None) when a particle left the grid: its message names the first in
+        canonical order, which neither part knows alone."""
+        self.located = None
+        first, moved = located
+        if first >= 0:
+            return
+        D, R, lay = self.disc, self.P.rows, self.disc.layout
+        bad, more = locate_patches(D.dim, R.x, D.origin3, D.inv_h3, lay.cells3, lay.psize3,
+                                   lay.patches_per_axis, R.patch, self.new_patch, rows)
+        if bad < 0:
+            self.located = (-1, moved + more)
+
     def _fail(self, i: int, message: str) -> None:
         self.faults.fail(self.P.rows, i, message)
 

@@ -228,11 +228,13 @@ class Stepper:
             return vmax
         vmax = 0.0
         if C.crack is not None:
-            speeds = C.on_sides(T, self._kernels,
-                                lambda g: T.g2p(g, mode, dt, self.faults.err, locate)[0],
-                                C.stacked)
+            out = C.on_sides(T, self._kernels,
+                             lambda g: T.g2p(g, mode, dt, self.faults.err, locate), C.stacked)
             self.moves.located = None
-            return max(speeds)
+            if out[0][1] is not None and mode != G2P_MUSL_MOTION:  # the slots away from a crack
+                # ran the specialised kernels, which found their particles' next patches
+                self.moves.locate_rest(out[0][1], C.near_boxes[1])
+            return max(speed for speed, _ in out)
         # each field's particles from its own grid; every particle is in one field's share, so
         # the fields' G2P together find every next patch, as one field's does (the migration
         # looks again only when a particle left the grid: its message names the first in
@@ -280,6 +282,8 @@ class Stepper:
         plans = C.field_plans(plan) if C is not None else [plan]
         if C is not None and not momentum_only and not C.late_moments:  # each with its field's
             sums = [(s, x) for s, x in zip(sums, C.node_views("x"))]
+            if C.crack is not None and len(plans) == 2:  # the moments: where the sides meet
+                sums = [sums[0][:1], (sums[0][1], *sums[1])]
         else:
             sums = [(s,) for s in sums]
         if len(plans) == 1:
