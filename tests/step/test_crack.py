@@ -186,7 +186,7 @@ def test_slots_away_from_the_crack_run_the_specialised_kernels():
     """After the break, only the slots whose node box holds a node with a crack normal choose
     each particle's field per node (the generic loops); the others' particles are all in the
     body's field there and run the specialised kernels (with the damage passes over the slots
-    near damage, 2.7–2.9× one field's time after the break against 8.3×, measured). The two kinds of kernels sum in their own orders, so against every
+    near damage, 2.2–2.4× one field's time after the break against 8.3×, measured). The two kinds of kernels sum in their own orders, so against every
     slot on the generic loops the particles agree to round-off, not bit for bit."""
     from decomposition import world
     from parmpm.driver.set_up import set_up
