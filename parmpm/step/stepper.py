@@ -303,7 +303,7 @@ class Stepper:
         for k, grid in enumerate(grids):
             phase.update(grid, dt, gravity, momentum_only, owned[k])
             if self.walls is not None:
-                self.walls.apply(self.disc, nodes, grid, dt, gravity, heavy, t_end,
+                self.walls.apply(self.disc, owned[k], grid, dt, gravity, heavy, t_end,
                                  momentum_only, add=k > 0)
         if C is not None:
             C.correct(self.disc, nodes, dt, gravity, heavy, phase.mass_eps, momentum_only)

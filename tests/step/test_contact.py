@@ -121,6 +121,46 @@ def test_block_on_a_block_on_a_wall_and_the_ledger_closes(tmp_path):
     assert abs(end["transfer_dissipation"]) < 0.005 * 10.0
 
 
+def test_walls_and_fields_over_where_each_field_has_mass_give_every_nodes_bits(monkeypatch):
+    """Each contact field's grid update and walls run over the owned nodes of the slots its
+    particles reach (elsewhere it has no mass, and a wall skips a massless node), and its
+    exchanges over those slots' pairs: against the same steps over every owned node and the
+    whole halo plan, the particles and the walls' sums are equal, bit for bit."""
+    import decomposition.halo
+    import parmpm.step.contact
+
+    text = slide_scene(0.3).replace('[boundary]\ny_min = "fixed"',
+                                    '[[walls]]\nname = "floor"\npoint = [0.0, 0.0]\n'
+                                    'normal = [0.0, 1.0]\nfriction = "stick"')
+
+    def run_steps():
+        st = set_up(scene_from_toml('name = "walled"\n' + text), world()).stepper
+        g = np.array([0.0, -G, 0.0])
+        for k in range(400):
+            st.step(5e-5, g, 5e-5 * k)
+        return st
+
+    narrowed = run_steps()
+    with monkeypatch.context() as m:  # every owned node, the whole plan
+        m.setattr(decomposition.halo.HaloPlan, "among", _whole)
+        m.setattr(parmpm.step.contact, "_within", lambda nodes, slots: nodes)
+        whole = run_steps()
+    assert not narrowed.contact.meet.all()  # some slots hold one field only
+    for name in ("x", "v", "F", "stress"):
+        assert np.array_equal(getattr(narrowed.P.rows, name), getattr(whole.P.rows, name)), name
+    assert np.array_equal(narrowed.walls.sums, whole.walls.sums)
+    assert narrowed.walls.sums.any()
+
+
+def _whole(plan, holding):
+    """``plan`` as :meth:`decomposition.HaloPlan.among` would give it with every pair kept."""
+    import copy
+
+    sub = copy.copy(plan)
+    sub.reached = np.ones(len(holding), bool)
+    return sub
+
+
 def test_frictionless_block_keeps_its_speed(tmp_path):
     """μ = 0: the block slides on at 1 m/s (to 1e-3) and contact takes no energy (0.1 % of
     its kinetic energy)."""
