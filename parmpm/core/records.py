@@ -45,16 +45,18 @@ Method = namedtuple("Method", ("code", "axes", "lcr", "apic", "mls", "kind"))
 Boxes = namedtuple("Boxes", ("start", "order", "base", "jlo", "jhi", "nloc", "nglob", "origin",
                              "inv_h"))
 #: the particle fields a transfer reads or writes (``affine``, ``corners``: optional fields, empty
-#: unless carried; ``rf``: which domains are frozen)
+#: unless carried; ``rf``: which domains are frozen; ``sides``: crack faces for the specialised
+#: 2D kernels that choose each node's copy themselves (:mod:`parmpm.transfer.sided`), else None)
 Fields = namedtuple("Fields", ("x", "v", "F", "r0", "lh0", "mass", "vol0", "stress", "dx",
-                               "affine", "corners", "rf"))
+                               "affine", "corners", "rf", "sides"))
 #: crack faces (``[contact] cracks``, :mod:`parmpm.grid.crack`): the side of a crack each
 #: (particle, node) pair is on. ``field``: each physical row's body field; ``fields``: how many
 #: body fields (a row on the far side of a node's crack goes to ``field + fields``); ``grad``:
 #: each row's damage gradient (n, 3); ``normal``: each node's crack normal (slots, 3, stride;
 #: zero where the node has no crack); ``stride``: how far apart two fields' copies of a node are
-#: in the stacked grid the transfers fill
-Sides = namedtuple("Sides", ("field", "fields", "grad", "normal", "stride"))
+#: in the stacked grid the transfers fill; ``near``: per slot, whether its node box holds a node
+#: with a crack normal (every slot where that is not known)
+Sides = namedtuple("Sides", ("field", "fields", "grad", "normal", "stride", "near"))
 #: the material state G2P updates: material row per particle, parameter table, damage
 Material = namedtuple("Material", ("mat", "params", "damage"))
 #: what the specialised G2P kernels need to find each particle's next patch (and write it);

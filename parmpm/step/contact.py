@@ -164,8 +164,6 @@ class ContactPhase:
         slots = self.grids[0].gsum_block.shape[0]
         if self.grad.shape[0] != P.n:
             self.grad = np.zeros((P.n, 3))
-        # two fields' copies of a node are a box's node count apart in the stacked grid
-        self.sides = Sides(self.field, self.fields, self.grad, self.cnormal, self.nodes)
         if self.max_damage < self.crack:
             self.cnormal[:slots] = 0.0
             self._near_cracks(P)
@@ -231,10 +229,14 @@ class ContactPhase:
         with a crack normal; None where a particle's field away from a crack is not field 0:
         several bodies) and the (start, order) of the slots it marks and of the others."""
         self.near = self.far_boxes = self.near_boxes = None
+        slots = self.grids[0].gsum_block.shape[0]
+        # two fields' copies of a node are a box's node count apart in the stacked grid
+        self.sides = Sides(self.field, self.fields, self.grad, self.cnormal, self.nodes,
+                           np.ones(slots, bool))
         if self.fields != 1:
             return
-        slots = self.grids[0].gsum_block.shape[0]
         self.near = slots_with_crack(self.cnormal, slots, self.nodes)
+        self.sides = self.sides._replace(near=self.near)
         self.far_boxes = slot_subset(P.start, P.order(), ~self.near)
         self.near_boxes = slot_subset(P.start, P.order(), self.near)
 
@@ -252,7 +254,10 @@ class ContactPhase:
 
     def on_sides(self, transfers, kernels: str, transfer, grid, spare=None, rows=None,
                  far: bool = True) -> list:
-        """``transfer(grid)`` over the stacked grid of crack faces: the slots whose node box
+        """``transfer(grid)`` over the stacked grid of crack faces. In a scene of one body on
+        kernels that choose each node's copy themselves (the specialised 2D ones:
+        :meth:`parmpm.step.transfers.Transfers.chooses_sides`), one pass over every slot (with
+        ``far`` False, the slots near a crack). Otherwise the slots whose node box
         (ghost copies included) holds no node with a crack normal on the ``kernels`` asked for
         (the specialised ones by default) — in a scene of one body their particles are in its
         field, field 0's copies, at every node — and the others on the generic loops with each
@@ -266,6 +271,17 @@ class ContactPhase:
         returned."""
         T, near = transfers, self.near
         out = []
+        T.use(kernels)
+        if near is not None and T.chooses_sides():  # one pass: each node's copy in the loops
+            try:
+                T.sides = self.sides
+                if not far:
+                    T.subset = self.near_boxes
+                return [transfer(grid)]
+            finally:
+                T.subset = None
+                T.sides = None
+                T.use("generic")
         try:
             target = grid
             if near is not None and not near.all():

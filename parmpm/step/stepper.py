@@ -231,9 +231,12 @@ class Stepper:
             out = C.on_sides(T, self._kernels,
                              lambda g: T.g2p(g, mode, dt, self.faults.err, locate), C.stacked)
             self.moves.located = None
-            if out[0][1] is not None and mode != G2P_MUSL_MOTION:  # the slots away from a crack
-                # ran the specialised kernels, which found their particles' next patches
-                self.moves.locate_rest(out[0][1], C.near_boxes[1])
+            if out[0][1] is not None and mode != G2P_MUSL_MOTION:  # the specialised kernels
+                # found the next patches of their particles: all, or those away from a crack
+                if len(out) == 1:
+                    self.moves.located = out[0][1]
+                else:
+                    self.moves.locate_rest(out[0][1], C.near_boxes[1])
             return max(speed for speed, _ in out)
         # each field's particles from its own grid; every particle is in one field's share, so
         # the fields' G2P together find every next patch, as one field's does (the migration

@@ -45,7 +45,8 @@ class Transfers:
         #: (start, order) of the particles to visit instead of all (a contact field's), or None
         self.subset: tuple[np.ndarray, np.ndarray] | None = None
         #: crack faces (:data:`parmpm.core.records.Sides`: every particle to its field at each
-        #: node of a stacked grid; the generic loops only), or None
+        #: node of a stacked grid; the generic loops, and the specialised ones where
+        #: :meth:`chooses_sides`), or None
         self.sides = None
         self._zero_affine: np.ndarray | None = None  # see _no_affine
         self.use("specialised")
@@ -65,6 +66,12 @@ class Transfers:
         else:
             raise ValueError(f'kernels: expected "specialised" or "generic", got {kind!r}')
 
+    def chooses_sides(self) -> bool:
+        """Whether the kernels in use choose each node's copy of a crack face themselves (the
+        specialised 2D ones, :mod:`parmpm.transfer.sided`), so that crack faces need not send
+        the particles near a crack to the generic loops."""
+        return self.kernels is not None and self.disc.dim == 2
+
     def records(self):
         """The kernels' records (:mod:`parmpm.core.records`) of the current patches and
         particle arrays (rebuilt per call: migration replaces the arrays)."""
@@ -82,7 +89,7 @@ class Transfers:
         if self.empty_boxes:
             boxes = boxes._replace(start=np.zeros(1, np.int64), order=np.zeros(0, np.uint64))
         fields = Fields(R.x, R.v, R.F, R.r0, R.lh0, R.mass, R.vol0, R.stress, R.dx, R.affine,
-                        R.corners, R.rf)
+                        R.corners, R.rf, self.sides if self.kernels is not None else None)
         return (Method(D.method, AXES[D.dim], D.lcr, self.apic, self.mls, KINDS[D.method]), boxes,
                 fields)
 

@@ -12,6 +12,7 @@ keys its cache to a pickle of the closure's cells, new in every process), and th
 :func:`parmpm.shapes.cpdi.cell_node` walks a cell's nodes as the nested loops it replaced did.
 """
 import io
+from collections import namedtuple
 
 import numpy as np
 import pytest
@@ -34,19 +35,30 @@ def _support(i, frame, slot, shape, fields):
     return (-2 if x[i] < 0.0 else 0), (shape * x[i],)
 
 
+#: what the walks read and write, as the kernels' :class:`parmpm.core.records.Fields` (``sides``
+#: None: no crack faces)
+Walked = namedtuple("Walked", ("x", "seen", "count", "sides"))
+
+
 @njit(inline="always")
 def _scatter(i, g, frame, st, fields, args):
     """Record the visit (in ``fields``: what a hook writes is a kernel argument) and add the
     stencil to the slot's first grid value."""
-    _, seen, count = fields
+    seen, count = fields.seen, fields.count
     seen[count[0]] = i
     count[0] += 1
     g[0, 0] += st[0]
 
 
+@njit(inline="always")
+def _scatter_2d(i, g, frame, st, fields, args, side):
+    """:func:`_scatter` as a 2D hook (``side``: the slot's crack faces, None here)."""
+    _scatter(i, g, frame, st, fields, args)
+
+
 @njit
 def _walk_2d(boxes, order, grid, err, fields):
-    each_particle_2d(_support, _scatter, boxes, order, grid, err, 2.0, fields, None)
+    each_particle_2d(_support, _scatter_2d, boxes, order, grid, err, 2.0, fields, None)
 
 
 @njit
@@ -88,7 +100,7 @@ def test_each_particle_visits_the_slots_in_canonical_order_and_skips_failed_supp
     grid = np.zeros((3, 1, 1))
     err = np.full(2, -1, np.int64)
     seen, count = np.full(7, -1, np.int64), np.zeros(1, np.int64)
-    walk(_boxes(start, d), order, grid, err, (x, seen, count))
+    walk(_boxes(start, d), order, grid, err, Walked(x, seen, count, None))
     visited = [int(r) for r in rows if x[r] >= 0.0]
     assert seen[:count[0]].tolist() == visited
     first_bad = next(int(r) for r in rows if x[r] < 0.0)
@@ -104,7 +116,7 @@ def test_the_loop_and_its_hooks_are_inlined_into_the_kernel():
     with them later)."""
     seen, count = np.zeros(1, np.int64), np.zeros(1, np.int64)
     _walk_2d(_boxes([0, 1], 2), None, np.zeros((1, 1, 1)), np.full(2, -1, np.int64),
-             (np.ones(1), seen, count))
+             Walked(np.ones(1), seen, count, None))
     typed = io.StringIO()
     _walk_2d.inspect_types(file=typed)
     calls = [line for line in typed.getvalue().splitlines() if "call" in line and

@@ -18,6 +18,7 @@ from parmpm.core.jit import inline_kernel, loop_kernel
 from parmpm.shapes.bspline import nearest_node, spline_weights
 from parmpm.transfer.kernels2d.hat import add_force, body_force, volume_stress
 from parmpm.transfer.kernels2d.loops import centre_support, each_particle, each_particle_g2p, stays
+from parmpm.transfer.sided import sided_node
 
 
 @inline_kernel
@@ -39,7 +40,7 @@ def support(i, frame, slot, lcr, fields):
 
 
 @inline_kernel
-def scatter(i, g, frame, st, fields, args):
+def scatter(i, g, frame, st, fields, args, side):
     """Mass, momentum (FLIP or APIC) and force of particle ``i`` into its 3×3 nodes."""
     v, mass, C = fields.v, fields.mass, fields.affine
     bforce, forced, apic, hx, hy = args
@@ -70,7 +71,7 @@ def scatter(i, g, frame, st, fields, args):
                 rx = (a - 1 - tx) * hx
                 ux = vx + c00 * rx + c01 * ry
                 uy = vy + c10 * rx + c11 * ry
-            node = row + a
+            node = sided_node(side, i, row + a)
             g[0, node] += mS
             g[1, node] += mS * ux
             g[2, node] += mS * uy
@@ -78,7 +79,7 @@ def scatter(i, g, frame, st, fields, args):
 
 
 @inline_kernel
-def scatter_momentum(i, g, frame, st, fields, args):
+def scatter_momentum(i, g, frame, st, fields, args, side):
     """Momentum (FLIP or APIC) of particle ``i`` into its 3×3 nodes."""
     v, mass, C = fields.v, fields.mass, fields.affine
     apic, hx, hy = args
@@ -103,12 +104,13 @@ def scatter_momentum(i, g, frame, st, fields, args):
                 rx = (a - 1 - tx) * hx
                 ux = vx + c00 * rx + c01 * ry
                 uy = vy + c10 * rx + c11 * ry
-            g[1, row + a] += mS * ux
-            g[2, row + a] += mS * uy
+            node = sided_node(side, i, row + a)
+            g[1, node] += mS * ux
+            g[2, node] += mS * uy
 
 
 @inline_kernel
-def spline_gather(step, i, g, frame, st, mls):
+def spline_gather(step, i, g, frame, st, mls, side):
     """``v``, ``Δv`` (FLIP) or ``C`` (APIC) and ``Δt L`` at particle ``i`` from its 3×3 nodes;
     ``mls``: ``L_p = C_p`` (the affine matrix of the field G2P reads, ``Σ φ v_i ⊗ r D⁻¹``,
     :mod:`parmpm.transfer.affine`), not ``Σ v_i ⊗ ∇φ``."""
@@ -126,8 +128,9 @@ def spline_gather(step, i, g, frame, st, mls):
         wy = wy0 if b == 0 else (wy1 if b == 1 else wy2)
         dy = dy0 if b == 0 else (dy1 if b == 1 else dy2)
         n = kx + L0 * (ky + b)
-        u0, u1, u2 = g[0, n], g[0, n + 1], g[0, n + 2]
-        w0, w1, w2 = g[1, n], g[1, n + 1], g[1, n + 2]
+        n0, n1, n2 = sided_node(side, i, n), sided_node(side, i, n + 1), sided_node(side, i, n + 2)
+        u0, u1, u2 = g[0, n0], g[0, n1], g[0, n2]
+        w0, w1, w2 = g[1, n0], g[1, n1], g[1, n2]
         sx = wx0 * u0 + wx1 * u1 + wx2 * u2
         sy = wx0 * w0 + wx1 * w1 + wx2 * w2
         vx += wy * sx
@@ -144,8 +147,8 @@ def spline_gather(step, i, g, frame, st, mls):
             bx1 += ry * sx
             by1 += ry * sy
         else:
-            dvx += wy * (wx0 * g[2, n] + wx1 * g[2, n + 1] + wx2 * g[2, n + 2])
-            dvy += wy * (wx0 * g[3, n] + wx1 * g[3, n + 1] + wx2 * g[3, n + 2])
+            dvx += wy * (wx0 * g[2, n0] + wx1 * g[2, n1] + wx2 * g[2, n2])
+            dvy += wy * (wx0 * g[3, n0] + wx1 * g[3, n1] + wx2 * g[3, n2])
     c00, c01 = 4.0 * ihx * bx0, 4.0 * ihy * bx1
     c10, c11 = 4.0 * ihx * by0, 4.0 * ihy * by1
     if mls:
@@ -155,9 +158,9 @@ def spline_gather(step, i, g, frame, st, mls):
 
 
 @inline_kernel
-def gather(step, i, g, frame, st, shape, fields):
+def gather(step, i, g, frame, st, shape, fields, side):
     """:func:`spline_gather` with ``L_p = Σ v_i ⊗ ∇φ``."""
-    return spline_gather(step, i, g, frame, st, False)
+    return spline_gather(step, i, g, frame, st, False, side)
 
 
 @loop_kernel

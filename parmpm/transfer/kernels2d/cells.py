@@ -13,6 +13,7 @@ import numpy as np
 
 from parmpm.core.jit import inline_kernel
 from parmpm.shapes.hat import F_MIN, SNAP
+from parmpm.transfer.sided import sided_node
 
 
 @inline_kernel
@@ -100,3 +101,13 @@ def slot_2d(boxes, p):
     """Node-box origin and usable cells of slot ``p``: ``(bx, by, jlx, jly, jhx, jhy)``."""
     base, jlo, jhi = boxes.base, boxes.jlo, boxes.jhi
     return base[p, 0], base[p, 1], jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
+
+
+@inline_kernel
+def cell_nodes(side, i, L0, jx, jy):
+    """Row ``i``'s copies of the four nodes of local cell ``(jx, jy)`` (the nodes themselves
+    without crack faces: :func:`parmpm.transfer.sided.sided_node`)."""
+    n0 = jx + L0 * jy
+    n2 = n0 + L0
+    return (sided_node(side, i, n0), sided_node(side, i, n0 + 1), sided_node(side, i, n2),
+            sided_node(side, i, n2 + 1))

@@ -20,7 +20,7 @@ from parmpm.core.records import NO_SCALING
 from parmpm.materials.kinematics import det_2d
 from parmpm.shapes.cpdi import cofactor_2d
 from parmpm.shapes.scaling import cap_2d
-from parmpm.transfer.kernels2d.cells import cells_of4
+from parmpm.transfer.kernels2d.cells import cell_nodes, cells_of4
 from parmpm.transfer.kernels2d.hat import body_force
 from parmpm.transfer.kernels2d.loops import NO_AFFINE, each_particle, each_particle_g2p, stays
 from parmpm.transfer.update_order import G2P_MUSL_MOTION
@@ -78,48 +78,45 @@ def add_momentum(g, n, s, a1, a2):
 
 
 @inline_kernel
-def scatter5(g, L0, jx, jy, fx, fy, a0, a1, a2, a3, a4):
+def scatter5(g, side, i, L0, jx, jy, fx, fy, a0, a1, a2, a3, a4):
     """``g[c, node] += S_node(f) · a_c`` over the four nodes of local cell ``(jx, jy)``."""
-    n0 = jx + L0 * jy
-    n2 = n0 + L0
+    n0, n1, n2, n3 = cell_nodes(side, i, L0, jx, jy)
     s0 = (1.0 - fx) * (1.0 - fy)
     s1 = fx * (1.0 - fy)
     s2 = (1.0 - fx) * fy
     s3 = fx * fy
     add5(g, n0, s0, a0, a1, a2, a3, a4)
-    add5(g, n0 + 1, s1, a0, a1, a2, a3, a4)
+    add5(g, n1, s1, a0, a1, a2, a3, a4)
     add5(g, n2, s2, a0, a1, a2, a3, a4)
-    add5(g, n2 + 1, s3, a0, a1, a2, a3, a4)
+    add5(g, n3, s3, a0, a1, a2, a3, a4)
 
 
 @inline_kernel
-def scatter_mv(g, L0, jx, jy, fx, fy, a1, a2):
+def scatter_mv(g, side, i, L0, jx, jy, fx, fy, a1, a2):
     """Rows 1 and 2 (momentum) of :func:`scatter5`."""
-    n0 = jx + L0 * jy
-    n2 = n0 + L0
+    n0, n1, n2, n3 = cell_nodes(side, i, L0, jx, jy)
     s0 = (1.0 - fx) * (1.0 - fy)
     s1 = fx * (1.0 - fy)
     s2 = (1.0 - fx) * fy
     s3 = fx * fy
     add_momentum(g, n0, s0, a1, a2)
-    add_momentum(g, n0 + 1, s1, a1, a2)
+    add_momentum(g, n1, s1, a1, a2)
     add_momentum(g, n2, s2, a1, a2)
-    add_momentum(g, n2 + 1, s3, a1, a2)
+    add_momentum(g, n3, s3, a1, a2)
 
 
 @inline_kernel
-def gather4(g, L0, jx, jy, fx, fy):
+def gather4(g, side, i, L0, jx, jy, fx, fy):
     """Bilinear interpolation of rows 0..3 of ``g`` at fractions ``(fx, fy)`` of a local cell."""
-    n0 = jx + L0 * jy
-    n2 = n0 + L0
+    n0, n1, n2, n3 = cell_nodes(side, i, L0, jx, jy)
     s0 = (1.0 - fx) * (1.0 - fy)
     s1 = fx * (1.0 - fy)
     s2 = (1.0 - fx) * fy
     s3 = fx * fy
-    return (s0 * g[0, n0] + s1 * g[0, n0 + 1] + s2 * g[0, n2] + s3 * g[0, n2 + 1],
-            s0 * g[1, n0] + s1 * g[1, n0 + 1] + s2 * g[1, n2] + s3 * g[1, n2 + 1],
-            s0 * g[2, n0] + s1 * g[2, n0 + 1] + s2 * g[2, n2] + s3 * g[2, n2 + 1],
-            s0 * g[3, n0] + s1 * g[3, n0 + 1] + s2 * g[3, n2] + s3 * g[3, n2 + 1])
+    return (s0 * g[0, n0] + s1 * g[0, n1] + s2 * g[0, n2] + s3 * g[0, n3],
+            s0 * g[1, n0] + s1 * g[1, n1] + s2 * g[1, n2] + s3 * g[1, n3],
+            s0 * g[2, n0] + s1 * g[2, n1] + s2 * g[2, n2] + s3 * g[2, n3],
+            s0 * g[3, n0] + s1 * g[3, n1] + s2 * g[3, n2] + s3 * g[3, n3])
 
 
 @inline_kernel
@@ -139,7 +136,7 @@ def support(i, frame, slot, lcr, fields):
 
 
 @inline_kernel
-def scatter(i, g, frame, st, fields, args):
+def scatter(i, g, frame, st, fields, args, side):
     """Mass, momentum and force of particle ``i``, corner by corner."""
     v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
     bforce, forced = args
@@ -153,37 +150,37 @@ def scatter(i, g, frame, st, fields, args):
     bfx, bfy = body_force(bforce, forced, i, mq)
     tax, tay = q * (t00 * gax + t01 * gay), q * (t10 * gax + t11 * gay)
     tbx, tby = q * (t00 * gbx + t01 * gby), q * (t10 * gbx + t11 * gby)
-    scatter5(g, L0, jx0, jy0, fx[0], fy[0], mq, mvx, mvy, bfx + tax, bfy + tay)
-    scatter5(g, L0, jx1, jy1, fx[1], fy[1], mq, mvx, mvy, bfx - tbx, bfy - tby)
-    scatter5(g, L0, jx2, jy2, fx[2], fy[2], mq, mvx, mvy, bfx + tbx, bfy + tby)
-    scatter5(g, L0, jx3, jy3, fx[3], fy[3], mq, mvx, mvy, bfx - tax, bfy - tay)
+    scatter5(g, side, i, L0, jx0, jy0, fx[0], fy[0], mq, mvx, mvy, bfx + tax, bfy + tay)
+    scatter5(g, side, i, L0, jx1, jy1, fx[1], fy[1], mq, mvx, mvy, bfx - tbx, bfy - tby)
+    scatter5(g, side, i, L0, jx2, jy2, fx[2], fy[2], mq, mvx, mvy, bfx + tbx, bfy + tby)
+    scatter5(g, side, i, L0, jx3, jy3, fx[3], fy[3], mq, mvx, mvy, bfx - tax, bfy - tay)
 
 
 @inline_kernel
-def scatter_momentum(i, g, frame, st, fields, args):
+def scatter_momentum(i, g, frame, st, fields, args, side):
     """Momentum of particle ``i``, corner by corner."""
     v, mass = fields.v, fields.mass
     L0 = frame[4]
     _, (jx0, jx1, jx2, jx3), (jy0, jy1, jy2, jy3), fx, fy = st
     mq = mass[i] * 0.25
     mvx, mvy = mq * v[i, 0], mq * v[i, 1]
-    scatter_mv(g, L0, jx0, jy0, fx[0], fy[0], mvx, mvy)
-    scatter_mv(g, L0, jx1, jy1, fx[1], fy[1], mvx, mvy)
-    scatter_mv(g, L0, jx2, jy2, fx[2], fy[2], mvx, mvy)
-    scatter_mv(g, L0, jx3, jy3, fx[3], fy[3], mvx, mvy)
+    scatter_mv(g, side, i, L0, jx0, jy0, fx[0], fy[0], mvx, mvy)
+    scatter_mv(g, side, i, L0, jx1, jy1, fx[1], fy[1], mvx, mvy)
+    scatter_mv(g, side, i, L0, jx2, jy2, fx[2], fy[2], mvx, mvy)
+    scatter_mv(g, side, i, L0, jx3, jy3, fx[3], fy[3], mvx, mvy)
 
 
 @inline_kernel
-def gather(step, i, g, frame, st, shape, fields):
+def gather(step, i, g, frame, st, shape, fields, side):
     """``v_p = ¼ Σ v(x_α)``, ``Δv_p`` alike and ``Δt L`` (not in MUSL's motion pass, which stops
     before it) at particle ``i`` from its four corners."""
     mode, dt = step[0], step[1]
     L0 = frame[4]
     (r1x, r1y, r2x, r2y), (jx0, jx1, jx2, jx3), (jy0, jy1, jy2, jy3), fx, fy = st
-    u0x, u0y, d0x, d0y = gather4(g, L0, jx0, jy0, fx[0], fy[0])
-    u1x, u1y, d1x, d1y = gather4(g, L0, jx1, jy1, fx[1], fy[1])
-    u2x, u2y, d2x, d2y = gather4(g, L0, jx2, jy2, fx[2], fy[2])
-    u3x, u3y, d3x, d3y = gather4(g, L0, jx3, jy3, fx[3], fy[3])
+    u0x, u0y, d0x, d0y = gather4(g, side, i, L0, jx0, jy0, fx[0], fy[0])
+    u1x, u1y, d1x, d1y = gather4(g, side, i, L0, jx1, jy1, fx[1], fy[1])
+    u2x, u2y, d2x, d2y = gather4(g, side, i, L0, jx2, jy2, fx[2], fy[2])
+    u3x, u3y, d3x, d3y = gather4(g, side, i, L0, jx3, jy3, fx[3], fy[3])
     vx = 0.25 * (u0x + u1x + u2x + u3x)
     vy = 0.25 * (u0y + u1y + u2y + u3y)
     dvx = 0.25 * (d0x + d1x + d2x + d3x)

@@ -103,7 +103,7 @@ def support(i, frame, slot, lcr, fields):
 
 
 @inline_kernel
-def scatter(i, g, frame, st, fields, args):
+def scatter(i, g, frame, st, fields, args, side):
     """Mass, momentum and force of particle ``i``, corner by corner."""
     v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
     bforce, forced = args
@@ -122,36 +122,36 @@ def scatter(i, g, frame, st, fields, args):
         f2x, f2y, f3x, f3y = bfx * wf2 + tbx, bfy * wf2 + tby, bfx * wf3 + tax, bfy * wf3 + tay
     else:  # no 0·φ terms: the same sums
         f0x, f0y, f1x, f1y, f2x, f2y, f3x, f3y = -tax, -tay, -tbx, -tby, tbx, tby, tax, tay
-    scatter5(g, L0, jx[0], jy[0], fx[0], fy[0], m * wf0, m * wf0 * vx, m * wf0 * vy, f0x, f0y)
-    scatter5(g, L0, jx[1], jy[1], fx[1], fy[1], m * wf1, m * wf1 * vx, m * wf1 * vy, f1x, f1y)
-    scatter5(g, L0, jx[2], jy[2], fx[2], fy[2], m * wf2, m * wf2 * vx, m * wf2 * vy, f2x, f2y)
-    scatter5(g, L0, jx[3], jy[3], fx[3], fy[3], m * wf3, m * wf3 * vx, m * wf3 * vy, f3x, f3y)
+    scatter5(g, side, i, L0, jx[0], jy[0], fx[0], fy[0], m * wf0, m * wf0 * vx, m * wf0 * vy, f0x, f0y)
+    scatter5(g, side, i, L0, jx[1], jy[1], fx[1], fy[1], m * wf1, m * wf1 * vx, m * wf1 * vy, f1x, f1y)
+    scatter5(g, side, i, L0, jx[2], jy[2], fx[2], fy[2], m * wf2, m * wf2 * vx, m * wf2 * vy, f2x, f2y)
+    scatter5(g, side, i, L0, jx[3], jy[3], fx[3], fy[3], m * wf3, m * wf3 * vx, m * wf3 * vy, f3x, f3y)
 
 
 @inline_kernel
-def scatter_momentum(i, g, frame, st, fields, args):
+def scatter_momentum(i, g, frame, st, fields, args, side):
     """Momentum of particle ``i``, corner by corner."""
     v, mass = fields.v, fields.mass
     L0 = frame[4]
     (wf0, wf1, wf2, wf3), _, _, jx, jy, fx, fy = st
     mvx, mvy = mass[i] * v[i, 0], mass[i] * v[i, 1]
-    scatter_mv(g, L0, jx[0], jy[0], fx[0], fy[0], mvx * wf0, mvy * wf0)
-    scatter_mv(g, L0, jx[1], jy[1], fx[1], fy[1], mvx * wf1, mvy * wf1)
-    scatter_mv(g, L0, jx[2], jy[2], fx[2], fy[2], mvx * wf2, mvy * wf2)
-    scatter_mv(g, L0, jx[3], jy[3], fx[3], fy[3], mvx * wf3, mvy * wf3)
+    scatter_mv(g, side, i, L0, jx[0], jy[0], fx[0], fy[0], mvx * wf0, mvy * wf0)
+    scatter_mv(g, side, i, L0, jx[1], jy[1], fx[1], fy[1], mvx * wf1, mvy * wf1)
+    scatter_mv(g, side, i, L0, jx[2], jy[2], fx[2], fy[2], mvx * wf2, mvy * wf2)
+    scatter_mv(g, side, i, L0, jx[3], jy[3], fx[3], fy[3], mvx * wf3, mvy * wf3)
 
 
 @inline_kernel
-def gather(step, i, g, frame, st, shape, fields):
+def gather(step, i, g, frame, st, shape, fields, side):
     """``v_p = Σ wf_α v(x_α)``, ``Δv_p`` alike and ``Δt L`` (not in MUSL's motion pass) at
     particle ``i``; the corners' velocities go on to :func:`follow`."""
     mode, dt = step[0], step[1]
     L0 = frame[4]
     (wf0, wf1, wf2, wf3), (g0x, g0y, g1x, g1y), V, jx, jy, fx, fy = st
-    u0x, u0y, d0x, d0y = gather4(g, L0, jx[0], jy[0], fx[0], fy[0])
-    u1x, u1y, d1x, d1y = gather4(g, L0, jx[1], jy[1], fx[1], fy[1])
-    u2x, u2y, d2x, d2y = gather4(g, L0, jx[2], jy[2], fx[2], fy[2])
-    u3x, u3y, d3x, d3y = gather4(g, L0, jx[3], jy[3], fx[3], fy[3])
+    u0x, u0y, d0x, d0y = gather4(g, side, i, L0, jx[0], jy[0], fx[0], fy[0])
+    u1x, u1y, d1x, d1y = gather4(g, side, i, L0, jx[1], jy[1], fx[1], fy[1])
+    u2x, u2y, d2x, d2y = gather4(g, side, i, L0, jx[2], jy[2], fx[2], fy[2])
+    u3x, u3y, d3x, d3y = gather4(g, side, i, L0, jx[3], jy[3], fx[3], fy[3])
     vx = wf0 * u0x + wf1 * u1x + wf2 * u2x + wf3 * u3x
     vy = wf0 * u0y + wf1 * u1y + wf2 * u2y + wf3 * u3y
     dvx = wf0 * d0x + wf1 * d1x + wf2 * d2x + wf3 * d3x

@@ -9,9 +9,10 @@ gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇�
 """
 from parmpm.core.jit import inline_kernel, loop_kernel
 from parmpm.materials.kinematics import det_2d
-from parmpm.transfer.kernels2d.cells import hat_cell_of
+from parmpm.transfer.kernels2d.cells import cell_nodes, hat_cell_of
 from parmpm.transfer.kernels2d.loops import (NO_AFFINE, centre_support, each_particle,
                                              each_particle_g2p, stays)
+from parmpm.transfer.sided import sided_node
 
 
 @inline_kernel
@@ -49,7 +50,7 @@ def body_force(bforce, forced, i, m):
 
 
 @inline_kernel
-def scatter(i, g, frame, st, fields, args):
+def scatter(i, g, frame, st, fields, args, side):
     """Mass, momentum and force of particle ``i`` into its cell's four nodes."""
     v, mass = fields.v, fields.mass
     bforce, forced = args
@@ -66,7 +67,7 @@ def scatter(i, g, frame, st, fields, args):
         gx = (ihx if e & 1 else -ihx) * sy
         gy = sx * (ihy if e & 2 else -ihy)
         S = sx * sy
-        node = n0 + (e & 1) + (L0 if e & 2 else 0)
+        node = sided_node(side, i, n0 + (e & 1) + (L0 if e & 2 else 0))
         g[0, node] += m * S
         g[1, node] += mvx * S
         g[2, node] += mvy * S
@@ -74,7 +75,7 @@ def scatter(i, g, frame, st, fields, args):
 
 
 @inline_kernel
-def scatter_momentum(i, g, frame, st, fields, args):
+def scatter_momentum(i, g, frame, st, fields, args, side):
     """Momentum of particle ``i`` into its cell's four nodes."""
     v, mass = fields.v, fields.mass
     L0 = frame[4]
@@ -83,27 +84,26 @@ def scatter_momentum(i, g, frame, st, fields, args):
     n0 = jx + L0 * jy
     for e in range(4):
         S = (fx if e & 1 else 1.0 - fx) * (fy if e & 2 else 1.0 - fy)
-        node = n0 + (e & 1) + (L0 if e & 2 else 0)
+        node = sided_node(side, i, n0 + (e & 1) + (L0 if e & 2 else 0))
         g[1, node] += mvx * S
         g[2, node] += mvy * S
 
 
 @inline_kernel
-def gather(step, i, g, frame, st, shape, fields):
+def gather(step, i, g, frame, st, shape, fields, side):
     """``v``, ``Δv`` and ``Δt L`` at particle ``i`` from its cell's four nodes."""
     dt = step[1]
     _, _, ihx, ihy, L0 = frame
     jx, jy, fx, fy = st
-    n0 = jx + L0 * jy
-    n2 = n0 + L0
-    ux0, ux1, ux2, ux3 = g[0, n0], g[0, n0 + 1], g[0, n2], g[0, n2 + 1]
-    uy0, uy1, uy2, uy3 = g[1, n0], g[1, n0 + 1], g[1, n2], g[1, n2 + 1]
+    n0, n1, n2, n3 = cell_nodes(side, i, L0, jx, jy)
+    ux0, ux1, ux2, ux3 = g[0, n0], g[0, n1], g[0, n2], g[0, n3]
+    uy0, uy1, uy2, uy3 = g[1, n0], g[1, n1], g[1, n2], g[1, n3]
     gx, gy = 1.0 - fx, 1.0 - fy
     s0, s1, s2, s3 = gx * gy, fx * gy, gx * fy, fx * fy
     vx = s0 * ux0 + s1 * ux1 + s2 * ux2 + s3 * ux3
     vy = s0 * uy0 + s1 * uy1 + s2 * uy2 + s3 * uy3
-    dvx = s0 * g[2, n0] + s1 * g[2, n0 + 1] + s2 * g[2, n2] + s3 * g[2, n2 + 1]
-    dvy = s0 * g[3, n0] + s1 * g[3, n0 + 1] + s2 * g[3, n2] + s3 * g[3, n2 + 1]
+    dvx = s0 * g[2, n0] + s1 * g[2, n1] + s2 * g[2, n2] + s3 * g[2, n3]
+    dvy = s0 * g[3, n0] + s1 * g[3, n1] + s2 * g[3, n2] + s3 * g[3, n3]
     # L = Σ v_i ⊗ ∇φ_i with ∇φ = (±S_y/Δx, ±S_x/Δy), factored per axis
     l00 = ihx * (gy * (ux1 - ux0) + fy * (ux3 - ux2))
     l01 = ihy * (gx * (ux2 - ux0) + fx * (ux3 - ux1))

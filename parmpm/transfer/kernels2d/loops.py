@@ -10,8 +10,9 @@ patch and the ``F``/stress update. An interpolator module supplies ``@inline_ker
 * ``support(i, frame, slot, shape, fields) -> (code, st)``: particle ``i``'s stencil ``st``
   (cells, fractions, weights: whatever its transfers read) in the slot's node box, ``code`` 0, or
   −1 (it leaves the box), −2 (an inverted domain); ``shape``: the kernel's ``lcr``;
-* ``scatter(i, g, frame, st, fields, args)``: its P2G (or momentum) sums into ``g = grid[slot]``;
-* ``gather(step, i, g, frame, st, shape, fields) -> (v, Δv, C, Δt L, extra)``: its G2P sums, as
+* ``scatter(i, g, frame, st, fields, args, side)``: its P2G (or momentum) sums into
+  ``g = grid[slot]``;
+* ``gather(step, i, g, frame, st, shape, fields, side) -> (v, Δv, C, Δt L, extra)``: its G2P sums, as
   tuples of components (``C`` is read only under APIC, ``step = (mode, Δt, flip, apic)``);
 * ``follow(i, dt, extra, fields)``: what moves with the particle besides it (cpdi2's corners;
   :func:`stays` for the rest), after its motion and before its next patch.
@@ -37,6 +38,7 @@ from parmpm.materials.kinematics import flip_pic
 from parmpm.transfer.kernels2d.cells import frame_2d, note_patch, slot_2d
 from parmpm.transfer.kernels2d.material import update_F_stress
 from parmpm.transfer.rows import row
+from parmpm.transfer.sided import slot_side
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
 #: the affine field of a gather whose transfer is not APIC (never written)
@@ -89,10 +91,11 @@ def each_particle(support, scatter, boxes, order, grid, err, shape, fields, args
     for p in range(start.size - 1):
         g = grid[p]
         slot = slot_2d(boxes, p)
+        side = slot_side(fields.sides, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
             i, code, st = particle_at(support, order, kk, frame, slot, shape, fields, err)
             if code >= 0:
-                scatter(i, g, frame, st, fields, args)
+                scatter(i, g, frame, st, fields, args, side)
 
 
 @inline_kernel
@@ -113,13 +116,15 @@ def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, wh
         g = grid[p]
         sp = slot_patch[p]
         slot = slot_2d(boxes, p)
+        side = slot_side(fields.sides, p)
         for kk in range(np.uint64(start[p]), np.uint64(start[p + 1])):  # canonical order
             i, code, st = particle_at(support, order, kk, frame, slot, shape, fields, err)
             if code < 0:
                 new_patch[i] = sp
                 continue
             xx, xy = x[i, 0], x[i, 1]
-            (vx, vy), (dvx, dvy), c, dtl, extra = gather(step, i, g, frame, st, shape, fields)
+            (vx, vy), (dvx, dvy), c, dtl, extra = gather(step, i, g, frame, st, shape,
+                                                            fields, side)
             if mode != G2P_MUSL_DEFORM:
                 if apic:
                     v[i, 0], v[i, 1] = vx, vy

@@ -19,10 +19,11 @@ from parmpm.shapes.bspline import spline_weights
 from parmpm.transfer.kernels2d.bspline import spline_gather, support
 from parmpm.transfer.kernels2d.hat import body_force
 from parmpm.transfer.kernels2d.loops import each_particle, each_particle_g2p, stays
+from parmpm.transfer.sided import sided_node
 
 
 @inline_kernel
-def scatter(i, g, frame, st, fields, args):
+def scatter(i, g, frame, st, fields, args, side):
     """Mass and momentum with ``Δt f`` folded in (and the force rows when ``account``) of particle
     ``i`` into its 3×3 nodes."""
     v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
@@ -54,7 +55,7 @@ def scatter(i, g, frame, st, fields, args):
             wx = wx0 if a == 0 else (wx1 if a == 1 else wx2)
             rx = (a - 1 - tx) * hx
             S = wx * wy
-            node = row + a
+            node = sided_node(side, i, row + a)
             g[0, node] += m * S
             g[1, node] += S * (qxb + a00 * rx)
             g[2, node] += S * (qyb + a10 * rx)
@@ -64,9 +65,9 @@ def scatter(i, g, frame, st, fields, args):
 
 
 @inline_kernel
-def gather(step, i, g, frame, st, shape, fields):
+def gather(step, i, g, frame, st, shape, fields, side):
     """:func:`~parmpm.transfer.kernels2d.bspline.spline_gather` with ``L_p = C_p``."""
-    return spline_gather(step, i, g, frame, st, True)
+    return spline_gather(step, i, g, frame, st, True, side)
 
 
 @loop_kernel
