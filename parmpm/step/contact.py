@@ -151,7 +151,8 @@ class ContactPhase:
         if self.starts.shape[1] != P.start.size:
             self.starts = np.zeros((self.K, P.start.size), np.int64)
         R = P.rows
-        field_of_rows(R.gid, self.body_start, self.field_of_body, self.field)
+        if self.fields > 1:  # one body field: every row's is 0, as the array was made
+            field_of_rows(R.gid, self.body_start, self.field_of_body, self.field)
         if self.crack is None:
             split_by_field(P.start, P.lazy_order(), self.field, self.starts, self.orders)
 
@@ -189,7 +190,7 @@ class ContactPhase:
         self.cnormal[:slots][~wet] = 0.0  # a crack's node has every copy in a wet slot
         crack_normals(self.dim, wet_nodes, self.tsum, self.dmax, self.crack, self.cnormal)
         fill(wet_plan, _views(self.cnormal[:slots], self.nodes))
-        self._near_cracks(P)
+        self._near_cracks(P, wet)
 
     def _damage_sums(self, transfers, P, plan, damage, slots: int, err) -> np.ndarray:
         """Every slot's partial damage sums (:func:`damage_sums`) where they can matter; returns
@@ -224,7 +225,7 @@ class ContactPhase:
         finally:
             transfers.subset = None
 
-    def _near_cracks(self, P) -> None:
+    def _near_cracks(self, P, wet: np.ndarray | None = None) -> None:
         """This step's :attr:`near` (per slot: its node box, ghost copies included, holds a node
         with a crack normal; None where a particle's field away from a crack is not field 0:
         several bodies) and the (start, order) of the slots it marks and of the others."""
@@ -235,7 +236,12 @@ class ContactPhase:
                            np.ones(slots, bool))
         if self.fields != 1:
             return
-        self.near = slots_with_crack(self.cnormal, slots, self.nodes)
+        if wet is None:  # no crack normal anywhere
+            self.near = np.zeros(slots, bool)
+        else:  # a node with a crack normal has every copy in a wet slot
+            self.near = np.zeros(slots, bool)
+            self.near[wet] = slots_with_crack(self.cnormal[:slots][wet], int(wet.sum()),
+                                              self.nodes)
         self.sides = self.sides._replace(near=self.near)
         self.far_boxes = slot_subset(P.start, P.order(), ~self.near)
         self.near_boxes = slot_subset(P.start, P.order(), self.near)

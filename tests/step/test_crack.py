@@ -204,8 +204,8 @@ def test_the_specialised_kernels_choose_each_nodes_side_as_the_generic_loops_do(
     C = generic.contact
     near_cracks = C._near_cracks
 
-    def everywhere(P):
-        near_cracks(P)
+    def everywhere(P, wet=None):
+        near_cracks(P, wet)
         C.near = None  # as if every slot were near a crack: the generic loops throughout
 
     C._near_cracks = everywhere
