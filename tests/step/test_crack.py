@@ -191,7 +191,7 @@ def test_the_specialised_kernels_choose_each_nodes_side_as_the_generic_loops_do(
     """After the break the specialised 2D kernels choose each (particle, node) pair's copy of a
     node with a crack normal themselves (:mod:`parmpm.transfer.sided`), in one pass over every
     slot, where the slots near a crack went to the generic loops before (2.2–2.4× one field's
-    time after the break on the 3,840-particle bar then, 1.9–2.0× now, measured). The two
+    time after the break on the 3,840-particle bar then, 2.0–2.1× now, measured). The two
     kinds of kernels sum in their own orders, so against every slot on the generic loops (the
     reference: the dimension-generic transfers with each particle's field per node) the
     particles agree to round-off, not bit for bit."""
