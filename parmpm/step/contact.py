@@ -236,10 +236,8 @@ class ContactPhase:
                            np.ones(slots, bool))
         if self.fields != 1:
             return
-        if wet is None:  # no crack normal anywhere
-            self.near = np.zeros(slots, bool)
-        else:  # a node with a crack normal has every copy in a wet slot
-            self.near = np.zeros(slots, bool)
+        self.near = np.zeros(slots, bool)  # wet None: no crack normal anywhere
+        if wet is not None:  # a node with a crack normal has every copy in a wet slot
             self.near[wet] = slots_with_crack(self.cnormal[:slots][wet], int(wet.sum()),
                                               self.nodes)
         self.sides = self.sides._replace(near=self.near)

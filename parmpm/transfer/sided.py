@@ -14,7 +14,7 @@ Overloads inlined by LLVM, as :func:`parmpm.transfer.rows.row` and for the same 
 from numba import types
 from numba.extending import overload
 
-from parmpm.grid.crack import crack_field
+from parmpm.grid.crack import field_node
 from parmpm.transfer.rows import _OPTIONS
 
 
@@ -29,8 +29,7 @@ def sided_node(side, i, node):
     away from a crack, else ``node + field · stride`` for its field at that node."""
     if side is None or not side[2]:
         return node
-    sides, p = side[0], side[1]
-    return node + crack_field(sides, i, p, node) * sides.stride
+    return field_node(side[0], i, side[1], node)
 
 
 @overload(slot_side, jit_options=_OPTIONS)
@@ -48,6 +47,5 @@ def _sided_node(side, i, node):
     def impl(side, i, node):
         if not side[2]:
             return node
-        sides = side[0]
-        return node + crack_field(sides, i, side[1], node) * sides.stride
+        return field_node(side[0], i, side[1], node)
     return impl
