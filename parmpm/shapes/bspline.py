@@ -29,7 +29,8 @@ nodes (support half-width 3/2 cells → 1 ghost cell). The nodes must lie on the
 within half a cell of the grid's face has a node outside it and the run stops with the reach
 message (pad the grid, as for uGIMP domains).
 """
-import math
+
+import numpy as np
 
 from parmpm.core.jit import helper_kernel
 
@@ -39,7 +40,7 @@ def nearest_node(xi):
     """``(c, t)``: the nearest node ``c`` of the point ``xi`` (grid units) and ``t = xi − c`` in
     ``[−1/2, 1/2)``, from the exact fraction (module doc: the same bits either way at a half
     cell)."""
-    fl = math.floor(xi)
+    fl = np.floor(xi)  # a float: math.floor's integer would be converted back for f (latency)
     f = xi - fl
     c = int(fl)
     t = f

@@ -21,9 +21,10 @@ def cell_of(xi, base, jlo, jhi):
     """(local cell, fraction) of one point along one axis, or ``(-1, 0)``. For ``ξ ≥ 0``
     truncation is the floor, and a usable floor is already the answer: one conversion and integer
     range test (a third of 2D MPM's P2G time went to ``floor`` and the round-off branches)."""
-    j = int(xi)
+    tr = np.trunc(xi)  # the fraction from this float, not from j converted back (latency)
+    j = int(tr)
     if xi >= 0.0 and j >= jlo and j <= jhi:
-        return j - base, xi - j
+        return j - base, xi - tr
     c = math.floor(xi)
     f = xi - c
     j = int(c)
@@ -52,8 +53,9 @@ def cells_of4(c0, c1, c2, c3, base, jlo, jhi):
     fractions and whether all four are usable. The common case (every corner at ``ξ ≥ 0`` with a
     usable floor, so :func:`cell_of` would change nothing and truncation is the floor) takes one
     combined sign test of the cells and one of the fractions."""
-    j0, j1, j2, j3 = int(c0), int(c1), int(c2), int(c3)
-    f0, f1, f2, f3 = c0 - j0, c1 - j1, c2 - j2, c3 - j3
+    t0, t1, t2, t3 = np.trunc(c0), np.trunc(c1), np.trunc(c2), np.trunc(c3)
+    j0, j1, j2, j3 = int(t0), int(t1), int(t2), int(t3)
+    f0, f1, f2, f3 = c0 - t0, c1 - t1, c2 - t2, c3 - t3
     if ((((j0 - jlo) | (j1 - jlo) | (j2 - jlo) | (j3 - jlo)
             | (jhi - j0) | (jhi - j1) | (jhi - j2) | (jhi - j3)) >= 0)
             and f0 >= 0.0 and f1 >= 0.0 and f2 >= 0.0 and f3 >= 0.0):

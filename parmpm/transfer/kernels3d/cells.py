@@ -7,7 +7,7 @@ base``), ``-1`` marks a corner whose nodes leave it. The common case, every floo
 takes one combined sign test inline; the rest goes through one compiled call (not inlined: it is
 rare, and inlining :func:`cell_of` 24 times per kernel multiplies numba's compile time).
 """
-import math
+import numpy as np
 
 from parmpm.core.jit import inline_kernel, kernel
 from parmpm.transfer.kernels2d.cells import cell_of
@@ -31,15 +31,16 @@ def cells_of8_slow(c0, c1, c2, c3, c4, c5, c6, c7, base, jlo, jhi):
 @inline_kernel
 def cells_of8(c0, c1, c2, c3, c4, c5, c6, c7, base, jlo, jhi):
     """:func:`cells_of8_slow`, with the common case (every floor usable) inline."""
-    j0, j1, j2, j3 = (int(math.floor(c0)), int(math.floor(c1)), int(math.floor(c2)),
-                      int(math.floor(c3)))
-    j4, j5, j6, j7 = (int(math.floor(c4)), int(math.floor(c5)), int(math.floor(c6)),
-                      int(math.floor(c7)))
+    # floors as floats: the fractions from them, not from the cells converted back (latency)
+    l0, l1, l2, l3 = np.floor(c0), np.floor(c1), np.floor(c2), np.floor(c3)
+    l4, l5, l6, l7 = np.floor(c4), np.floor(c5), np.floor(c6), np.floor(c7)
+    j0, j1, j2, j3 = int(l0), int(l1), int(l2), int(l3)
+    j4, j5, j6, j7 = int(l4), int(l5), int(l6), int(l7)
     if ((j0 - jlo) | (j1 - jlo) | (j2 - jlo) | (j3 - jlo) | (j4 - jlo) | (j5 - jlo) | (j6 - jlo)
             | (j7 - jlo) | (jhi - j0) | (jhi - j1) | (jhi - j2) | (jhi - j3) | (jhi - j4)
             | (jhi - j5) | (jhi - j6) | (jhi - j7)) >= 0:
         return (j0 - base, j1 - base, j2 - base, j3 - base, j4 - base, j5 - base, j6 - base,
-                j7 - base, c0 - j0, c1 - j1, c2 - j2, c3 - j3, c4 - j4, c5 - j5, c6 - j6, c7 - j7,
+                j7 - base, c0 - l0, c1 - l1, c2 - l2, c3 - l3, c4 - l4, c5 - l5, c6 - l6, c7 - l7,
                 True)
     return cells_of8_slow(c0, c1, c2, c3, c4, c5, c6, c7, base, jlo, jhi)
 
