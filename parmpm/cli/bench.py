@@ -67,13 +67,17 @@ WARMUP_PARTICLES = {1: 200, 2: 2000, 3: 4000}
 
 def build_bench_scene(dim: int, method: str = "cpdi", particles: int = 1_000_000, ppc: int = 2,
                       steps: int = 10, patch_size: int | None = None, speed: float = 1.0,
-                      update: str = "auto", transfer: str = "flip") -> Scene:
+                      update: str = "auto", transfer: str = "flip", dt: float | None = None
+                      ) -> Scene:
     """The benchmark block holding ``(n·ppc)^dim ≈ particles`` particles, n cells per axis;
-    ``transfer``: "flip", "apic" or "mls" (bspline only)."""
+    ``transfer``: "flip", "apic" or "mls" (bspline only); ``dt``: a fixed step (``time.dt``,
+    s) instead of the CFL one."""
     if dim not in (1, 2, 3):
         raise ParmpmError(f"bench: --dim must be 1, 2 or 3, got {dim}")
     if update not in UPDATES:
         raise ParmpmError(f"bench: --update must be one of {', '.join(UPDATES)}, got {update!r}")
+    if dt is not None and not (isinstance(dt, float) and math.isfinite(dt) and dt > 0):
+        raise ParmpmError(f"bench: --dt must be a positive number of seconds, got {dt!r}")
     for flag, value, least in (("particles", particles, 1), ("ppc", ppc, 1), ("steps", steps, 2)):
         if value < least:
             why = " (the first step is JIT warm-up, not timed)" if flag == "steps" else ""
@@ -110,6 +114,7 @@ transfer = "{transfer}"
 [time]
 steps = {steps}
 cfl = {CFL}
+{"" if dt is None else f"dt = {dt!r}"}
 [output]
 snapshots = false
 figure = false
@@ -184,6 +189,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "covering fewer than 16 such patches)")
     parser.add_argument("--speed", type=_positive(float), default=1.0,
                         help="scale of the block velocity (1, 0.5, 0.25) m/s (default 1)")
+    parser.add_argument("--dt", type=_positive(float), default=None, metavar="SECONDS",
+                        help="a fixed time step (time.dt; the block's CFL step is about 1.1e-4 s "
+                             "at the default cell) instead of the CFL step: G2P then leaves out "
+                             "the wave speed (default: the CFL step)")
     parser.add_argument("--json", type=Path, default=None, metavar="FILE",
                         help="write the result as JSON (rank 0; a list when several cases run)")
     parser.add_argument("--csv", type=Path, default=None, metavar="FILE",
@@ -238,9 +247,10 @@ def run_bench(args: argparse.Namespace, comm=None) -> dict:
             setattr(args, key, value[0])
     update = getattr(args, "update", "auto")
     transfer = getattr(args, "transfer", "flip")
+    dt = getattr(args, "dt", None)
     scene = build_bench_scene(args.dim, args.method, args.particles, args.ppc, args.steps,
-                              args.patch_size, getattr(args, "speed", 1.0), update, transfer)
-    warmup = _warm_up(args.dim, args.method, update, comm, transfer)
+                              args.patch_size, getattr(args, "speed", 1.0), update, transfer, dt)
+    warmup = _warm_up(args.dim, args.method, update, comm, transfer, dt)
     tmp = tempfile.mkdtemp(prefix="parmpm-bench-") if args.out is None and rank == 0 else None
     out_dir = Path(tmp) if tmp else (args.out / scene.name if args.out is not None else None)
     try:
@@ -261,7 +271,7 @@ def run_bench(args: argparse.Namespace, comm=None) -> dict:
                        max(r[2] for r in rows))
     result.update(jit_warmup_seconds=warmup, bytes_per_particle=max(r[3] for r in rows),
                   stress_in_g2p_seconds_per_step=max(r[4] for r in rows), ppc=args.ppc,
-                  speed=getattr(args, "speed", 1.0))
+                  speed=getattr(args, "speed", 1.0), fixed_dt=dt)
     if rank == 0:
         print(format_result(result), flush=True)
         if getattr(args, "json", None) is not None:
@@ -270,7 +280,8 @@ def run_bench(args: argparse.Namespace, comm=None) -> dict:
     return result
 
 
-def _warm_up(dim: int, method: str, update: str, comm, transfer: str = "flip") -> float:
+def _warm_up(dim: int, method: str, update: str, comm, transfer: str = "flip",
+             dt: float | None = None) -> float:
     """Wall time (slowest rank) of a tiny run of the same case: JIT compilation, or loading the
     compiled kernels from numba's cache, which the measured run then no longer pays."""
     from parmpm.driver.simulation import Simulation
@@ -281,7 +292,7 @@ def _warm_up(dim: int, method: str, update: str, comm, transfer: str = "flip") -
         comm.Barrier()
         t0 = time.perf_counter()
         scene = build_bench_scene(dim, method, WARMUP_PARTICLES[dim], 2, 3, update=update,
-                                  transfer=transfer)
+                                  transfer=transfer, dt=dt)
         sim = Simulation(scene, tmp, quiet=True, comm=comm, warm_up=compile_first)
         sim.state.stepper.compile_lazy_order()  # the measured steps must not compile it
         sim.run()

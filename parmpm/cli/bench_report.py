@@ -59,7 +59,8 @@ def format_result(r: dict) -> str:
     stress = r.get("stress_in_g2p_seconds_per_step")
     lines = [
         f"parmpm bench: {r['dim']}D {r['method']} ({r['update']}), {r['particles']:,} particles, "
-        f"{r['ranks']} rank(s), {r['timed_steps']} timed steps",
+        f"{r['ranks']} rank(s), {r['timed_steps']} timed steps"
+        + (f", fixed Δt = {r['fixed_dt']:.3g} s" if r.get("fixed_dt") else ""),
         f"  grid {' x '.join(map(str, r['grid']['cells']))} cells, patches "
         f"{' x '.join(map(str, r['grid']['patch_size']))}: {dec['patches']} occupied of "
         f"{dec['patches_dense']}, ghost {dec['ghost']}",

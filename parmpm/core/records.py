@@ -57,8 +57,11 @@ Fields = namedtuple("Fields", ("x", "v", "F", "r0", "lh0", "mass", "vol0", "stre
 #: in the stacked grid the transfers fill; ``near``: per slot, whether its node box holds a node
 #: with a crack normal (every slot where that is not known)
 Sides = namedtuple("Sides", ("field", "fields", "grad", "normal", "stride", "near"))
-#: the material state G2P updates: material row per particle, parameter table, damage
-Material = namedtuple("Material", ("mat", "params", "damage"))
+#: the material state G2P updates: material row per particle, parameter table, damage; ``cfl``:
+#: True where the step is the CFL one (the specialised G2P returns the largest ``c + |v|``), None
+#: with a fixed step (it returns only whether all stayed finite: :mod:`parmpm.transfer.
+#: running_speed`; the generic loops always give the speed)
+Material = namedtuple("Material", ("mat", "params", "damage", "cfl"))
 #: what the specialised G2P kernels need to find each particle's next patch (and write it);
 #: ``inside[s]``: rows lo, hi of slot ``s``'s patch cells in grid coordinates (float, 3-axis
 #: padded), so a particle that stays needs no patch arithmetic

@@ -118,9 +118,10 @@ class Clock:
 
     With ``time.dt`` every step is that long (the last one shortened to end on ``time.end``),
     whatever the CFL step: a user's choice, e.g. to compare with a code or a paper at its Δt. The
-    CFL step is still computed (``vmax`` is the same on every rank), and the first step longer
-    than it is one warning line naming both, said by rank 0 (``speaks``; the energy watch stops a
-    run that then blows up)."""
+    CFL step is still computed from ``vmax``, which the stepper then measures every few steps
+    rather than in every G2P (:meth:`parmpm.step.stepper.Stepper.fix_step`; the same on every
+    rank), and the first step longer than it is one warning line naming both, said by rank 0
+    (``speaks``; the energy watch stops a run that then blows up)."""
 
     def __init__(self, tm, h_min: float, vmax: float, t: float = 0.0, nstep: int = 0,
                  last_dt: float = 0.0, speaks: bool = True):
@@ -148,9 +149,12 @@ class Clock:
             dt = min(dt, tm.end - self.t)
         return dt
 
-    def tick(self, dt: float, vmax: float) -> None:
-        """A step of ``dt`` was taken; ``vmax`` sets the next one."""
-        self.vmax = vmax
+    def tick(self, dt: float, vmax: float, measured: bool = True) -> None:
+        """A step of ``dt`` was taken; ``vmax`` sets the next one. Not ``measured`` (a fixed
+        step between two measurements of the speed), a finite ``vmax`` is no speed and the last
+        measured one stays; a non-finite one is kept (the run is stopped)."""
+        if measured or not math.isfinite(vmax):
+            self.vmax = vmax
         self.t += dt
         self.nstep += 1
         self.last_dt = dt

@@ -150,6 +150,8 @@ def set_up(scene, comm, checkpoint=None) -> RankState:
     if spec.manufactured:
         _manufactured(stepper, spec.dim, params, spec.manufactured.amplitude)
     stepper.plastic = plastic
+    if spec.time.dt is not None:
+        stepper.fix_step()
     if spec.walls:
         stepper.walls = WallPhase(spec.walls, spec.dim)
     if spec.contact:

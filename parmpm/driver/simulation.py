@@ -197,7 +197,8 @@ class Simulation:
         clock, stepper = self.state.clock, self.state.stepper
         while not clock.done():
             dt = clock.next_dt()
-            clock.tick(dt, stepper.step(dt, self.gravity(clock.t), clock.t))
+            vmax = stepper.step(dt, self.gravity(clock.t), clock.t)
+            clock.tick(dt, vmax, stepper.speed_measured)
             if self._warm_wall is None:
                 self._warm_wall = time.perf_counter()  # the first step includes JIT compilation
                 self._compile_warm = self._compiling.seconds

@@ -12,7 +12,8 @@ under a second. Three things here deal with that first run:
   USL/MUSL × transfer the interpolator takes (FLIP; for ``bspline`` also APIC and MLS,
   :mod:`parmpm.transfer.affine`), in-process, two steps each, with everything a run switches on around the step
   (damage and CPDI freeze, fixed and slip regions, gravity, metrics with the separation count,
-  history with probes, snapshots with domains), then what a rank of a multi-rank run does that
+  history with probes, snapshots with domains), a step at a fixed ``time.dt`` (G2P's kernels
+  without the wave speed), then what a rank of a multi-rank run does that
   one rank alone does not: the separation count's shared pairs, a patch-set change, and a step
   with no patch and no particle (the idle ranks of a run on more ranks than occupied patches).
   A batch job runs it once before ``srun``; a run on any number of ranks then compiles nothing.
@@ -289,6 +290,7 @@ def warm_up(dim: int, method: str, update: str, transfer: str = "flip",
             components(sim.state)
             sim.state.comm = SerialComm()
             _patch_set_change(sim)
+            _fixed_step(sim)
             _idle_rank_step(sim)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -313,13 +315,24 @@ def _patch_set_change(sim) -> None:
     P.group_by_patch(P.rows.patch, ps.slot_of, ps.n_local, force=True)
 
 
+def _fixed_step(sim) -> None:
+    """A step as a run with a fixed step (``time.dt``) takes it: G2P's kernels without the wave
+    speed (:meth:`parmpm.step.stepper.Stepper.fix_step`), for a lazy particle order and (the
+    rows just regrouped) the canonical one. The tiny run's own steps are the CFL ones."""
+    st = sim.state.stepper
+    st.fix_step()
+    st.compile_lazy_order()
+    st.step(sim.state.clock.last_dt or 1e-6, sim.gravity(sim.t), sim.t)
+
+
 def _idle_rank_step(sim) -> None:
     """One step as a rank without work takes it (more ranks than patches holding particles): no
     particle and no patch, so every array it hands the kernels is empty. numba types an empty
     array as contiguous where a working rank's node-major grid views are strided: P2G, G2P and
     the halo copies of other types, which every idle rank once compiled at its first step (the
     stepper now gives such a rank views of spare slots; this step keeps anything else an idle
-    rank would compile in the cache too). Last: it empties the tiny run."""
+    rank would compile in the cache too), with the CFL step and (after :func:`_fixed_step`) a
+    fixed one. Last: it empties the tiny run."""
     import numpy as np
 
     st, ps = sim.state.stepper, sim.state.patches
@@ -328,6 +341,9 @@ def _idle_rank_step(sim) -> None:
     st.patches_changed()
     dt = sim.state.clock.last_dt or 1e-6
     st.step(dt, sim.gravity(sim.t), sim.t)
+    if st.speed_watch is not None:
+        st.transfers.cfl = True
+        st.step(dt, sim.gravity(sim.t), sim.t)
 
 
 def compile_kernels(dims=DIMS, methods=METHODS, updates=COMPILED_UPDATES,
@@ -458,7 +474,8 @@ def scene_warm_up(scene, outputs: bool = True) -> float:
                 clock, stepper = sim.state.clock, sim.state.stepper
                 while not clock.done():
                     dt = clock.next_dt()
-                    clock.tick(dt, stepper.step(dt, sim.gravity(clock.t), clock.t))
+                    vmax = stepper.step(dt, sim.gravity(clock.t), clock.t)
+                    clock.tick(dt, vmax, stepper.speed_measured)
                 _regroup(sim)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)

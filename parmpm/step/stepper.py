@@ -30,6 +30,7 @@ from parmpm.step.faults import StepFaults
 from parmpm.step.grid_buffers import GridBuffers
 from parmpm.step.grid_phase import GridPhase
 from parmpm.step.migration import Migration
+from parmpm.step.speed_watch import SpeedWatch
 from parmpm.step.transfers import Transfers
 from parmpm.transfer.discretisation import Discretisation
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION, G2P_USL
@@ -78,6 +79,11 @@ class Stepper:
         #: material, whose pass follows G2P's deformation update; None: no pass
         self.plastic: np.ndarray | None = None
         self.load_work = False              # the ledger counts the forcing's work (scene loads)
+        #: None: G2P measures the CFL speed every step; with a fixed step (:meth:`fix_step`)
+        #: a SpeedWatch
+        self.speed_watch: SpeedWatch | None = None
+        #: whether the last step's result is the CFL speed (else only 0, or ``inf`` on a blow-up)
+        self.speed_measured = True
         self._v_start = np.zeros((0, particles.dim))
         self._bforce = np.zeros((0, particles.dim))
         self.grid: GridBuffers | None = None
@@ -101,6 +107,12 @@ class Stepper:
         <parmpm.step.transfers.Transfers.use>`)."""
         self.transfers.use(kind)
         self._kernels = kind
+
+    def fix_step(self) -> None:
+        """A fixed step (``time.dt``): G2P's kernels without the CFL speed, which a pass of its
+        own measures every few steps (:mod:`parmpm.step.speed_watch`)."""
+        self.transfers.cfl = False
+        self.speed_watch = SpeedWatch()
 
     def compile_lazy_order(self) -> None:
         """Compile (or load from numba's cache) the specialised transfers' variant for a lazy
@@ -357,6 +369,8 @@ class Stepper:
             R = self.P.rows
             vmax = max(vmax, plastic_pass(self.P.dim, R.F, R.mat, self.plastic, R.plastic,
                                           R.stress, R.v, dt))
+        if self.speed_watch is not None:
+            vmax, self.speed_measured = self.speed_watch.after_g2p(vmax, self.P.rows, self.params)
         if counted:
             self.ledger.add_loads(self, dt, bforce, self._v_start)
         if self.freezing:

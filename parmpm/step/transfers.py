@@ -48,6 +48,9 @@ class Transfers:
         #: node of a stacked grid; the generic loops, and the specialised ones where
         #: :meth:`chooses_sides`), or None
         self.sides = None
+        #: whether G2P measures the CFL speed (False with a fixed step: the specialised kernels
+        #: are compiled without it, :mod:`parmpm.transfer.running_speed`)
+        self.cfl = True
         self._zero_affine: np.ndarray | None = None  # see _no_affine
         self.use("specialised")
 
@@ -131,7 +134,9 @@ class Transfers:
         (``locate``), one pass over the particles fewer than the migration's own search."""
         how, boxes, fields = self.records()
         P = self.P
-        material = Material(P.rows.mat, self.params, P.rows.damage)
+        # the generic loops always measure the speed: one compilation of them, not two
+        cfl = True if self.cfl or self.kernels is None else None
+        material = Material(P.rows.mat, self.params, P.rows.damage, cfl)
         if self.kernels is not None:
             vmax, moved, first_out = self.kernels.g2p(mode, how.lcr, boxes, boxes.order, dt,
                                                       self.flip, fields, material,

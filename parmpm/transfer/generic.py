@@ -279,7 +279,7 @@ def _g2p_one(i, p, n, d, how, boxes, fields, scratch, material, args, vmax):
     apic, mls = how.apic, how.mls
     x, v, F, stress, dx = fields.x, fields.v, fields.F, fields.stress, fields.dx
     affine = fields.affine
-    mat, params, damage = material
+    mat, params, damage = material.mat, material.params, material.damage
     gvel, gdv = grid
     idx, w, g, Lg, Fn, vm = scratch[7], scratch[8], scratch[9], scratch[10], scratch[11], scratch[14]
     corners, rf = fields.corners, fields.rf

@@ -22,6 +22,7 @@ found): ~20 s.
 
     python run_scripts/benchmarks/throughput.py --particles 1e6 --repeat 3
     python run_scripts/benchmarks/throughput.py --quick
+    python run_scripts/benchmarks/throughput.py --dt 5e-5 ...   # parmpm at the yardsticks' fixed step
 
 Output: ``throughput.csv`` and ``throughput.png`` in ``--out`` (default
 ``run_scripts/out/throughput``; ``--figures docs/figures`` for the documentation's figure).
@@ -49,13 +50,14 @@ PHASE_ORDER = ("p2g", "accumulate", "grid", "fill", "g2p", "migrate", "sort", "r
 
 
 def parmpm_bench(method: str, update: str, particles: float, steps: int,
-                 transfer: str = "flip") -> dict:
-    """One ``parmpm bench`` run in a fresh process; its JSON result."""
+                 transfer: str = "flip", dt: float | None = None) -> dict:
+    """One ``parmpm bench`` run in a fresh process (``dt``: a fixed step, as the yardsticks
+    take); its JSON result."""
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "bench.json"
         cmd = [sys.executable, "-m", "parmpm", "bench", "--quiet", "--dim", "2", "--method", method,
                "--update", update, "--particles", f"{particles:g}", "--steps", str(steps),
-               "--transfer", transfer, "--json", str(out)]
+               "--transfer", transfer, "--json", str(out)] + ([] if dt is None else ["--dt", f"{dt!r}"])
         proc = subprocess.run(cmd, cwd=study.ROOT, capture_output=True, text=True, timeout=1800)
         if proc.returncode != 0:
             raise SystemExit(f"throughput: parmpm bench failed:\n{proc.stderr}")
@@ -96,7 +98,7 @@ def measure(args) -> list[dict]:
     for method, update, ymethod, transfer in CASES:
         best, ybest = None, math.nan
         for _ in range(args.repeat):
-            r = parmpm_bench(method, update, args.particles, args.steps, transfer)
+            r = parmpm_bench(method, update, args.particles, args.steps, transfer, args.dt)
             if best is None or r["particle_steps_per_second"] > best["particle_steps_per_second"]:
                 best = r
             if args.yardstick:
@@ -105,6 +107,7 @@ def measure(args) -> list[dict]:
         n = best["particles"]
         row = {"method": method, "update": update, "transfer": transfer,
                "yardstick": "C (gcc)" if ymethod == "mls" else "numba", "particles": n,
+               "fixed_dt": args.dt if args.dt is not None else math.nan,
                "parmpm_particle_steps_per_second": best["particle_steps_per_second"],
                "yardstick_particle_steps_per_second": ybest,
                "ratio": best["particle_steps_per_second"] / ybest if math.isfinite(ybest) else math.nan,
@@ -145,8 +148,9 @@ def plot(rows: list[dict], path: Path) -> Path:
                          else ""))
     ax.set_xticks([2 * i + 0.45 for i in range(len(rows))], labels)
     ax.set_ylabel("ns per particle-step (one core)")
-    ax.set_title(f"2D, {rows[0]['particles']:,} particles: parmpm phases vs the numba yardstick",
-                 fontsize=10)
+    fixed = rows[0]["fixed_dt"]
+    ax.set_title(f"2D, {rows[0]['particles']:,} particles: parmpm phases vs the numba yardstick"
+                 + (f" (fixed Δt = {fixed:g} s)" if math.isfinite(fixed) else ""), fontsize=10)
     ax.legend(fontsize=7, ncol=3)
     ax.set_ylim(0, 1.25 * max(max(r["parmpm_ns_per_particle_step"], r["yardstick_ns_per_particle_step"]
                                   if math.isfinite(r["yardstick_ns_per_particle_step"]) else 0)
@@ -159,6 +163,9 @@ def main(argv=None) -> int:
     p.add_argument("--particles", type=float, default=1e6)
     p.add_argument("--steps", type=int, default=10)
     p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--dt", type=float, default=None,
+                   help="a fixed step for parmpm (time.dt, s; the yardsticks' is 5e-5), whose G2P "
+                        "leaves out the wave speed (default: the CFL step)")
     p.add_argument("--yardstick", default="none",
                    help="path of the yardstick script, or 'none' (the default)")
     args = p.parse_args(argv)

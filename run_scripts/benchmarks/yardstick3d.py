@@ -340,8 +340,14 @@ def step(s: dict, method: str, dt: float, flip: float) -> None:
         g2p_hat(s["x"], s["v"], s["F"], s["stress"], s["gnew"], s["nodes"], inv_h, dt, flip)
 
 
-def compare(n: float, reps: int, steps: int) -> None:
-    """parmpm's 3D USL step (cpdi; mpm against ``hat``) beside this one, alternately."""
+def fixed_dt() -> float:
+    """The step this yardstick takes: what a CFL of 0.4 gives the block at rest, fixed."""
+    return 0.4 * CELL / (math.sqrt((LAM + 2.0 * MU) / RHO) + 1.2)
+
+
+def compare(n: float, reps: int, steps: int, fixed: bool = False) -> None:
+    """parmpm's 3D USL step (cpdi; mpm against ``hat``) beside this one, alternately; ``fixed``:
+    parmpm at this one's fixed step (``--dt``: G2P without the wave speed)."""
     import subprocess
     import sys
     import tempfile
@@ -355,8 +361,9 @@ def compare(n: float, reps: int, steps: int) -> None:
                 out = Path(tmp) / "bench.json"
                 subprocess.run([sys.executable, "-m", "parmpm", "bench", "--quiet", "--dim", "3",
                                 "--method", method, "--update", "usl", "--particles", f"{n:g}",
-                                "--steps", str(steps), "--json", str(out)], cwd=root, check=True,
-                               timeout=1800)
+                                "--steps", str(steps), "--json", str(out)]
+                               + (["--dt", repr(fixed_dt())] if fixed else []), cwd=root,
+                               check=True, timeout=1800)
                 best["parmpm"] = max(best["parmpm"],
                                      json.loads(out.read_text())["particle_steps_per_second"])
             proc = subprocess.run([sys.executable, __file__, "--method", mine, "--n", f"{n:g}",
@@ -377,6 +384,8 @@ def main() -> None:
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--flip", type=float, default=0.95)
     ap.add_argument("--compare", action="store_true", help="parmpm bench beside this step")
+    ap.add_argument("--fixed-dt", action="store_true",
+                    help="with --compare: parmpm at this step's fixed Δt (time.dt)")
     a = ap.parse_args()
     if not (math.isfinite(a.n) and 1 <= a.n <= 1e9) or a.steps < 1 or a.reps < 1:
         ap.error(f"--n {a.n:g}, --steps {a.steps}, --reps {a.reps}: expected 1 <= n <= 1e9 "
@@ -384,10 +393,9 @@ def main() -> None:
     if not 0.0 <= a.flip <= 1.0:
         ap.error(f"--flip {a.flip:g}: expected a number in [0, 1]")
     if a.compare:
-        compare(a.n, a.reps, a.steps)
+        compare(a.n, a.reps, a.steps, a.fixed_dt)
         return
-    c = math.sqrt((LAM + 2.0 * MU) / RHO)
-    dt = 0.4 * CELL / (c + 1.2)  # what a CFL of 0.4 gives this block: fixed, not computed
+    dt = fixed_dt()
     best = math.inf
     for _ in range(a.reps):
         s = setup(a.n)

@@ -125,6 +125,22 @@ def test_bench_apic_runs_and_apic_elsewhere_is_one_line(tmp_path, capsys):
     assert len(err) == 1 and 'needs interpolator "bspline"' in err[0]
 
 
+def test_bench_with_a_fixed_step(tmp_path, capsys):
+    """``--dt``: the block's scene has that ``time.dt`` (every step that long, the stepper on
+    the fixed step's kernels) and the result and its table say so; bad values are refused."""
+    assert build_bench_scene(2, "mpm", 2000, 2, 3, dt=2e-5).spec.time.dt == 2e-5
+    assert build_bench_scene(2, "mpm", 2000, 2, 3).spec.time.dt is None
+    r = run_bench(bench_args("--method", "mpm", "--update", "usl", "--particles", "2000",
+                             "--steps", "3", "--dt", "2e-5"), None)
+    assert r["fixed_dt"] == 2e-5 and r["timed_steps"] == 2
+    assert "fixed Δt = 2e-05 s" in capsys.readouterr().out
+    for bad in ("0", "-1e-5", "nan", "inf", "x"):
+        with pytest.raises(SystemExit):
+            bench_args("--dt", bad)
+    with pytest.raises(ParmpmError, match="--dt must be a positive number of seconds"):
+        build_bench_scene(2, "mpm", 2000, 2, 3, dt=0.0)
+
+
 def test_cli_bench_error_is_one_line(capsys):
     import parmpm.cli.main as cli
 

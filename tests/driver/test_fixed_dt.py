@@ -88,9 +88,9 @@ def test_a_tiny_time_dt_is_fine_when_time_steps_stops_the_run():
     assert scene.spec.time.dt == 1e-30
 
 
-def _final(tmp_path, name, *over):
-    scene = parmpm.load_scene("hanging_bar_1d", ["time.end=2e-3", "output.snapshots=false",
-                                                 "output.figure=false", *over])
+def _final(tmp_path, name, *over, scene="hanging_bar_1d"):
+    scene = parmpm.load_scene(scene, ["time.end=2e-3", "output.snapshots=false",
+                                      "output.figure=false", *over])
     sim = Simulation(scene, tmp_path / name, quiet=True)
     sim.run()
     P = sim.particles
@@ -110,3 +110,19 @@ def test_a_fixed_step_runs_as_a_cfl_run_capped_at_the_same_step(tmp_path):
     assert fixed[0].dt_limit == "time.dt" and capped[0].dt_limit == "time.dt_max"
     for a, b in zip(fixed[1:], capped[1:]):
         assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("method", ["cpdi", "mpm"])
+def test_a_fixed_step_on_the_specialised_kernels_runs_as_the_capped_cfl_run(tmp_path, method):
+    """The same in 2D, where G2P's kernels are compiled without the wave speed for the fixed
+    step (:mod:`parmpm.transfer.running_speed`): every particle bit for bit as the CFL run's,
+    whose kernels compute it; the speed the fixed run measures every few steps is the CFL
+    run's at a step both measured."""
+    dt = 2e-4  # the 2D bar's CFL step is about 1e-3 s
+    over = (f'method.interpolator="{method}"', "time.end=4.2e-3")
+    fixed = _final(tmp_path, "fixed", f"time.dt={dt}", *over, scene="hanging_bar")
+    capped = _final(tmp_path, "capped", f"time.dt_max={dt}", *over, scene="hanging_bar")
+    assert fixed[0].nstep == capped[0].nstep == 21  # measured at steps 1 and 21
+    for a, b in zip(fixed[1:], capped[1:]):
+        assert np.array_equal(a, b)
+    assert fixed[0].vmax == pytest.approx(capped[0].vmax, rel=1e-12)

@@ -102,11 +102,12 @@ def each_particle(support, scatter, boxes, order, grid, err, shape, fields, args
 def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, where, shape,
                       fields, material):
     """G2P of every particle in mode ``step[0]``; returns the largest ``c_p + |v_p|`` (when the
-    stress is updated), the particles that changed patch and the first that left the grid. A
+    stress is updated; 0 or ``inf`` without ``material.cfl``: :mod:`parmpm.transfer.
+    running_speed`), the particles that changed patch and the first that left the grid. A
     particle whose support fails keeps its slot's patch."""
     mode, dt, flip, apic = step
     x, v, F, stress, dx, C = fields.x, fields.v, fields.F, fields.stress, fields.dx, fields.affine
-    mat, params, damage = material
+    mat, params, damage, cfl = material
     start, slot_patch, new_patch = boxes.start, where.slot_patch, where.new_patch
     vmax = 0.0
     moved = 0
@@ -146,5 +147,5 @@ def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, wh
             pid = next_patch_2d(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, where, p, sp)
             moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
             vmax = update_F_stress(vmax, i, dtl, (F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]),
-                                   v, F, stress, mat, params, damage)
+                                   v, F, stress, mat, params, damage, cfl)
     return vmax, moved, first_out

@@ -1,13 +1,12 @@
 """The end of a 2D G2P deformation update, as bookkeeping around the shared formulas: the F
 update (:func:`parmpm.materials.kinematics.update_F_2d`), the law (:func:`parmpm.materials.laws.
 stress_speed_2d`) and damage (:mod:`parmpm.materials.damage`) on the four entries of ``F``."""
-import math
-
 from parmpm.core.jit import inline_kernel, kernel
-from parmpm.materials.kinematics import update_F_2d
+from parmpm.materials.kinematics import det_2d, update_F_2d
 from parmpm.materials import COL_DAMAGE
 from parmpm.materials.damage import damage_scalar, degrade_2d, max_stretch_2d
 from parmpm.materials.laws import stress_speed_2d
+from parmpm.transfer.running_speed import running_speed
 
 
 @inline_kernel
@@ -24,18 +23,17 @@ def stress_damage_speed(params, row, damage, i, f00, f01, f10, f11):
 
 
 @inline_kernel
-def update_F_stress(vmax, i, l, f, v, F, stress, mat, params, damage):
+def update_F_stress(vmax, i, l, f, v, F, stress, mat, params, damage, cfl):
     """Particle ``i``: ``F ← F + l F`` (``l = Δt L`` and ``f = F`` as 4-tuples of entries), its
     damage and (degraded) stress, and the running largest ``c_p + |v_p|`` (``inf`` once one is
-    NaN)."""
+    NaN; with ``cfl`` None only the finiteness: :mod:`parmpm.transfer.running_speed`)."""
     n00, n01, n10, n11 = update_F_2d(l[0], l[1], l[2], l[3], f[0], f[1], f[2], f[3])
     F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1] = n00, n01, n10, n11
     s00, s01, s11, c = stress_damage_speed(params, mat[i], damage, i, n00, n01, n10, n11)
     stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1] = s00, s01, s01, s11
-    s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1])
-    if not (s <= vmax):
-        return s if s == s else math.inf
-    return vmax
+    vx, vy = v[i, 0], v[i, 1]
+    return running_speed(cfl, vmax, c, vx * vx + vy * vy, s00 + s01 + s11 + vx + vy,
+                         det_2d(n00, n01, n10, n11))
 
 
 @kernel

@@ -56,7 +56,7 @@ def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, wh
     """:func:`parmpm.transfer.kernels2d.loops.each_particle_g2p` in 3D."""
     mode, dt, flip, apic = step
     x, v, F, stress, dx, C = fields.x, fields.v, fields.F, fields.stress, fields.dx, fields.affine
-    mat, params, damage = material
+    mat, params, damage, cfl = material
     start, slot_patch, new_patch = boxes.start, where.slot_patch, where.new_patch
     vmax = 0.0
     moved = 0
@@ -97,5 +97,5 @@ def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, wh
             vmax = update_F_stress(vmax, i, dtl,
                                    (F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
                                     F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]),
-                                   v, F, stress, mat, params, damage)
+                                   v, F, stress, mat, params, damage, cfl)
     return vmax, moved, first_out

@@ -1,13 +1,12 @@
 """The end of a 3D G2P deformation update, as bookkeeping around the shared formulas: the F
 update (:func:`parmpm.materials.kinematics.update_F_3d`), the law (:func:`parmpm.materials.laws.
 stress_speed_3d`) and damage (:mod:`parmpm.materials.damage`) on the nine entries of ``F``."""
-import math
-
 from parmpm.core.jit import inline_kernel, kernel
-from parmpm.materials.kinematics import update_F_3d
+from parmpm.materials.kinematics import det_3d, update_F_3d
 from parmpm.materials import COL_DAMAGE
 from parmpm.materials.damage import damage_scalar, degrade_3d, max_stretch_3d
 from parmpm.materials.laws import stress_speed_3d
+from parmpm.transfer.running_speed import running_speed
 
 
 @inline_kernel
@@ -19,10 +18,11 @@ def store_stress(stress, i, s00, s01, s02, s11, s12, s22):
 
 
 @inline_kernel
-def update_F_stress(vmax, i, l, f, v, F, stress, mat, params, damage):
+def update_F_stress(vmax, i, l, f, v, F, stress, mat, params, damage, cfl):
     """Particle ``i``: ``F ← F + l F`` (``l = Δt L`` and ``f = F`` as 9-tuples of entries, row
     by row), its damage and (degraded) stress, and the running largest ``c_p + |v_p|`` (``inf``
-    once one is NaN)."""
+    once one is NaN; with ``cfl`` None only the finiteness:
+    :mod:`parmpm.transfer.running_speed`)."""
     n00, n01, n02, n10, n11, n12, n20, n21, n22 = update_F_3d(
         l[0], l[1], l[2], l[3], l[4], l[5], l[6], l[7], l[8],
         f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8])
@@ -38,10 +38,10 @@ def update_F_stress(vmax, i, l, f, v, F, stress, mat, params, damage):
         damage[i] = D
         s00, s01, s02, s11, s12, s22 = degrade_3d(D, pv, s00, s01, s02, s11, s12, s22)
     store_stress(stress, i, s00, s01, s02, s11, s12, s22)
-    s = c + math.sqrt(v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2])
-    if not (s <= vmax):
-        return s if s == s else math.inf
-    return vmax
+    vx, vy, vz = v[i, 0], v[i, 1], v[i, 2]
+    return running_speed(cfl, vmax, c, vx * vx + vy * vy + vz * vz,
+                         s00 + s01 + s02 + s11 + s12 + s22 + vx + vy + vz,
+                         det_3d(n00, n01, n02, n10, n11, n12, n20, n21, n22))
 
 
 @kernel
