@@ -24,7 +24,7 @@ found): ~20 s.
     python run_scripts/benchmarks/throughput.py --quick
     python run_scripts/benchmarks/throughput.py --dt 5e-5 ...   # parmpm at the yardsticks' fixed step
 
-Output: ``throughput.csv`` and ``throughput.png`` in ``--out`` (default
+Output: ``throughput.csv`` and ``throughput.png`` (``throughput_fixed_dt.*`` with ``--dt``) in ``--out`` (default
 ``run_scripts/out/throughput``; ``--figures docs/figures`` for the documentation's figure).
 Without ``--yardstick PATH`` (or with ``none``) parmpm runs alone."""
 from __future__ import annotations
@@ -178,9 +178,10 @@ def main(argv=None) -> int:
     args.yardstick = y
     out, figs = study.folders(args, "throughput")
     rows = measure(args)
-    study.write_csv(out / "throughput.csv", rows)
-    print(study.wrote(out / "throughput.csv"))
-    print(study.wrote(plot(rows, figs / "throughput.png")))
+    name = "throughput" if args.dt is None else "throughput_fixed_dt"
+    study.write_csv(out / f"{name}.csv", rows)
+    print(study.wrote(out / f"{name}.csv"))
+    print(study.wrote(plot(rows, figs / f"{name}.png")))
     return 0
 
 

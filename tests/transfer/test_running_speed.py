@@ -86,8 +86,27 @@ def test_the_stepper_measures_a_fixed_steps_speed_every_few_steps(tmp_path):
     for n in range(SPEED_EVERY + 2):
         vmax = st.step(1e-5, g, n * 1e-5)
         seen.append(st.speed_measured)
-        if st.speed_measured:
-            assert vmax == max_speed(2, P.v, P.F, P.mat, st.params) > 0
+        if st.speed_measured:  # the pass of its own against the dimension-generic one
+            assert vmax == pytest.approx(max_speed(2, P.v, P.F, P.mat, st.params), rel=1e-12)
+            assert vmax > 0
         else:
             assert vmax == 0.0
     assert seen == [True] + [False] * (SPEED_EVERY - 1) + [True, False]
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("model", ["neo_hookean", "linear_elastic"])
+def test_the_speed_pass_is_the_dimension_generic_one(dim, model, tmp_path):
+    """The 2D/3D pass a fixed step measures with (G2P's formula) against the dimension-generic
+    pass that sets a run's first step, on deformed particles; an inverted one makes both
+    ``inf``."""
+    from parmpm.transfer.kernels2d.material import speed_pass as pass_2d
+    from parmpm.transfer.kernels3d.material import speed_pass as pass_3d
+
+    sim, st, P = deformed_stepper(dim, "mpm", "none", model, tmp=tmp_path)
+    fast = (pass_2d if dim == 2 else pass_3d)(P.v, P.F, P.mat, st.params)
+    assert fast == pytest.approx(max_speed(dim, P.v, P.F, P.mat, st.params), rel=1e-12)
+    assert fast > 0
+    P.F[P.n // 3] = np.diag([-1.0] + [1.0] * (dim - 1))
+    assert (pass_2d if dim == 2 else pass_3d)(P.v, P.F, P.mat, st.params) == math.inf
+    assert max_speed(dim, P.v, P.F, P.mat, st.params) == math.inf

@@ -47,3 +47,15 @@ def stress_pass(F, mat, params, stress):
         stress[i, 0, 0], stress[i, 0, 1], stress[i, 1, 0], stress[i, 1, 1] = s00, s01, s01, s11
         vmax = max(vmax, c)
     return vmax
+
+
+@kernel
+def speed_pass(v, F, mat, params):
+    """The largest ``c_p + |v_p|`` of every particle on its own, by G2P's formula: what a run at a
+    fixed step measures every few steps (:mod:`parmpm.step.speed_watch`)."""
+    vmax = 0.0
+    for i in range(F.shape[0]):
+        _, _, _, c, _ = stress_speed_2d(params, mat[i], F[i, 0, 0], F[i, 0, 1], F[i, 1, 0],
+                                        F[i, 1, 1])
+        vmax = running_speed(True, vmax, c, v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1], 0.0, 1.0)
+    return vmax

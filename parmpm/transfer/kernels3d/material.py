@@ -56,3 +56,16 @@ def stress_pass(F, mat, params, stress):
         store_stress(stress, i, s00, s01, s02, s11, s12, s22)
         vmax = max(vmax, c)
     return vmax
+
+
+@kernel
+def speed_pass(v, F, mat, params):
+    """The largest ``c_p + |v_p|`` of every particle on its own, by G2P's formula: what a run at a
+    fixed step measures every few steps (:mod:`parmpm.step.speed_watch`)."""
+    vmax = 0.0
+    for i in range(F.shape[0]):
+        c = stress_speed_3d(params, mat[i], F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0],
+                            F[i, 1, 1], F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2])[6]
+        vmax = running_speed(True, vmax, c,
+                             v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2], 0.0, 1.0)
+    return vmax
