@@ -116,10 +116,21 @@ def degrade(d, D, pv, out):
 
 
 @helper_kernel
-def degrade_2d(D, pv, s00, s01, s11):
-    """:func:`degrade` in 2D on the three stress components (returned)."""
+def pressure_term(pt):
+    """The law's pressure term ``p_v`` from the pair ``pt = (p_n, p_d)`` a scalar law returns:
+    ``p_n / p_d`` (``−∞`` unless ``p_d > 0``). Divided only where a damaged particle needs it:
+    the division the laws made for every particle was not free even where nothing read it."""
+    pn, pd = pt
+    return pn / pd if pd > 0.0 else -math.inf
+
+
+@helper_kernel
+def degrade_2d(D, pt, s00, s01, s11):
+    """:func:`degrade` in 2D on the three stress components (returned); ``pt``: the law's
+    pressure term as a pair (:func:`pressure_term`)."""
     if not D > 0.0:
         return s00, s01, s11
+    pv = pressure_term(pt)
     keep = 1.0 - D
     s00, s01, s11 = keep * s00, keep * s01, keep * s11
     if pv < 0.0:
@@ -129,10 +140,12 @@ def degrade_2d(D, pv, s00, s01, s11):
 
 
 @helper_kernel
-def degrade_3d(D, pv, s00, s01, s02, s11, s12, s22):
-    """:func:`degrade` in 3D on the six stress components (returned)."""
+def degrade_3d(D, pt, s00, s01, s02, s11, s12, s22):
+    """:func:`degrade` in 3D on the six stress components (returned); ``pt`` as in
+    :func:`degrade_2d`."""
     if not D > 0.0:
         return s00, s01, s02, s11, s12, s22
+    pv = pressure_term(pt)
     k = 1.0 - D
     s00, s01, s02, s11, s12, s22 = k * s00, k * s01, k * s02, k * s11, k * s12, k * s22
     if pv < 0.0:
@@ -153,4 +166,4 @@ def damage_scalar(params, row, D, lam):
 
 
 __all__ = ["NO_DAMAGE", "LINEAR", "EXPONENTIAL", "SOFTENING", "damage_update", "damage_scalar",
-           "degrade", "degrade_2d", "degrade_3d", "max_stretch", "softening"]
+           "degrade", "degrade_2d", "degrade_3d", "max_stretch", "pressure_term", "softening"]

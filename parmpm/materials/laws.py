@@ -101,7 +101,8 @@ def wave_speed(d, params, F):
 
 @helper_kernel
 def stress_speed_2d(params, row, f00, f01, f10, f11):
-    """Plane-strain ``(σ_xx, σ_xy, σ_yy, c, p_v)`` of material ``row`` from the entries of ``F``."""
+    """Plane-strain ``(σ_xx, σ_xy, σ_yy, c, (p_n, p_d))`` of material ``row`` from the entries of
+    ``F`` (the pressure term as a pair: :func:`parmpm.materials.damage.pressure_term`)."""
     J = det_2d(f00, f01, f10, f11)
     b00, b01, b11 = left_cauchy_green_2d(f00, f01, f10, f11)
     bmax = gershgorin_2d(b00, b01, b11)
@@ -111,13 +112,13 @@ def stress_speed_2d(params, row, f00, f01, f10, f11):
         return linear_elastic_2d(lam, mu, params[row, COL_C2], J, f00, f01, f10, f11, bmax)
     if law == NEO_HOOKEAN:
         return neo_hookean_2d(lam, mu, params[row, COL_INV_DENSITY], J, b00, b01, b11, bmax)
-    return NAN, NAN, NAN, math.inf, NAN
+    return NAN, NAN, NAN, math.inf, (NAN, 1.0)
 
 
 @helper_kernel
 def stress_speed_3d(params, row, f00, f01, f02, f10, f11, f12, f20, f21, f22):
-    """``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c, p_v)`` of material ``row`` from the entries of
-    ``F``."""
+    """``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c, (p_n, p_d))`` of material ``row`` from the
+    entries of ``F``."""
     J = det_3d(f00, f01, f02, f10, f11, f12, f20, f21, f22)
     b00, b01, b02, b11, b12, b22 = left_cauchy_green_3d(f00, f01, f02, f10, f11, f12, f20, f21,
                                                         f22)
@@ -130,4 +131,4 @@ def stress_speed_3d(params, row, f00, f01, f02, f10, f11, f12, f20, f21, f22):
     if law == NEO_HOOKEAN:
         return neo_hookean_3d(lam, mu, params[row, COL_INV_DENSITY], J, b00, b01, b02, b11, b12,
                               b22, bmax)
-    return NAN, NAN, NAN, NAN, NAN, NAN, math.inf, NAN
+    return NAN, NAN, NAN, NAN, NAN, NAN, math.inf, (NAN, 1.0)

@@ -71,18 +71,18 @@ def _p_c(lam, mu, inv_rho, J, bmax):
 
 @helper_kernel
 def neo_hookean_2d(lam, mu, inv_rho, J, b00, b01, b11, bmax):
-    """``(σ_xx, σ_xy, σ_yy, c, p_v)`` from ``J`` and ``b``."""
+    """``(σ_xx, σ_xy, σ_yy, c, (p, J))`` from ``J`` and ``b``: the pressure term ``p_v = p / J``
+    as a pair (:func:`parmpm.materials.damage.pressure_term`)."""
     p, c = _p_c(lam, mu, inv_rho, J, bmax)
     iJ = 1.0 / J
-    pv = p / J if J > 0.0 else -math.inf
-    return (mu * (b00 - 1.0) + p) * iJ, mu * b01 * iJ, (mu * (b11 - 1.0) + p) * iJ, c, pv
+    return (mu * (b00 - 1.0) + p) * iJ, mu * b01 * iJ, (mu * (b11 - 1.0) + p) * iJ, c, (p, J)
 
 
 @helper_kernel
 def neo_hookean_3d(lam, mu, inv_rho, J, b00, b01, b02, b11, b12, b22, bmax):
-    """``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c, p_v)`` from ``J`` and ``b``."""
+    """``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c, (p, J))`` from ``J`` and ``b`` (the pressure
+    term as in :func:`neo_hookean_2d`)."""
     p, c = _p_c(lam, mu, inv_rho, J, bmax)
     iJ = 1.0 / J
-    pv = p / J if J > 0.0 else -math.inf
     return ((mu * (b00 - 1.0) + p) * iJ, mu * b01 * iJ, mu * b02 * iJ,
-            (mu * (b11 - 1.0) + p) * iJ, mu * b12 * iJ, (mu * (b22 - 1.0) + p) * iJ, c, pv)
+            (mu * (b11 - 1.0) + p) * iJ, mu * b12 * iJ, (mu * (b22 - 1.0) + p) * iJ, c, (p, J))

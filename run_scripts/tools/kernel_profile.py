@@ -11,6 +11,7 @@ overload's, and the code read is the span from there to the last sampled instruc
 
     python run_scripts/tools/kernel_profile.py --method mpm --kernel g2p --particles 1e6
     python run_scripts/tools/kernel_profile.py --method bspline --transfer mls --kernel p2g
+    python run_scripts/tools/kernel_profile.py --method mpm --kernel g2p --dt 5e-5   # fixed step
 
 It prints the kernel's share of the samples, the rate of the calls while sampled (perf costs a
 few per cent), the share per ``--bins`` stretch of code, and the ``--top`` hottest instructions,
@@ -142,7 +143,7 @@ def catch_kernel(args):
     from parmpm.driver.set_up import set_up
 
     scene = build_bench_scene(2, args.method, int(args.particles), update="usl", steps=10,
-                              transfer=args.transfer)
+                              transfer=args.transfer, dt=args.dt)
     sim = set_up(scene, world())
     T = sim.stepper.transfers
     if T.kernels is None:
@@ -202,6 +203,8 @@ def main(argv=None) -> None:
     ap.add_argument("--method", default="mpm", help="a 2D interpolator with specialised kernels")
     ap.add_argument("--transfer", default="flip", choices=("flip", "apic", "mls"))
     ap.add_argument("--kernel", default="g2p", choices=KERNELS)
+    ap.add_argument("--dt", type=float, default=None,
+                    help="a fixed step (time.dt, s): G2P's kernels without the wave speed")
     ap.add_argument("--particles", type=float, default=1e6)
     ap.add_argument("--calls", type=int, default=60)
     ap.add_argument("--frequency", type=int, default=10000, help="perf samples per second")

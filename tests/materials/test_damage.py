@@ -16,7 +16,7 @@ from parmpm.transfer.kernels2d import KERNELS_2D
 from parmpm.materials import material_table
 from parmpm.scene.records import Damage, Material
 from parmpm.materials.damage import (damage_scalar, damage_update, degrade, degrade_2d, degrade_3d,
-                                     max_stretch, max_stretch_2d, max_stretch_3d)
+                                    max_stretch, max_stretch_2d, max_stretch_3d, pressure_term)
 from parmpm.materials.laws import cauchy_stress
 from parmpm.driver.simulation import Simulation
 
@@ -97,15 +97,24 @@ def test_degraded_stress_tension_and_compression(d):
         degrade(d, D, pv, out)
         np.testing.assert_allclose(out[:d, :d], want, rtol=1e-14, atol=1e-13)
         if d == 2:
-            np.testing.assert_allclose(degrade_2d(D, pv, S[0, 0], S[0, 1], S[1, 1]),
+            np.testing.assert_allclose(degrade_2d(D, (2.0 * pv, 2.0), S[0, 0], S[0, 1], S[1, 1]),
                                        (want[0, 0], want[0, 1], want[1, 1]), rtol=1e-14)
         if d == 3:
             np.testing.assert_allclose(
-                degrade_3d(D, pv, S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]),
+                degrade_3d(D, (pv, 1.0), S[0, 0], S[0, 1], S[0, 2], S[1, 1], S[1, 2], S[2, 2]),
                 (want[0, 0], want[0, 1], want[0, 2], want[1, 1], want[1, 2], want[2, 2]), rtol=1e-14)
     out = np.eye(3)
     degrade(3, 0.0, -5.0, out)  # D = 0: untouched, bit for bit
     assert np.array_equal(out, np.eye(3))
+
+
+def test_the_pressure_term_of_a_pair():
+    """The scalar laws hand ``p_v`` as ``(p_n, p_d)``, divided only for a damaged particle:
+    ``p_n / p_d``, or ``−∞`` where ``p_d`` is not positive (an inverted or NaN ``J``, as the
+    neo-Hookean law's ``p_v`` was)."""
+    assert pressure_term((-6.0, 1.5)) == -4.0 and pressure_term((3.0, 1.0)) == 3.0
+    for bad in (0.0, -1.0, float("nan")):
+        assert pressure_term((1.0, bad)) == -math.inf
 
 
 def test_broken_particle_resists_collapse():
