@@ -23,7 +23,7 @@ HARDENING_KEYS = {"linear": ("hardening_modulus",),
                   "johnson_cook": ("hardening_modulus", "hardening_exponent", "rate_coefficient",
                                    "reference_rate")}
 DRUCKER_PRAGER_KEYS = ("friction_angle", "dilatancy_angle", "cohesion", "matching",
-                       "tension_cutoff")
+                       "tension_cutoff", "volume_correction")
 #: the keys each model takes (a plastic model takes no damage model yet)
 MODEL_KEYS = {**{m: (*ELASTIC_KEYS, "damage") for m in MODELS},
               "j2": (*ELASTIC_KEYS, *J2_KEYS),
@@ -141,7 +141,8 @@ def _j2(c: Checker, key: str, t: dict) -> dict:
 
 
 def _drucker_prager(c: Checker, key: str, t: dict) -> dict:
-    """A drucker_prager material's angles, cohesion, matching and cut-off, checked by
+    """A drucker_prager material's angles, cohesion, matching, cut-off and volume correction
+    (a boolean, default false), checked by
     :func:`parmpm.materials.plasticity.drucker_prager.drucker_prager_constants` (the ranges are
     its own); absent ``tension_cutoff`` stays None (the apex, infinite for φ = 0)."""
     from parmpm.materials.plasticity.drucker_prager import drucker_prager_constants  # numba: _j2
@@ -157,6 +158,8 @@ def _drucker_prager(c: Checker, key: str, t: dict) -> dict:
         "matching": t.get("matching", "plane_strain"),
         "tension_cutoff": None if t.get("tension_cutoff") is None else c.number(
             f"{key}.tension_cutoff", t["tension_cutoff"], "a mean stress 0 <= p_t <= the apex (Pa)"),
+        "volume_correction": c.boolean(f"{key}.volume_correction",
+                                       t.get("volume_correction", False)),
     }
     try:
         drucker_prager_constants(out["friction_angle"], out["dilatancy_angle"], out["cohesion"],

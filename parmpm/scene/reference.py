@@ -43,7 +43,10 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   0 <= ψ <= φ, default 0: no dilatancy), ``cohesion`` (>= 0 Pa, default 0; φ = 0 needs c > 0),
   ``matching`` ("plane_strain" | "outer" | "inner", default "plane_strain": which Mohr–Coulomb
   limit the cone reproduces), ``tension_cutoff`` (Pa, from 0 to the apex ξ c / η; default
-  absent: the apex); checked by
+  absent: the apex), ``volume_correction`` (true | false, default false: true gives the volume
+  a particle gained plastically — at the cut-off, or by dilatancy — back free of stress under
+  compression, so loose grains press only once denser than they started; Tampubolon et al.
+  2017, docs/concepts/drucker-prager.md); checked by
   :func:`parmpm.materials.plasticity.drucker_prager.drucker_prager_constants`.
 * ``[[bodies]]`` (at least one): ``shape`` ("box", "disk" in 2D, "sphere" in 3D; default "box");
   box: ``min``, ``max``; disk/sphere: ``center``, ``radius``; ``material`` (required);

@@ -22,7 +22,7 @@ from parmpm.materials.plasticity.update import plastic_energy_sums, plastic_pass
 NONE = dict(hardening_exponent=None, strength_coefficient=None, rate_coefficient=None,
             reference_rate=None, friction_angle=None, dilatancy_angle=None, cohesion=None,
             matching=None, tension_cutoff=None, yield_stress=None, hardening=None,
-            hardening_modulus=None)
+            hardening_modulus=None, volume_correction=False)
 J2 = SimpleNamespace(**{**NONE, "model": "j2", "youngs_modulus": 117e9, "poisson_ratio": 0.35,
                         "density": 8930.0, "yield_stress": 4e8, "hardening": "linear",
                         "hardening_modulus": 1e8})

@@ -604,6 +604,10 @@ _M = "materials.bar"
     (_dp(tension_cutoff="-1"), f"{_M}: tension cut-off -1.0 is outside [0, apex"),
     (_dp(tension_cutoff="nan"), f"{_M}.tension_cutoff: expected a mean stress 0 <= p_t <= the "
                                 "apex (Pa), got nan"),
+    (_dp(volume_correction="1"), f"{_M}.volume_correction: expected true or false, got 1"),
+    (_dp(volume_correction='"yes"'), f'{_M}.volume_correction: expected true or false, got "yes"'),
+    (_dp(volume_correction="nan"), f"{_M}.volume_correction: expected true or false, got nan"),
+    (_j2(volume_correction="true"), f"{_M}.volume_correction: not a key of model 'j2'"),
     # a key of another model, damage on a plastic one: before, "unknown key" (allowed: ...)
     (_material("neo_hookean", yield_stress="250e6"),
      f"{_M}.yield_stress: not a key of model 'neo_hookean' (it takes model, density, "
@@ -616,7 +620,7 @@ _M = "materials.bar"
     (_dp(yield_stress="250e6"), f"{_M}.yield_stress: not a key of model 'drucker_prager' (it "
                                 "takes model, density, youngs_modulus, poisson_ratio, "
                                 "friction_angle, dilatancy_angle, cohesion, matching, "
-                                "tension_cutoff)"),
+                                "tension_cutoff, volume_correction)"),
     (_j2(damage="{onset = 1.1, fracture = 2.0}"),
      f"{_M}.damage: not available with model 'j2' (plastic materials take no damage model yet)"),
     (_dp(damage="{onset = 1.1, fracture = 2.0}"), f"{_M}.damage: not available with model "

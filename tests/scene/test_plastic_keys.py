@@ -19,13 +19,15 @@ from parmpm.scene.records import Material
 ELASTIC = {"density": 7800.0, "youngs_modulus": 2e11, "poisson_ratio": 0.3}
 PLASTIC_FIELDS = ("yield_stress", "hardening", "hardening_modulus", "hardening_exponent",
                   "strength_coefficient", "rate_coefficient", "reference_rate", "friction_angle",
-                  "dilatancy_angle", "cohesion", "matching", "tension_cutoff")
+                  "dilatancy_angle", "cohesion", "matching", "tension_cutoff",
+                  "volume_correction")
 
 
 def inline(model: str, **keys) -> str:
     """``materials.bar={...}``: hanging_bar's material replaced by ``model`` with ``keys``."""
     items = {"model": model, **ELASTIC, **keys}
-    text = ", ".join(f"{k} = {v!r}" if not isinstance(v, str) else f'{k} = "{v}"'
+    text = ", ".join(f'{k} = "{v}"' if isinstance(v, str) else
+                     f"{k} = {str(v).lower()}" if isinstance(v, bool) else f"{k} = {v!r}"
                      for k, v in items.items())
     return f"materials.bar={{{text}}}"
 
@@ -52,18 +54,21 @@ def inline(model: str, **keys) -> str:
           hardening_exponent=0.3, rate_coefficient=0.02, reference_rate=1e-3)),
     ("drucker_prager", dict(friction_angle=30),  # c = 0: sand; no cut-off given: the apex
      dict(friction_angle=30.0, dilatancy_angle=0.0, cohesion=0.0, matching="plane_strain",
-          tension_cutoff=None)),
+          tension_cutoff=None, volume_correction=False)),
     ("drucker_prager", dict(friction_angle=0, cohesion=1e4),  # von Mises-like: no apex
      dict(friction_angle=0.0, dilatancy_angle=0.0, cohesion=1e4, matching="plane_strain",
-          tension_cutoff=None)),
+          tension_cutoff=None, volume_correction=False)),
     ("drucker_prager", dict(friction_angle=35.0, dilatancy_angle=5, cohesion=2e4,
                             matching="outer", tension_cutoff=1e4),
      dict(friction_angle=35.0, dilatancy_angle=5.0, cohesion=2e4, matching="outer",
-          tension_cutoff=1e4)),
+          tension_cutoff=1e4, volume_correction=False)),
     ("drucker_prager", dict(friction_angle=30.0, cohesion=1e4, matching="inner",
                             tension_cutoff=0),
      dict(friction_angle=30.0, dilatancy_angle=0.0, cohesion=1e4, matching="inner",
-          tension_cutoff=0.0)),
+          tension_cutoff=0.0, volume_correction=False)),
+    ("drucker_prager", dict(friction_angle=19.8, volume_correction=True),
+     dict(friction_angle=19.8, dilatancy_angle=0.0, cohesion=0.0, matching="plane_strain",
+          tension_cutoff=None, volume_correction=True)),
 ])
 def test_a_plastic_material_resolves_with_its_defaults(model, given, resolved):
     """Every key of the model (and of its hardening law) in the resolved scene, floats as

@@ -49,14 +49,15 @@ def collapse(tmp_path_factory):
 
 
 def test_the_example_is_the_references_setup():
-    """The scene as the docs describe it: plane strain, DP with the plane-strain match and the
-    references' constants (E = 3K(1 − 2ν) with K = 0.7 MPa), a slip wall at x = 0, a held floor,
+    """The scene as the docs describe it: plane strain, DP with the plane-strain match, the
+    volume correction and the references' constants (E = 3K(1 − 2ν) with K = 0.7 MPa), a slip wall at x = 0, a held floor,
     gravity at once, 1 s."""
     spec = load_scene(EXAMPLE).spec
     rods = spec.materials["rods"]
     assert (rods.model, rods.friction_angle, rods.cohesion, rods.dilatancy_angle, rods.matching,
             rods.density, rods.poisson_ratio) == ("drucker_prager", 19.8, 0.0, 0.0, "plane_strain",
                                                    2650.0, 0.3)
+    assert rods.volume_correction is True
     assert rods.youngs_modulus == pytest.approx(3 * 0.7e6 * (1 - 2 * 0.3))
     assert (spec.dim, spec.boundary.x_min, spec.boundary.y_min) == (2, "slip", "fixed")
     assert spec.gravity.ramp_time == 0.0 and tuple(spec.gravity.g) == (0.0, -9.81)

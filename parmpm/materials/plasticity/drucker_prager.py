@@ -15,7 +15,8 @@ Sign convention everywhere: **tension positive**. ``p = tr τ / 3`` (negative in
 :func:`drucker_prager_constants` turns (φ, ψ, c) and a Mohr–Coulomb matching into the
 kernel's scalars (and refuses bad values); :func:`dp_return` maps the principal trial elastic
 log strains to the updated ones; :func:`dp_dissipation` is the step's plastic work
-``τ_{n+1} : Δε_p`` for the energy ledger. docs/concepts/drucker-prager.md derives it.
+``τ_{n+1} : Δε_p`` for the energy ledger; :func:`free_volume` is the optional volume
+correction's shift of the trial (``volume_correction = true``). docs/concepts/drucker-prager.md derives it.
 """
 import math
 
@@ -77,6 +78,23 @@ def drucker_prager_constants(phi, psi, c, matching="plane_strain", tension_cutof
         raise SceneError(f"{where}: tension cut-off {tension_cutoff} is outside [0, apex "
                          f"xi c / eta = {apex:.6g}]")
     return eta, xi, eta_bar, float(tension_cutoff)
+
+
+#: a plastic volume ``ln J_p`` at or below this is taken as none: the round-off between ``ln det F``
+#: and the trial's trace on a particle that never dilated (:func:`free_volume`)
+FREE_VOLUME_MIN = 1e-12
+
+
+@helper_kernel
+def free_volume(ln_J, ev):
+    """The volume correction's shift of the trial's trace ``ev = tr ε*`` (Tampubolon et al.
+    2017): the particle's plastic volume ``ln J_p = ln J − ev`` when it is positive, else 0.
+    Added to every principal trial strain as a third of it, it measures the trial's volume from
+    the initial one, ``ln J``: a particle dilated at the cut-off (or by dilatancy) is loose grains
+    that compact back free of stress, and press only once denser than they started (the
+    disconnected state of Dunatunga & Kamrin 2015). docs/concepts/drucker-prager.md."""
+    v = ln_J - ev
+    return v if v > FREE_VOLUME_MIN else 0.0
 
 
 @helper_kernel

@@ -2,7 +2,7 @@
 constants the plastic pass reads, so kernels need no objects.
 
 Columns (``PCOL_*``): ``[model code (0: elastic, J2, DRUCKER_PRAGER), K, G, c0² = (K + 4G/3)/ρ0,
-hardening code, a, b, n, c, rate0, η, ξ, η̄, cohesion, p_t]``; the hardening constants are
+hardening code, a, b, n, c, rate0, η, ξ, η̄, cohesion, p_t, volume correction (1.0 or 0.0)]``; the hardening constants are
 :mod:`.hardening`'s ``(a, b, n, c, rate0)``, the Drucker–Prager ones
 :func:`.drucker_prager.drucker_prager_constants`'. Only a scene with a plastic material has one
 (:func:`plastic_table` returns None otherwise): an elastic scene builds nothing here.
@@ -18,8 +18,8 @@ from parmpm.materials.plasticity.drucker_prager import drucker_prager_constants
 from parmpm.materials.plasticity.hardening import HARDENING, JOHNSON_COOK, LINEAR, SWIFT, swift_eps0
 
 (PCOL_MODEL, PCOL_K, PCOL_G, PCOL_C2, PCOL_HARDENING, PCOL_A, PCOL_B, PCOL_N, PCOL_C, PCOL_RATE0,
- PCOL_ETA, PCOL_XI, PCOL_ETA_BAR, PCOL_COHESION, PCOL_PT) = range(15)
-N_PLASTIC = 15
+ PCOL_ETA, PCOL_XI, PCOL_ETA_BAR, PCOL_COHESION, PCOL_PT, PCOL_VOLUME_CORRECTION) = range(16)
+N_PLASTIC = 16
 
 
 def bulk_shear(E: float, nu: float) -> tuple[float, float]:
@@ -66,4 +66,5 @@ def plastic_table(materials: Mapping, names: Sequence[str]) -> np.ndarray | None
                 m.tension_cutoff, where=f"materials.{name}")
             r[PCOL_ETA], r[PCOL_XI], r[PCOL_ETA_BAR] = eta, xi, eta_bar
             r[PCOL_COHESION], r[PCOL_PT] = cohesion, p_t
+            r[PCOL_VOLUME_CORRECTION] = 1.0 if m.volume_correction else 0.0
     return table

@@ -21,7 +21,8 @@ from parmpm.core.jit import helper_kernel, kernel, loop_kernel
 from parmpm.materials import DRUCKER_PRAGER, J2
 from parmpm.materials.kinematics import det_d
 from parmpm.materials.plasticity.drucker_prager import (ELASTIC, dp_dissipation, dp_equivalent,
-                                                        dp_return, dp_return_invariants)
+                                                        dp_return, dp_return_invariants,
+                                                        free_volume)
 from parmpm.materials.plasticity.j2 import be_energy, j2_return, radial_return
 from parmpm.materials.plasticity.closed_form_eigen import sym_eig3_closed
 from parmpm.materials.plasticity.near_identity import (RHO_MAX, exp_near_zero,
@@ -31,7 +32,7 @@ from parmpm.materials.plasticity.state import STATE_EPSP, STATE_WORK, SYM
 from parmpm.materials.plasticity.table import (PCOL_A, PCOL_B, PCOL_C, PCOL_C2, PCOL_COHESION,
                                                PCOL_ETA, PCOL_ETA_BAR, PCOL_G, PCOL_HARDENING,
                                                PCOL_K, PCOL_MODEL, PCOL_N, PCOL_PT, PCOL_RATE0,
-                                               PCOL_XI)
+                                               PCOL_VOLUME_CORRECTION, PCOL_XI)
 
 #: rows per block of :func:`_plastic_loop` (its scratch: 7 × BLOCK doubles, in L1)
 BLOCK = 64
@@ -150,7 +151,10 @@ def near_identity_return(d, Fi, s, prm, dt, sig, m3, l00, l11, l22, l01, l02, l1
       :func:`.near_identity.exp_near_zero`, and ``C_p⁻¹ = F⁻¹ b_e F⁻ᵀ``;
     * the wave speed from ``λ_max(b_e) ≤ exp(2 (p/(3K) + √(2/3) scale e))`` (a traceless
       symmetric matrix's largest eigenvalue is at most ``√(2/3)`` of its norm), an upper
-      bound, equal on uniaxial states."""
+      bound, equal on uniaxial states.
+
+    Drucker–Prager's volume correction returns from the trace ``ε_v + free``
+    (:func:`.drucker_prager.free_volume`); ``Δε_p`` and its work keep the trial's own ``ε_v``."""
     ev = 0.5 * (l00 + l11 + l22)
     m = ev / 3.0
     e00, e11, e22 = 0.5 * l00 - m, 0.5 * l11 - m, 0.5 * l22 - m
@@ -165,10 +169,13 @@ def near_identity_return(d, Fi, s, prm, dt, sig, m3, l00, l11, l22, l01, l02, l1
             prm[PCOL_N], prm[PCOL_C], prm[PCOL_RATE0], s[STATE_EPSP], dt)
         p = K * ev
     else:  # Drucker–Prager
+        free = 0.0
+        if prm[PCOL_VOLUME_CORRECTION] != 0.0:
+            free = free_volume(math.log(det_d(d, Fi)), ev)
         p, scale, _, _, region = dp_return_invariants(
-            ev, ee2, K, G, prm[PCOL_ETA], prm[PCOL_XI], prm[PCOL_ETA_BAR], prm[PCOL_COHESION],
-            prm[PCOL_PT])
-        flowed = region != ELASTIC
+            ev + free, ee2, K, G, prm[PCOL_ETA], prm[PCOL_XI], prm[PCOL_ETA_BAR],
+            prm[PCOL_COHESION], prm[PCOL_PT])
+        flowed = region != ELASTIC or free > 0.0
         if flowed:
             dl = math.sqrt(2.0 / 3.0) * (1.0 - scale) * ee
             work = p * (ev - p / K) + 2.0 * G * scale * (1.0 - scale) * ee2
@@ -227,11 +234,16 @@ def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
                              prm[PCOL_N], prm[PCOL_C], prm[PCOL_RATE0], s[STATE_EPSP], dt, t)
         flowed = dl > 0.0
     elif model == DRUCKER_PRAGER:
-        dg, dgt, region = dp_return(w, K, G, prm[PCOL_ETA], prm[PCOL_XI], prm[PCOL_ETA_BAR],
+        x, free = w, 0.0  # the trial the return sees; Δε_p = w − e all the same
+        if prm[PCOL_VOLUME_CORRECTION] != 0.0:
+            x, free = v3[3], free_volume(math.log(det_d(3, F3)), w[0] + w[1] + w[2])
+            for A in range(3):
+                x[A] = w[A] + free / 3.0
+        dg, dgt, region = dp_return(x, K, G, prm[PCOL_ETA], prm[PCOL_XI], prm[PCOL_ETA_BAR],
                                     prm[PCOL_COHESION], prm[PCOL_PT], e, t)
         work = dp_dissipation(w, e, t)
         dl = dp_equivalent(w, e)
-        flowed = region != ELASTIC
+        flowed = region != ELASTIC or free > 0.0
     else:
         dl, work, flowed = math.nan, math.nan, True
         for A in range(3):

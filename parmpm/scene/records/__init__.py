@@ -95,6 +95,7 @@ class Material:
     cohesion: float | None = None
     matching: str | None = None                  # "plane_strain" | "outer" | "inner"
     tension_cutoff: float | None = None          # None: the apex
+    volume_correction: bool | None = None        # drucker_prager: dilation given back free
 
 
 @dataclass(frozen=True, slots=True)
