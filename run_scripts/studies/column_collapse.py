@@ -1,13 +1,13 @@
 """The granular column collapse of Bui et al. (2008) against the measured final surface.
 
 Physics. ``docs/examples/column_collapse.toml``: a 0.2 m × 0.1 m column of aluminium rods
-(Drucker–Prager, plane-strain match, φ = 19.8°, c = 0, ψ = 0; ρ = 2650 kg/m³, K = 0.7 MPa,
-ν = 0.3) against a frictionless wall at x = 0 (``x_min = "slip"``) on a no-slip floor
+(Drucker–Prager, plane-strain match, φ = 19.8°, c = 0, ψ = 0, with the volume correction; ρ =
+2650 kg/m³, K = 0.7 MPa, ν = 0.3) against a frictionless wall at x = 0 (``x_min = "slip"``) on a no-slip floor
 (``y_min = "fixed"``), gravity applied at once, as the public reproductions run it
 (docs/results/plasticity_references.md, section 2). Each case runs to ``--end`` (1 s, the
 references' duration) at Δx = 0.1 m / n for n in ``--resolutions`` (cells across the column's
 height, 2 particles per cell per axis), for each interpolator in ``--methods``; the grid is
-0.8 m long so that nothing leaves it.
+1.2 m long so that nothing leaves it.
 
 Measured at each output time (an observer gathering the particles on rank 0), and at the end:
 
@@ -16,18 +16,19 @@ Measured at each output time (an observer gathering the particles on rank 0), an
   not ``F``'s own extent, which for the toe's sheared particles is several cells long);
 * the run-out: the far edge (``x + √J ℓ/2``) of the last particle of the deposit, the deposit
   being the bins occupied without a gap from the wall (a particle thrown ahead of a gap is not
-  the toe); uncertain by ± ℓ, the particle spacing. At the finer grids a sheet one or two
-  particles thick runs ahead of the deposit (gaps come and go in it), so also ``x99``: the x
-  behind which 99 % of the mass lies (the particles' masses are equal);
+  the toe); uncertain by ± ℓ, the particle spacing. Without the volume correction a sheet one
+  or two particles thick runs ahead of the deposit on the finer grids (gaps come and go in it),
+  so also ``x99``: the x behind which 99 % of the mass lies (the particles' masses are equal);
 * against the measured surface (``tests/data/bui2008_final_surface.csv``): the run-out error
   against the last measured point (0.4423 m), and the RMS of simulated minus measured height at
   the 23 measured x (an empty bin counts as height 0);
 * how the deposit's mass ends: ``beyond_toe``, the share of its area (``Σ J V₀``) beyond the
   last measured point, and ``thin_at_m``, the start of the first 1 cm bin past 0.3 m whose mean
   thickness (area per unit length) is under ``THIN`` (3 mm: two rods of the experiment's 1.5 and
-  2 mm; its last point is 1.5 mm high). Unlike the edge these do not follow the sheet:
-  2026-11-30, n = 20, 30, 40, 60: ``beyond_toe`` 0.71, 1.76, 2.13, 2.22 %, ``thin_at_m`` 0.47,
-  0.48, 0.47, 0.48 m;
+  2 mm; its last point is 1.5 mm high). Unlike the edge these do not follow a sheet:
+  2026-11-30, n = 20, 30, 40, 60: ``beyond_toe`` 0.22, 0.47, 0.15, 0.44 %, ``thin_at_m`` 0.45,
+  0.44, 0.45, 0.45 m (without the volume correction 0.71, 1.76, 2.13, 2.22 % and 0.47, 0.48,
+  0.47, 0.48 m);
 * the failure line: in the initial configuration, the top of the particles that moved less than
   1 mm horizontally (per column of particles), its least-squares angle against the measured
   32.9°;
@@ -49,8 +50,8 @@ Methods: ``--methods`` (default ``bspline_apic``) at every resolution, ``--compa
 layer stays loose and the column runs on (docs/results/column-collapse.md); cpdi (USL) gave a
 non-finite velocity at 0.13 s at n = 20.
 
-Runtime (2 ranks on a busy 2-core machine): n = 20, 30, 40, 60 take 1.4, 2.7, 4.1, 5.3 min,
-FLIP at n = 20 1.5 min::
+Runtime (2 ranks on a 2-core machine, 2026-11-30): n = 20, 30, 40, 60 take 12, 27, 68 and
+171 s, FLIP at n = 20 13 s::
 
     mpirun -n 2 python run_scripts/studies/column_collapse.py
 """
@@ -70,8 +71,8 @@ from study import (METHODS, ROOT, figure, folders, is_root, main_guard, parser, 
 
 SCENE = ROOT / "docs" / "examples" / "column_collapse.toml"
 MEASURED = ROOT / "tests" / "data" / "bui2008_final_surface.csv"
-WIDTH, HEIGHT, LENGTH = 0.2, 0.1, 1.2  # the column, and the grid's length (m: a thin sheet of
-#                                        particles runs ahead of the toe, 0.78 m at Δx = 2.5 mm)
+WIDTH, HEIGHT, LENGTH = 0.2, 0.1, 1.2  # the column, and the grid's length (m: without the volume
+#                                        correction a thin sheet runs to 0.78 m at Δx = 2.5 mm)
 PPC = 2
 MOVED = 1e-3  # m: a particle that moved less than this horizontally is in the static wedge
 THIN, THIN_BIN = 3e-3, 0.01  # m: the mean thickness under which the deposit has ended, its bins

@@ -156,7 +156,8 @@ PLASTIC_RESTARTS = {
     "j2": ['materials.bar.model="j2"', "materials.bar.youngs_modulus=1e7",
            "materials.bar.yield_stress=7e5", "materials.bar.hardening_modulus=5e6"],
     "drucker_prager": ['materials.bar.model="drucker_prager"', "materials.bar.friction_angle=30",
-                       "materials.bar.cohesion=2e5", "materials.bar.dilatancy_angle=10"],
+                       "materials.bar.cohesion=2e5", "materials.bar.dilatancy_angle=10",
+                       "materials.bar.volume_correction=true"],  # (rank cases: without it)
 }
 
 
