@@ -27,6 +27,7 @@ from parmpm.particles.store import Particles
 from parmpm.shapes import CAPPED
 from parmpm.shapes.freeze import freeze_domains
 from parmpm.step.faults import StepFaults
+from parmpm.step.field_transfers import g2p_fields, p2g_fields, p2g_momentum_fields
 from parmpm.step.grid_buffers import GridBuffers
 from parmpm.step.grid_phase import GridPhase
 from parmpm.step.migration import Migration
@@ -182,33 +183,14 @@ class Stepper:
         return t
 
     def p2g(self, bforce: np.ndarray, dt: float) -> None:
-        """P2G of the step ``dt`` into the grid sums (with contact: every field's, and their
-        first moments where they cannot wait for the masses' accumulation: mirror or crack
-        faces; :meth:`parmpm.step.contact.ContactPhase.moments_where_fields_meet`)."""
+        """P2G of the step ``dt`` into the grid sums (with contact: every field's,
+        :func:`~parmpm.step.field_transfers.p2g_fields`)."""
         C, T, err = self.fields_now, self.transfers, self.faults.err
         if C is None:
             T.p2g(self.grid, bforce, dt, err, self.ledger is not None)
-        elif C.crack is not None:  # every field in one pass, each particle's per node
-            C.split(self.P)
-            T.use("generic")
-            C.find_sides(T, self.P, self.plan, self.grid_phase.records()[0], err)
-            ledger = self.ledger is not None
-            kernels = self._kernels
-            C.on_sides(T, kernels, lambda g: T.p2g(g, bforce, dt, err, ledger), C.stacked,
-                       C.stacked_near, slice(None))
-            C.on_sides(T, kernels, lambda g: T.p2g_momentum(g, err, positions=True),
-                       C.stacked_x, far=False)
         else:
-            C.split(self.P)
-            C.late_moments = self.grid_phase.symmetry is None
-            try:
-                for k in range(C.K):
-                    T.subset = C.boxes(k)
-                    T.p2g(C.grids[k], bforce, dt, err, self.ledger is not None)
-                    if not C.late_moments:  # else taken after the masses' accumulation (_grid)
-                        T.p2g_momentum(C.moments[k], err, positions=True)
-            finally:
-                T.subset = None
+            p2g_fields(C, T, self.P, self.plan, self.grid_phase, self._kernels, bforce, dt, err,
+                       self.ledger is not None)
         self._check("p2g")
 
     def p2g_momentum(self) -> None:
@@ -216,16 +198,8 @@ class Stepper:
         C, T = self.fields_now, self.transfers
         if C is None:
             T.p2g_momentum(self.grid, self.faults.err)
-        elif C.crack is not None:
-            C.on_sides(T, self._kernels, lambda g: T.p2g_momentum(g, self.faults.err),
-                       C.stacked, C.stacked_near, slice(1, 1 + self.disc.dim))
         else:
-            try:
-                for k in range(C.K):
-                    T.subset = C.boxes(k)
-                    T.p2g_momentum(C.grids[k], self.faults.err)
-            finally:
-                T.subset = None
+            p2g_momentum_fields(C, T, self._kernels, self.disc.dim, self.faults.err)
         self._check("p2g")
 
     def g2p(self, mode: int, dt: float) -> float:
@@ -233,40 +207,12 @@ class Stepper:
         positions only: not after MUSL's motion pass, which the deformation pass follows)."""
         locate = self.moves.locate_record(self.grid.inside)
         C, T = self.fields_now, self.transfers
-        if C is None:
-            vmax, located = T.g2p(self.grid, mode, dt, self.faults.err, locate)
-            if located is not None and mode != G2P_MUSL_MOTION:
-                self.moves.located = located
-            return vmax
-        vmax = 0.0
-        if C.crack is not None:
-            out = C.on_sides(T, self._kernels,
-                             lambda g: T.g2p(g, mode, dt, self.faults.err, locate), C.stacked)
-            self.moves.located = None
-            if out[0][1] is not None and mode != G2P_MUSL_MOTION:  # the specialised kernels
-                # found the next patches of their particles: all, or those away from a crack
-                if len(out) == 1:
-                    self.moves.located = out[0][1]
-                else:
-                    self.moves.locate_rest(out[0][1], C.near_boxes[1])
-            return max(speed for speed, _ in out)
-        # each field's particles from its own grid; every particle is in one field's share, so
-        # the fields' G2P together find every next patch, as one field's does (the migration
-        # looks again only when a particle left the grid: its message names the first in
-        # canonical order, which a field's share does not know)
-        moved, whole = 0, mode != G2P_MUSL_MOTION
-        try:
-            for k in range(C.K):
-                T.subset = C.boxes(k)
-                speed, located = T.g2p(C.grids[k], mode, dt, self.faults.err, locate)
-                vmax = max(vmax, speed)
-                if located is None or located[0] >= 0:
-                    whole = False
-                else:
-                    moved += int(located[1])
-        finally:
-            T.subset = None
-        self.moves.located = (-1, moved) if whole else None
+        if C is not None:
+            return g2p_fields(C, T, self.moves, self._kernels, mode, dt, self.faults.err, locate,
+                              mode != G2P_MUSL_MOTION)
+        vmax, located = T.g2p(self.grid, mode, dt, self.faults.err, locate)
+        if located is not None and mode != G2P_MUSL_MOTION:
+            self.moves.located = located
         return vmax
 
     def _body_force(self, time_now: float) -> np.ndarray:
