@@ -22,8 +22,10 @@ HARDENING_KEYS = {"linear": ("hardening_modulus",),
                   "swift": ("strength_coefficient", "hardening_exponent"),
                   "johnson_cook": ("hardening_modulus", "hardening_exponent", "rate_coefficient",
                                    "reference_rate")}
+#: μ(I)'s keys on a drucker_prager material: friction_angle_2 turns it on
+INERTIAL_KEYS = ("friction_angle_2", "inertial_number_0", "grain_diameter", "grain_density")
 DRUCKER_PRAGER_KEYS = ("friction_angle", "dilatancy_angle", "cohesion", "matching",
-                       "tension_cutoff", "volume_correction")
+                       "tension_cutoff", "volume_correction", *INERTIAL_KEYS)
 #: the keys each model takes (a plastic model takes no damage model yet)
 MODEL_KEYS = {**{m: (*ELASTIC_KEYS, "damage") for m in MODELS},
               "j2": (*ELASTIC_KEYS, *J2_KEYS),
@@ -166,6 +168,34 @@ def _drucker_prager(c: Checker, key: str, t: dict) -> dict:
                                  out["matching"], out["tension_cutoff"], where=key)
     except SceneError as err:  # its message names the material; add the scene and the --set
         c.fail(key, str(err).removeprefix(f"{key}: "))
+    if any(t.get(k) is not None for k in INERTIAL_KEYS):
+        out.update(_inertial(c, key, t, out["friction_angle"], out["cohesion"]))
+    return out
+
+
+def _inertial(c: Checker, key: str, t: dict, phi: float, cohesion: float) -> dict:
+    """μ(I)'s keys (:mod:`parmpm.materials.plasticity.inertial`): ``friction_angle_2`` (φ < φ_2
+    < 90), ``inertial_number_0`` and ``grain_diameter`` (> 0) required together,
+    ``grain_density`` (> 0) optional; the rheology is for cohesionless grains."""
+    angle = f"an angle friction_angle ({phi:g}) < phi_2 < 90 (degrees)"
+    out = {
+        "friction_angle_2": c.number(
+            f"{key}.friction_angle_2", c.required(key, t, "friction_angle_2", angle), angle,
+            lambda x: phi < x < 90.0),
+        "inertial_number_0": c.number(
+            f"{key}.inertial_number_0",
+            c.required(key, t, "inertial_number_0", "a number > 0 (mu(I)'s I_0)"),
+            "a number > 0 (mu(I)'s I_0)", lambda x: x > 0),
+        "grain_diameter": c.number(
+            f"{key}.grain_diameter",
+            c.required(key, t, "grain_diameter", "a length > 0 (m)"), "a length > 0 (m)",
+            lambda x: x > 0),
+        "grain_density": None if t.get("grain_density") is None else c.number(
+            f"{key}.grain_density", t["grain_density"], "a number > 0 (the units of density)", lambda x: x > 0),
+    }
+    if cohesion != 0.0:
+        c.fail(f"{key}.cohesion", f"mu(I) (friction_angle_2) is for cohesionless grains: "
+               f"expected 0, got {cohesion:g}")
     return out
 
 

@@ -46,7 +46,12 @@ scalar, broadcast to every axis, or a list of ``dim`` values; points and vectors
   absent: the apex), ``volume_correction`` (true | false, default false: true gives the volume
   a particle gained plastically — at the cut-off, or by dilatancy — back free of stress under
   compression, so loose grains press only once denser than they started; Tampubolon et al.
-  2017, docs/concepts/drucker-prager.md); checked by
+  2017, docs/concepts/drucker-prager.md); the μ(I) rheology (GDR MiDi 2004; Jop, Forterre &
+  Pouliquen 2006), for cohesionless grains (c = 0): ``friction_angle_2`` (degrees, φ < φ_2 < 90;
+  given, it turns μ(I) on: the cone's slope rises from φ's to φ_2's, under the same matching, as
+  η(I) = η_s + (η_2 − η_s) I/(I_0 + I) with the inertial number I = γ̇_p d / √(P/ρ_s)),
+  ``inertial_number_0`` (> 0, required with it: I_0), ``grain_diameter`` (> 0 m, required with
+  it: d), ``grain_density`` (> 0, default the material's density: ρ_s); checked by
   :func:`parmpm.materials.plasticity.drucker_prager.drucker_prager_constants`.
 * ``[[bodies]]`` (at least one): ``shape`` ("box", "disk" in 2D, "sphere" in 3D; default "box");
   box: ``min``, ``max``; disk/sphere: ``center``, ``radius``; ``material`` (required);

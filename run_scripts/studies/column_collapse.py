@@ -166,12 +166,12 @@ def kinetic(history: Path) -> tuple[np.ndarray, np.ndarray]:
     return (np.array([float(r["time"]) for r in rows]), np.array([float(r["kinetic"]) for r in rows]))
 
 
-def run(method: str, n: int, end: float, runs: Path, comm) -> dict:
+def run(method: str, n: int, end: float, runs: Path, comm, extra=()) -> dict:
     dx = HEIGHT / n
     watch = Watch(dx)
     out = runs / f"{method}_n{n}"
-    summary, wall = run_case(SCENE, overrides(method, n, end), comm=comm, observers=[watch],
-                             out_dir=out)
+    summary, wall = run_case(SCENE, [*overrides(method, n, end), *extra], comm=comm,
+                             observers=[watch], out_dir=out)
     row = {"method": method, "cells_per_height": n, "dx": dx, "particles": summary["particles"],
            "steps": summary["steps"], "end": end, "wall_s": wall}
     if not is_root(comm):
@@ -265,6 +265,8 @@ def main() -> int:
     p.add_argument("--compare-resolutions", nargs="+", type=int, default=None,
                    help="resolutions of the --compare methods (default: the coarsest)")
     p.add_argument("--end", type=float, default=1.0, help="simulated time (s)")
+    p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                   help="a scene override for every case, as parmpm run's --set (repeatable)")
     args = p.parse_args()
     if args.quick:
         args.methods, args.resolutions, args.compare, args.end = ["bspline_apic"], [10], [], 0.3
@@ -279,7 +281,7 @@ def main() -> int:
     cases.sort(key=lambda c: c[1])  # coarse first: a long study has its cheap rows early
     rows = []
     for method, n in cases:
-        r = run(method, n, args.end, out / "runs", comm)
+        r = run(method, n, args.end, out / "runs", comm, args.set)
         rows.append(r)
         if is_root(comm):
             print(f"{method:12s} dx={r['dx'] * 1e3:.2f} mm  run-out {r['runout_m']:.4f} m "

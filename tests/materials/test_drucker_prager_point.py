@@ -25,7 +25,8 @@ PHI = 19.8
 def ret(eps_tr, cst, c):
     eta, xi, eta_bar, p_t = cst
     eps, tau = np.zeros(3), np.zeros(3)
-    dg, dgt, region = dp_return(np.asarray(eps_tr, float), K, G, eta, xi, eta_bar, c, p_t, eps, tau)
+    dg, dgt, region = dp_return(np.asarray(eps_tr, float), K, G, eta, xi, eta_bar, c, p_t,
+                                  0.0, 0.0, 0.0, eps, tau)
     return eps, tau, dg, dgt, region
 
 

@@ -15,14 +15,14 @@ from parmpm.materials.plasticity.near_identity import RHO_MAX
 from parmpm.materials.plasticity.j2 import j2_update
 from parmpm.materials.plasticity.state import STATE_EPSP, STATE_WORK, initial_state, unpack
 from parmpm.materials.plasticity.table import (PCOL_A, PCOL_B, PCOL_C2, PCOL_COHESION, PCOL_ETA,
-                                               PCOL_ETA_BAR, PCOL_G, PCOL_K, PCOL_PT, PCOL_XI,
+                                               PCOL_ETA_2, PCOL_ETA_BAR, PCOL_G, PCOL_I0, PCOL_K, PCOL_PT, PCOL_XI,
                                                plastic_table)
 from parmpm.materials.plasticity.update import plastic_energy_sums, plastic_pass
 
 NONE = dict(hardening_exponent=None, strength_coefficient=None, rate_coefficient=None,
             reference_rate=None, friction_angle=None, dilatancy_angle=None, cohesion=None,
             matching=None, tension_cutoff=None, yield_stress=None, hardening=None,
-            hardening_modulus=None, volume_correction=False)
+            hardening_modulus=None, volume_correction=False, friction_angle_2=None)
 J2 = SimpleNamespace(**{**NONE, "model": "j2", "youngs_modulus": 117e9, "poisson_ratio": 0.35,
                         "density": 8930.0, "yield_stress": 4e8, "hardening": "linear",
                         "hardening_modulus": 1e8})
@@ -56,7 +56,8 @@ def _reference(model, table, d, path, dt):
                                  0.0, 1.0, dt, tau, M, V, w, t)
         else:
             dl, dw = dp_update(dF, be, p[PCOL_K], p[PCOL_G], p[PCOL_ETA], p[PCOL_XI],
-                               p[PCOL_ETA_BAR], p[PCOL_COHESION], p[PCOL_PT], tau, M, V, w, e, t)
+                               p[PCOL_ETA_BAR], p[PCOL_COHESION], p[PCOL_PT], p[PCOL_ETA_2],
+                               p[PCOL_I0], 0.0, tau, M, V, w, e, t)
             epsp += dl
         work += dw
     return tau[:d, :d] / np.linalg.det(F_old), epsp, work, be, max(reach), min(reach)

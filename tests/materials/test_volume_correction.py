@@ -29,7 +29,7 @@ from parmpm.materials.plasticity.update import plastic_energy_sums, plastic_pass
 
 NONE = dict(hardening_exponent=None, strength_coefficient=None, rate_coefficient=None,
             reference_rate=None, yield_stress=None, hardening=None, hardening_modulus=None,
-            matching=None, tension_cutoff=None)
+            matching=None, tension_cutoff=None, friction_angle_2=None)
 #: Bui et al. (2008)'s rods: cohesionless, no dilatancy
 RODS = SimpleNamespace(**NONE, model="drucker_prager", youngs_modulus=8.4e5, poisson_ratio=0.3,
                        density=2650.0, friction_angle=19.8, dilatancy_angle=0.0, cohesion=0.0,
@@ -130,7 +130,7 @@ def reference(table, d, path):
         eps_tr = 0.5 * np.log(lam)
         eps, tau = np.zeros(3), np.zeros(3)
         dp_return(eps_tr + v / 3.0, p[PCOL_K], p[PCOL_G], p[PCOL_ETA], p[PCOL_XI],
-                  p[PCOL_ETA_BAR], p[PCOL_COHESION], p[PCOL_PT], eps, tau)
+                  p[PCOL_ETA_BAR], p[PCOL_COHESION], p[PCOL_PT], 0.0, 0.0, 0.0, eps, tau)
         work += tau @ (eps_tr - eps)
         v += eps_tr.sum() - eps.sum()
         be = V @ np.diag(np.exp(2.0 * eps)) @ V.T

@@ -528,6 +528,13 @@ def _dp(**keys) -> str:
 _M = "materials.bar"
 
 
+def _mu(**keys) -> str:
+    """A cohesionless drucker_prager material with mu(I); a key given None is left out."""
+    given = {"cohesion": "0", "friction_angle_2": "40", "inertial_number_0": "0.3",
+             "grain_diameter": "1e-3", **keys}
+    return _dp(**{k: v for k, v in given.items() if v is not None})
+
+
 @pytest.mark.parametrize("override,fragment", [
     # j2: before, each was "unknown key 'materials.bar.yield_stress' (allowed: model, density,
     # youngs_modulus, poisson_ratio, damage)" or 'materials.bar.model: expected one of
@@ -608,6 +615,29 @@ _M = "materials.bar"
     (_dp(volume_correction='"yes"'), f'{_M}.volume_correction: expected true or false, got "yes"'),
     (_dp(volume_correction="nan"), f"{_M}.volume_correction: expected true or false, got nan"),
     (_j2(volume_correction="true"), f"{_M}.volume_correction: not a key of model 'j2'"),
+    # mu(I): friction_angle_2 turns it on, I_0 and d come with it, for cohesionless grains only
+    (_mu(friction_angle_2="30"), f"{_M}.friction_angle_2: expected an angle friction_angle (30) "
+                                 "< phi_2 < 90 (degrees), got 30"),
+    (_mu(friction_angle_2="90"), f"{_M}.friction_angle_2: expected an angle"),
+    (_mu(friction_angle_2="nan"), f"{_M}.friction_angle_2: expected an angle"),
+    (_mu(friction_angle_2='"40"'), f'{_M}.friction_angle_2: expected an angle friction_angle (30) '
+                                   '< phi_2 < 90 (degrees), got "40"'),
+    (_mu(inertial_number_0=None), f"{_M}.inertial_number_0: required key is missing (expected a "
+                                  "number > 0 (mu(I)'s I_0))"),
+    (_mu(inertial_number_0="0"), f"{_M}.inertial_number_0: expected a number > 0 (mu(I)'s I_0), "
+                                 "got 0"),
+    (_mu(inertial_number_0="-0.3"), f"{_M}.inertial_number_0: expected a number > 0"),
+    (_mu(inertial_number_0="inf"), f"{_M}.inertial_number_0: expected a number > 0"),
+    (_mu(grain_diameter=None), f"{_M}.grain_diameter: required key is missing"),
+    (_mu(grain_diameter="0"), f"{_M}.grain_diameter: expected a length > 0 (m), got 0"),
+    (_mu(grain_diameter="1e400"), f"{_M}.grain_diameter: expected a length > 0 (m), got inf"),
+    (_mu(grain_density="-2700"), f"{_M}.grain_density: expected a number > 0"),
+    (_mu(grain_density="true"), f"{_M}.grain_density: expected a number > 0 (the units of "
+                                "density), got true"),
+    (_mu(friction_angle_2=None), f"{_M}.friction_angle_2: required key is missing"),
+    (_mu(cohesion="1e4"), f"{_M}.cohesion: mu(I) (friction_angle_2) is for cohesionless grains: "
+                          "expected 0, got 10000"),
+    (_j2(inertial_number_0="0.3"), f"{_M}.inertial_number_0: not a key of model 'j2'"),
     # a key of another model, damage on a plastic one: before, "unknown key" (allowed: ...)
     (_material("neo_hookean", yield_stress="250e6"),
      f"{_M}.yield_stress: not a key of model 'neo_hookean' (it takes model, density, "
@@ -620,7 +650,8 @@ _M = "materials.bar"
     (_dp(yield_stress="250e6"), f"{_M}.yield_stress: not a key of model 'drucker_prager' (it "
                                 "takes model, density, youngs_modulus, poisson_ratio, "
                                 "friction_angle, dilatancy_angle, cohesion, matching, "
-                                "tension_cutoff, volume_correction)"),
+                                "tension_cutoff, volume_correction, friction_angle_2, "
+                                "inertial_number_0, grain_diameter, grain_density)"),
     (_j2(damage="{onset = 1.1, fracture = 2.0}"),
      f"{_M}.damage: not available with model 'j2' (plastic materials take no damage model yet)"),
     (_dp(damage="{onset = 1.1, fracture = 2.0}"), f"{_M}.damage: not available with model "

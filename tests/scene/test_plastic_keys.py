@@ -20,7 +20,8 @@ ELASTIC = {"density": 7800.0, "youngs_modulus": 2e11, "poisson_ratio": 0.3}
 PLASTIC_FIELDS = ("yield_stress", "hardening", "hardening_modulus", "hardening_exponent",
                   "strength_coefficient", "rate_coefficient", "reference_rate", "friction_angle",
                   "dilatancy_angle", "cohesion", "matching", "tension_cutoff",
-                  "volume_correction")
+                  "volume_correction", "friction_angle_2", "inertial_number_0", "grain_diameter",
+                  "grain_density")
 
 
 def inline(model: str, **keys) -> str:
@@ -69,6 +70,16 @@ def inline(model: str, **keys) -> str:
     ("drucker_prager", dict(friction_angle=19.8, volume_correction=True),
      dict(friction_angle=19.8, dilatancy_angle=0.0, cohesion=0.0, matching="plane_strain",
           tension_cutoff=None, volume_correction=True)),
+    ("drucker_prager", dict(friction_angle=19.8, friction_angle_2=31, inertial_number_0=0.279,
+                            grain_diameter=1.25e-3),  # mu(I): the grains' density defaults
+     dict(friction_angle=19.8, dilatancy_angle=0.0, cohesion=0.0, matching="plane_strain",
+          tension_cutoff=None, volume_correction=False, friction_angle_2=31.0,
+          inertial_number_0=0.279, grain_diameter=1.25e-3, grain_density=None)),
+    ("drucker_prager", dict(friction_angle=19.8, friction_angle_2=31, inertial_number_0=1,
+                            grain_diameter=1e-3, grain_density=2700, volume_correction=True),
+     dict(friction_angle=19.8, dilatancy_angle=0.0, cohesion=0.0, matching="plane_strain",
+          tension_cutoff=None, volume_correction=True, friction_angle_2=31.0,
+          inertial_number_0=1.0, grain_diameter=1e-3, grain_density=2700.0)),
 ])
 def test_a_plastic_material_resolves_with_its_defaults(model, given, resolved):
     """Every key of the model (and of its hardening law) in the resolved scene, floats as

@@ -14,10 +14,11 @@ compares with it):
   angle: a cohesionless slope at rest cannot be steeper than φ (the infinite-slope limit
   ``tan β ≤ tan φ``).
 
-Measured at this grid (with the example's volume correction; without it in brackets): plastic
-work 5.86 J (5.87), strictly increasing; toe (furthest particle centre) 0.380 m (0.388); the
-free corner's top 0.054 m from 0.0975 m, the wall's 0.0969 m; the wall's bottom corner moved
-0.14 mm; kinetic energy at 1 s 5.2e-6 of its peak (6.6e-6); slope 14.2° (14.1°). Under FLIP the
+Measured at this grid (with the example's volume correction and mu(I); with the correction
+alone, then with neither, in brackets): plastic work 5.75 J (5.86, 5.87), strictly increasing;
+toe (furthest particle centre) 0.372 m (0.380, 0.388); the free corner's top 0.052 m from
+0.0975 m (0.054), the wall's 0.0970 m (0.0969); the wall's bottom corner moved 0.14 mm; kinetic
+energy at 1 s 5.2e-6 of its peak (5.2e-6, 6.6e-6); slope 14.6° (14.2°, 14.1°). Under FLIP the
 kinetic energy is still 8 % of its peak at 1 s, with φ = 40° the toe stops at 0.286 m, and an
 elastic column has no plastic work and a slope of 0.01°: each fails here.
 """
@@ -51,7 +52,7 @@ def collapse(tmp_path_factory):
 
 def test_the_example_is_the_references_setup():
     """The scene as the docs describe it: plane strain, DP with the plane-strain match, the
-    volume correction and the references' constants (E = 3K(1 − 2ν) with K = 0.7 MPa), a slip wall at x = 0, a held floor,
+    volume correction, mu(I) and the references' constants (E = 3K(1 − 2ν) with K = 0.7 MPa), a slip wall at x = 0, a held floor,
     gravity at once, 1 s."""
     spec = load_scene(EXAMPLE).spec
     rods = spec.materials["rods"]
@@ -59,6 +60,8 @@ def test_the_example_is_the_references_setup():
             rods.density, rods.poisson_ratio) == ("drucker_prager", 19.8, 0.0, 0.0, "plane_strain",
                                                    2650.0, 0.3)
     assert rods.volume_correction is True
+    assert (rods.friction_angle_2, rods.inertial_number_0, rods.grain_diameter,
+            rods.grain_density) == (31.7, 0.279, 1.25e-3, 2700.0)  # mu(I), borrowed (docs)
     assert rods.youngs_modulus == pytest.approx(3 * 0.7e6 * (1 - 2 * 0.3))
     assert (spec.dim, spec.boundary.x_min, spec.boundary.y_min) == (2, "slip", "fixed")
     assert spec.gravity.ramp_time == 0.0 and tuple(spec.gravity.g) == (0.0, -9.81)

@@ -23,6 +23,7 @@ import math
 from parmpm.core.errors import SceneError
 from parmpm.core.jit import helper_kernel
 from parmpm.materials.plasticity.hencky import kirchhoff_principal
+from parmpm.materials.plasticity.inertial import inertial_cone
 from parmpm.materials.plasticity.spectral import from_principal, trial_log_strains
 
 #: :func:`dp_return`'s region codes (the apex is the cone/cut-off corner when p_t = p_apex)
@@ -119,9 +120,11 @@ def _set_state(eps_tr, K, G, p, scale, eps_out, tau_out):
 
 
 @helper_kernel
-def dp_return_invariants(ev, ee, K, G, eta, xi, eta_bar, c, p_t):
+def dp_return_invariants(ev, ee, K, G, eta, xi, eta_bar, c, p_t, eta2, i0, a):
     """:func:`dp_return` on the trial's invariants: ``ev = tr ε*`` and ``ee = |dev ε*|²`` of the
-    trial elastic log strain. Returns ``(p, scale, Δγ, Δγ_t, region)``: the updated mean stress
+    trial elastic log strain. ``i0 > 0`` turns on the μ(I) rheology (:mod:`.inertial`: the cone's
+    slope rises from ``eta`` to ``eta2``; ``a = d √ρ_s / Δt``) for a compressed trial; ``i0 = 0``
+    is the rate-independent cone. Returns ``(p, scale, Δγ, Δγ_t, region)``: the updated mean stress
     and the factor the trial deviator is scaled by (``ε = scale dev ε* + p/(3K) I``), the
     multipliers and the region. Isotropy makes every return one of these two numbers, so the
     principal axes are not needed (the series path of :mod:`.update` uses this directly)."""
@@ -132,6 +135,8 @@ def dp_return_invariants(ev, ee, K, G, eta, xi, eta_bar, c, p_t):
         return p_tr, 1.0, 0.0, 0.0, ELASTIC
     if f_tr > 0.0:
         dg = f_tr / (G + K * eta * eta_bar)
+        if i0 > 0.0 and a > 0.0 and p_tr < 0.0:  # p < 0 all along: the static cone's return is accepted
+            dg = inertial_cone(q_tr, p_tr, K, G, eta, xi, eta_bar, c, eta2, i0, a, dg)
         p = p_tr - K * eta_bar * dg
         q = q_tr - G * dg
         if p <= p_t and q >= 0.0:
@@ -144,7 +149,7 @@ def dp_return_invariants(ev, ee, K, G, eta, xi, eta_bar, c, p_t):
 
 
 @helper_kernel
-def dp_return(eps_tr, K, G, eta, xi, eta_bar, c, p_t, eps_out, tau_out):
+def dp_return(eps_tr, K, G, eta, xi, eta_bar, c, p_t, eta2, i0, a, eps_out, tau_out):
     """Return map of the principal trial elastic log strains ``eps_tr`` (3,): writes the updated
     ones ``eps_out`` and the principal Kirchhoff stresses ``tau_out``; returns
     ``(Δγ, Δγ_t, region)``, the multipliers of the cone's potential and of the cut-off, so that
@@ -160,16 +165,19 @@ def dp_return(eps_tr, K, G, eta, xi, eta_bar, c, p_t, eps_out, tau_out):
     * corner (the apex when ``p_t = ξ c / η``): ``p = p_t``, ``q = ξ c − η p_t``,
       ``Δγ = (q* − q) / G``, ``Δγ_t = (p* − p_t) / K − η̄ Δγ`` (both ≥ 0 whenever the cone
       return overshoots ``p_t`` and the cut-off return leaves the cone: no third case).
+
+    With μ(I) (``i0 > 0``) the cone's ``Δγ`` is :func:`.inertial.inertial_cone`'s instead.
     """
     ev = eps_tr[0] + eps_tr[1] + eps_tr[2]
     ee = 0.0
-    for a in range(3):
-        e = eps_tr[a] - ev / 3.0
+    for k in range(3):
+        e = eps_tr[k] - ev / 3.0
         ee += e * e
-    p, scale, dg, dgt, region = dp_return_invariants(ev, ee, K, G, eta, xi, eta_bar, c, p_t)
+    p, scale, dg, dgt, region = dp_return_invariants(ev, ee, K, G, eta, xi, eta_bar, c, p_t,
+                                                     eta2, i0, a)
     if region == ELASTIC:
-        for a in range(3):
-            eps_out[a] = eps_tr[a]
+        for k in range(3):
+            eps_out[k] = eps_tr[k]
         kirchhoff_principal(eps_out, K, G, tau_out)
     else:
         _set_state(eps_tr, K, G, p, scale, eps_out, tau_out)
@@ -187,14 +195,14 @@ def dp_dissipation(eps_tr, eps, tau):
 
 
 @helper_kernel
-def dp_update(dF, be, K, G, eta, xi, eta_bar, c, p_t, tau, M, V, w, e, t):
+def dp_update(dF, be, K, G, eta, xi, eta_bar, c, p_t, eta2, i0, a, tau, M, V, w, e, t):
     """One particle's step, as :func:`parmpm.materials.plasticity.j2.j2_update`: ``b_e`` (3, 3)
     updated in place by the increment ``dF`` (3, 3), the Kirchhoff stress ``tau`` (3, 3)
     written. Scratch: ``M``, ``V`` (3, 3), ``w``, ``e``, ``t`` (3,). Returns ``(Δε̄p, plastic
     work per unit reference volume)``, ``Δε̄p = √(2/3) |dev Δε_p|`` the von Mises equivalent of
     the step's plastic log strain (what J2's ε̄p is, so one snapshot field serves both)."""
     trial_log_strains(dF, be, M, V, w)  # b_e^tr = ΔF b_e ΔFᵀ: axes, ½ ln λ
-    dp_return(w, K, G, eta, xi, eta_bar, c, p_t, e, t)
+    dp_return(w, K, G, eta, xi, eta_bar, c, p_t, eta2, i0, a, e, t)
     work = dp_dissipation(w, e, t)
     dl = dp_equivalent(w, e)
     from_principal(t, V, tau)

@@ -2,13 +2,15 @@
 constants the plastic pass reads, so kernels need no objects.
 
 Columns (``PCOL_*``): ``[model code (0: elastic, J2, DRUCKER_PRAGER), K, G, c0² = (K + 4G/3)/ρ0,
-hardening code, a, b, n, c, rate0, η, ξ, η̄, cohesion, p_t, volume correction (1.0 or 0.0)]``; the hardening constants are
+hardening code, a, b, n, c, rate0, η, ξ, η̄, cohesion, p_t, volume correction (1.0 or 0.0), η_2,
+I_0, d √ρ_s]``, the last three μ(I)'s (``I_0 = 0``: off, :mod:`.inertial`); the hardening constants are
 :mod:`.hardening`'s ``(a, b, n, c, rate0)``, the Drucker–Prager ones
 :func:`.drucker_prager.drucker_prager_constants`'. Only a scene with a plastic material has one
 (:func:`plastic_table` returns None otherwise): an elastic scene builds nothing here.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -18,8 +20,9 @@ from parmpm.materials.plasticity.drucker_prager import drucker_prager_constants
 from parmpm.materials.plasticity.hardening import HARDENING, JOHNSON_COOK, LINEAR, SWIFT, swift_eps0
 
 (PCOL_MODEL, PCOL_K, PCOL_G, PCOL_C2, PCOL_HARDENING, PCOL_A, PCOL_B, PCOL_N, PCOL_C, PCOL_RATE0,
- PCOL_ETA, PCOL_XI, PCOL_ETA_BAR, PCOL_COHESION, PCOL_PT, PCOL_VOLUME_CORRECTION) = range(16)
-N_PLASTIC = 16
+ PCOL_ETA, PCOL_XI, PCOL_ETA_BAR, PCOL_COHESION, PCOL_PT, PCOL_VOLUME_CORRECTION, PCOL_ETA_2,
+ PCOL_I0, PCOL_GRAIN_SCALE) = range(19)
+N_PLASTIC = 19
 
 
 def bulk_shear(E: float, nu: float) -> tuple[float, float]:
@@ -67,4 +70,10 @@ def plastic_table(materials: Mapping, names: Sequence[str]) -> np.ndarray | None
             r[PCOL_ETA], r[PCOL_XI], r[PCOL_ETA_BAR] = eta, xi, eta_bar
             r[PCOL_COHESION], r[PCOL_PT] = cohesion, p_t
             r[PCOL_VOLUME_CORRECTION] = 1.0 if m.volume_correction else 0.0
+            if m.friction_angle_2 is not None:  # μ(I): the slope at large I, I_0, d √ρ_s
+                r[PCOL_ETA_2] = drucker_prager_constants(
+                    m.friction_angle_2, 0.0, 0.0, m.matching or "plane_strain", where=f"materials.{name}")[0]
+                r[PCOL_I0] = m.inertial_number_0
+                r[PCOL_GRAIN_SCALE] = m.grain_diameter * math.sqrt(
+                    m.grain_density or m.density)
     return table

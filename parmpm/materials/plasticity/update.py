@@ -32,7 +32,8 @@ from parmpm.materials.plasticity.state import STATE_EPSP, STATE_WORK, SYM
 from parmpm.materials.plasticity.table import (PCOL_A, PCOL_B, PCOL_C, PCOL_C2, PCOL_COHESION,
                                                PCOL_ETA, PCOL_ETA_BAR, PCOL_G, PCOL_HARDENING,
                                                PCOL_K, PCOL_MODEL, PCOL_N, PCOL_PT, PCOL_RATE0,
-                                               PCOL_VOLUME_CORRECTION, PCOL_XI)
+                                               PCOL_VOLUME_CORRECTION, PCOL_XI, PCOL_ETA_2,
+                                               PCOL_I0, PCOL_GRAIN_SCALE)
 
 #: rows per block of :func:`_plastic_loop` (its scratch: 7 × BLOCK doubles, in L1)
 BLOCK = 64
@@ -108,6 +109,14 @@ def _wave_speed(prm, J, bmax):
 
 
 @helper_kernel
+def _inertial_scale(prm, dt):
+    """μ(I)'s ``a = d √ρ_s / Δt`` (``I = a Δγ / √P``); 0 when it is off or the step is none."""
+    if prm[PCOL_I0] > 0.0 and dt > 0.0:
+        return prm[PCOL_GRAIN_SCALE] / dt
+    return 0.0
+
+
+@helper_kernel
 def trial_be(d, Fi, s):
     """``b_e^tr − I = F C_p⁻¹ Fᵀ − I`` (``F`` embedded in 3×3) as six scalars, and the square of
     its Frobenius norm: the same products, in the same order, as :func:`_congruence`."""
@@ -174,7 +183,8 @@ def near_identity_return(d, Fi, s, prm, dt, sig, m3, l00, l11, l22, l01, l02, l1
             free = free_volume(math.log(det_d(d, Fi)), ev)
         p, scale, _, _, region = dp_return_invariants(
             ev + free, ee2, K, G, prm[PCOL_ETA], prm[PCOL_XI], prm[PCOL_ETA_BAR],
-            prm[PCOL_COHESION], prm[PCOL_PT])
+            prm[PCOL_COHESION], prm[PCOL_PT], prm[PCOL_ETA_2], prm[PCOL_I0],
+            _inertial_scale(prm, dt))
         flowed = region != ELASTIC or free > 0.0
         if flowed:
             dl = math.sqrt(2.0 / 3.0) * (1.0 - scale) * ee
@@ -240,7 +250,8 @@ def plastic_update(d, Fi, s, prm, dt, sig, m3, v3):
             for A in range(3):
                 x[A] = w[A] + free / 3.0
         dg, dgt, region = dp_return(x, K, G, prm[PCOL_ETA], prm[PCOL_XI], prm[PCOL_ETA_BAR],
-                                    prm[PCOL_COHESION], prm[PCOL_PT], e, t)
+                                    prm[PCOL_COHESION], prm[PCOL_PT], prm[PCOL_ETA_2],
+                                    prm[PCOL_I0], _inertial_scale(prm, dt), e, t)
         work = dp_dissipation(w, e, t)
         dl = dp_equivalent(w, e)
         flowed = region != ELASTIC or free > 0.0

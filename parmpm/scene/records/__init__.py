@@ -96,6 +96,10 @@ class Material:
     matching: str | None = None                  # "plane_strain" | "outer" | "inner"
     tension_cutoff: float | None = None          # None: the apex
     volume_correction: bool | None = None        # drucker_prager: dilation given back free
+    friction_angle_2: float | None = None        # drucker_prager, mu(I): None is off
+    inertial_number_0: float | None = None       # mu(I)'s I_0
+    grain_diameter: float | None = None          # mu(I)'s d (m)
+    grain_density: float | None = None           # mu(I)'s rho_s (None: the material's density)
 
 
 @dataclass(frozen=True, slots=True)
