@@ -158,3 +158,32 @@ def test_the_mass_end_measures_a_known_deposit():
     F[x[:, 0] > 0.4, 0, 0] = 2.0
     share, end = cc.mass_end(x, F, dx, 0.4423)
     assert share == pytest.approx(232 / 4400, rel=1e-12) and end == pytest.approx(0.50)
+
+
+def test_a_checkpoint_continues_bit_identically_with_mu_of_i(tmp_path):
+    """mu(I) keeps no state of its own (the rate is the step's): the example at Δx = 1 cm, 200
+    steps with a checkpoint at 100, continued from it, ends with the same particles bit for bit
+    — and with other ones than the same run without mu(I), so the rate term acted."""
+    over = [f"grid.cell_size={DX}", "grid.cells=[80, 12]", "output.figure=false",
+            "time.steps=200", "checkpoint.every_steps=100", "output.every_steps=100"]
+    a = Simulation(load_scene(EXAMPLE, over), tmp_path / "a", quiet=True)
+    a.run()
+    b = Simulation.from_checkpoint(tmp_path / "a" / "checkpoint_00000100.h5",
+                                   out_dir=tmp_path / "b", quiet=True)
+    b.run()
+    pa, pb = a.particles, b.particles
+    oa, ob = np.argsort(pa.gid), np.argsort(pb.gid)
+    assert b.nstep == a.nstep == 200
+    for name in ("x", "v", "F", "stress", "plastic", "affine"):
+        np.testing.assert_array_equal(getattr(pa, name)[oa], getattr(pb, name)[ob], err_msg=name)
+    keys = ("friction_angle_2", "inertial_number_0", "grain_diameter", "grain_density")
+    plain = tmp_path / "no_mu_i.toml"
+    plain.write_text("".join(line for line in EXAMPLE.read_text(encoding="utf-8").splitlines(True)
+                             if not line.startswith(keys)), encoding="utf-8")
+    scene = load_scene(plain, over)
+    assert scene.spec.materials["rods"].friction_angle_2 is None
+    c = Simulation(scene, tmp_path / "c", quiet=True)
+    c.run()
+    pc = c.particles
+    oc = np.argsort(pc.gid)
+    assert np.abs(pc.x[oc] - pa.x[oa]).max() > 1e-6
