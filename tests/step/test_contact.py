@@ -127,7 +127,7 @@ def test_walls_and_fields_over_where_each_field_has_mass_give_every_nodes_bits(m
     exchanges over those slots' pairs: against the same steps over every owned node and the
     whole halo plan, the particles and the walls' sums are equal, bit for bit."""
     import decomposition.halo
-    import parmpm.step.contact
+    import parmpm.step.contact.field_grid
 
     text = slide_scene(0.3).replace('[boundary]\ny_min = "fixed"',
                                     '[[walls]]\nname = "floor"\npoint = [0.0, 0.0]\n'
@@ -143,7 +143,7 @@ def test_walls_and_fields_over_where_each_field_has_mass_give_every_nodes_bits(m
     narrowed = run_steps()
     with monkeypatch.context() as m:  # every owned node, the whole plan
         m.setattr(decomposition.halo.HaloPlan, "among", _whole)
-        m.setattr(parmpm.step.contact, "_within", lambda nodes, slots: nodes)
+        m.setattr(parmpm.step.contact.field_grid, "within", lambda nodes, slots: nodes)
         whole = run_steps()
     assert not narrowed.contact.meet.all()  # some slots hold one field only
     for name in ("x", "v", "F", "stress"):

@@ -233,7 +233,7 @@ def test_exchanges_among_the_slots_near_damage_give_the_whole_grids_bits(method,
     lies in those slots). Against the same steps over every slot and the whole halo plan (the
     code before the restriction), every particle array is equal, bit for bit."""
     import decomposition.halo
-    import parmpm.step.contact
+    import parmpm.step.contact.field_grid
     from decomposition import world
     from parmpm.driver.set_up import set_up
 
@@ -252,7 +252,7 @@ def test_exchanges_among_the_slots_near_damage_give_the_whole_grids_bits(method,
     restricted, narrowed = run()
     with monkeypatch.context() as m:  # every slot, the whole plan
         m.setattr(decomposition.halo.HaloPlan, "among", lambda self, holding: self)
-        m.setattr(parmpm.step.contact, "_within", lambda nodes, slots: nodes)
+        m.setattr(parmpm.step.contact.field_grid, "within", lambda nodes, slots: nodes)
         whole, _ = run()
     assert narrowed and restricted.damage.max() >= 1.0
     for name in ("x", "v", "F", "stress", "damage"):

@@ -1,63 +1,22 @@
-"""The step's contact between velocity fields on this rank (``[contact]``): every field's own grid,
-the particles of each field, and the contact phase between the grid update and G2P
-(:mod:`parmpm.grid.contact`).
-
-Each field's grid is a :class:`FieldGrid` (what the transfers and the grid update read of
-:class:`~parmpm.step.grid_buffers.GridBuffers`), a slice of one array over all fields so that the
-contact kernels see every field at a node. A particle's field is its body's
-(``contact.fields``), found from its global id each step (bodies are numbered in seeding order),
-so nothing is stored, moved or checkpointed for it. The transfers run once per field on that
-field's share of the canonical particle order (:func:`parmpm.grid.contact.split_by_field`): each
-field's sums are added in the same order as a single field's, on any number of ranks.
-
-With crack faces (``[contact] cracks``, :mod:`parmpm.grid.crack`) every body field has a second
-field, the far side of a crack, and a particle's field is chosen per node inside the transfer
-loops: the grids of all fields are then one stacked grid (field ``k``'s node ``j`` at
-``j + k · stride``, the arrays laid out (slots, rows, fields, stride)) that one pass of the
-generic transfers fills, and each field's grid a view into it. Until a particle can crack, a
-scene of one body steps without them (:meth:`ContactPhase.whole`).
-"""
+"""The contact phase between velocity fields on this rank: :class:`ContactPhase` (the package's
+docstring says what it does); its crack-face part is
+:class:`~parmpm.step.contact.crack_sides.CrackSides`."""
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
-from decomposition import accumulate, accumulate_max, allreduce_max, fill
-from parmpm.core.records import Sides
+from decomposition import accumulate, accumulate_max, fill
 from parmpm.grid.contact import (GAP_MODES, NORMAL_MODES, contact_correct, contact_extents,
                                  contact_mask, contact_normals, field_of_rows, split_by_field)
-from parmpm.grid.crack import crack_normals, nodal_damage, slots_with_crack
 from parmpm.grid.update import grid_block
-from parmpm.particles.order import slot_subset, slots_holding_positive
-from parmpm.transfer.damage_field import damage_gradients, damage_sums
+from parmpm.particles.order import slot_subset
+from parmpm.core.records import Sides
+import parmpm.step.contact.field_grid as field_grid
+from parmpm.step.contact.crack_sides import CrackSides
+from parmpm.step.contact.field_grid import FieldGrid
 
 
-def _within(nodes, slots: np.ndarray):
-    """``nodes`` (:class:`parmpm.core.records.OwnedNodes`) with the boxes of the slots
-    ``slots`` does not mark emptied: a pass over the nodes where fields meet visits those
-    slots' only."""
-    return nodes._replace(own_hi=np.where(slots[:, None], nodes.own_hi, nodes.own_lo))
-
-
-def _views(block: np.ndarray, nodes: int) -> np.ndarray:
-    """The node-major view ``(slots, nodes, rows)`` of a ``(slots, rows, stride)`` block."""
-    return block[:, :, :nodes].transpose(0, 2, 1)
-
-
-class FieldGrid:
-    """One field's grid fields, as :class:`~parmpm.step.grid_buffers.GridBuffers` names them."""
-
-    def __init__(self, gsum_block, gnew_block, nodes: int, d: int, inside: np.ndarray):
-        self.gsum_block, self.gnew_block = gsum_block, gnew_block
-        self.gsum, self.gnew = _views(gsum_block, nodes), _views(gnew_block, nodes)
-        self.gm, self.gmv, self.gf = (self.gsum[:, :, :1], self.gsum[:, :, 1:1 + d],
-                                      self.gsum[:, :, 1 + d:])
-        self.gvel, self.gdv = self.gnew[:, :, :d], self.gnew[:, :, d:]
-        self.inside = inside
-
-
-class ContactPhase:
+class ContactPhase(CrackSides):
     """``field_of_body``: every body's field; ``body_start``: every body's first global id, then
     the total; ``mu``: Coulomb's μ between fields (inf: stick); ``reach``: the interpolator's
     support past a particle's domain, in cells; ``crack``: the damage at which a node's crack
@@ -156,157 +115,6 @@ class ContactPhase:
         if self.crack is None:
             split_by_field(P.start, P.lazy_order(), self.field, self.starts, self.orders)
 
-    def find_sides(self, transfers, P, plan, nodes, err: np.ndarray) -> None:
-        """Crack faces: the damage field, every particle's damage gradient and every node's
-        crack normal (collective: six halo exchanges), as :attr:`sides` for this step's transfers
-        (:mod:`parmpm.grid.crack`). While no particle anywhere is damaged enough for a crack
-        (:attr:`max_damage`, the same on every rank) every node's normal is zero without a
-        pass: what the passes would find."""
-        slots = self.grids[0].gsum_block.shape[0]
-        if self.grad.shape[0] != P.n:
-            self.grad = np.zeros((P.n, 3))
-        if self.max_damage < self.crack:
-            self.cnormal[:slots] = 0.0
-            self._near_cracks(P)
-            return
-        dsum, dmax = _views(self.dsum[:slots], self.nodes), _views(self.dmax[:slots], self.nodes)
-        damage = P.rows.damage
-        wet = self._damage_sums(transfers, P, plan, damage, slots, err)
-        # every sum below is zero in the other slots, and every copy of a node a damaged
-        # particle reaches lies in a wet slot: their exchanges and node passes need no other
-        wet_plan, wet_nodes = plan.among(wet), _within(nodes, wet)
-        accumulate(wet_plan, dsum, maxima=(dmax,))
-        nodal_damage(wet_nodes, self.dsum)
-        fill(wet_plan, dsum[:, :, 1:])
-        tsum = _views(self.tsum[:slots], self.nodes)
-        try:  # a particle of any other slot has no damage gradient
-            self.grad[:] = 0.0
-            transfers.subset = slot_subset(P.start, P.order(), wet)
-            how, boxes, fields = transfers.records()
-            damage_gradients(how, boxes, fields, dsum[:, :, 1:], self.grad, tsum, err)
-        finally:
-            transfers.subset = None
-        accumulate(wet_plan, tsum)
-        self.cnormal[:slots][~wet] = 0.0  # a crack's node has every copy in a wet slot
-        crack_normals(self.dim, wet_nodes, self.tsum, self.dmax, self.crack, self.cnormal)
-        fill(wet_plan, _views(self.cnormal[:slots], self.nodes))
-        self._near_cracks(P, wet)
-
-    def _damage_sums(self, transfers, P, plan, damage, slots: int, err) -> np.ndarray:
-        """Every slot's partial damage sums (:func:`damage_sums`) where they can matter; returns
-        the slots whose node box (ghost copies included) a damaged particle reaches. Elsewhere
-        every node's damage is 0 whatever its mass, so the slots whose box no damaged particle
-        reaches are left out (their sums zero): first the slots holding a damaged particle, then
-        — once their ``Σ S m D``, summed and filled over the ghost layers (collective: on every
-        rank, whatever it holds), shows which boxes they reach — the other slots of those boxes,
-        each slot's sums its own particles' in canonical order as in one pass over all, so every
-        node's damage is that pass's, bit for bit."""
-        order = P.order()
-        damaged = slots_holding_positive(P.start, order, damage)
-        dsum, dmax = _views(self.dsum[:slots], self.nodes), _views(self.dmax[:slots], self.nodes)
-        try:
-            transfers.subset = slot_subset(P.start, order, damaged)
-            how, boxes, fields = transfers.records()
-            damage_sums(how, boxes, fields, damage, dsum, dmax, err)
-            reach = _views(self.reached[:slots], self.nodes)
-            np.copyto(reach[:, :, 0], dsum[:, :, 1])
-            accumulate(plan, reach)
-            fill(plan, reach)
-            wet = np.any(reach[:, :, 0] > 0.0, axis=1)
-            others = wet & ~damaged
-            if others.any():
-                transfers.subset = slot_subset(P.start, order, others)
-                how, boxes, fields = transfers.records()
-                spare, spare_max = (_views(b[:slots], self.nodes)
-                                    for b in (self.dsum_spare, self.dmax_spare))
-                damage_sums(how, boxes, fields, damage, spare, spare_max, err)
-                self.dsum[:slots][others] = self.dsum_spare[:slots][others]
-            return wet
-        finally:
-            transfers.subset = None
-
-    def _near_cracks(self, P, wet: np.ndarray | None = None) -> None:
-        """This step's :attr:`near` (per slot: its node box, ghost copies included, holds a node
-        with a crack normal; None where a particle's field away from a crack is not field 0:
-        several bodies) and the (start, order) of the slots it marks and of the others."""
-        self.near = self.far_boxes = self.near_boxes = None
-        slots = self.grids[0].gsum_block.shape[0]
-        # two fields' copies of a node are a box's node count apart in the stacked grid
-        self.sides = Sides(self.field, self.fields, self.grad, self.cnormal, self.nodes,
-                           np.ones(slots, bool))
-        if self.fields != 1:
-            return
-        self.near = np.zeros(slots, bool)  # wet None: no crack normal anywhere
-        if wet is not None:  # a node with a crack normal has every copy in a wet slot
-            self.near[wet] = slots_with_crack(self.cnormal[:slots][wet], int(wet.sum()),
-                                              self.nodes)
-        self.sides = self.sides._replace(near=self.near)
-        self.far_boxes = slot_subset(P.start, P.order(), ~self.near)
-        self.near_boxes = slot_subset(P.start, P.order(), self.near)
-
-    def whole(self, damage: np.ndarray, comm) -> bool:
-        """A crack scene of one body with no particle anywhere damaged to ``crack`` (the last
-        step's largest damage, the same on every rank; at a run's first step, a restart's
-        included, the particles' own ``damage``: collective): every particle is then in its
-        body's field at every node and the far side is empty, so the step is one field's."""
-        if self.crack is None or self.fields != 1:
-            return False
-        if not math.isfinite(self.max_damage):
-            local = np.array([float(damage.max(initial=0.0))])
-            self.max_damage = float(allreduce_max(comm, local)[0])
-        return self.max_damage < self.crack
-
-    def on_sides(self, transfers, kernels: str, transfer, grid, spare=None, rows=None,
-                 far: bool = True) -> list:
-        """``transfer(grid)`` over the stacked grid of crack faces. In a scene of one body on
-        kernels that choose each node's copy themselves (the specialised 2D ones:
-        :meth:`parmpm.step.transfers.Transfers.chooses_sides`), one pass over every slot (with
-        ``far`` False, the slots near a crack). Otherwise the slots whose node box
-        (ghost copies included) holds no node with a crack normal on the ``kernels`` asked for
-        (the specialised ones by default) — in a scene of one body their particles are in its
-        field, field 0's copies, at every node — and the others on the generic loops with each
-        particle's field per node; those write into ``spare`` (a grid like ``grid``: every pass
-        zeroes its sums first), whose ``rows`` of those slots are then copied into ``grid``
-        (``spare`` None: the transfer writes no grid). Each slot's sums are its own particles'
-        in canonical order, whichever kernels, so the same on any number of ranks. ``far``
-        False: the slots near a crack only (the others' sums zero): where fields meet is at a
-        node with a crack normal, which every slot whose box holds it counts as near, so sums
-        read only there (the first moments) need no other slot. Returns what each pass
-        returned."""
-        T, near = transfers, self.near
-        out = []
-        T.use(kernels)
-        if near is not None and T.chooses_sides():  # one pass: each node's copy in the loops
-            try:
-                T.sides = self.sides
-                if not far:
-                    T.subset = self.near_boxes
-                return [transfer(grid)]
-            finally:
-                T.subset = None
-                T.sides = None
-                T.use("generic")
-        try:
-            target = grid
-            if near is not None and not near.all():
-                if far:
-                    T.use(kernels)
-                    T.subset = self.far_boxes
-                    out.append(transfer(grid))
-                    if not near.any():
-                        return out
-                    target = grid if spare is None else spare
-                T.subset = self.near_boxes
-            T.use("generic")
-            T.sides = self.sides
-            out.append(transfer(target))
-            if target is not grid:
-                grid.gsum_block[near, rows] = target.gsum_block[near, rows]
-        finally:
-            T.subset = None
-            T.sides = None
-            T.use("generic")
-        return out
 
     def field_plans(self, plan) -> list:
         """Per field, ``plan`` among the slots holding its particles
@@ -332,8 +140,8 @@ class ContactPhase:
         if len(plans) == 1:
             return [nodes] * self.K
         if self.crack is not None:  # the far side: where a crack can have it
-            return [nodes, _within(nodes, self.near)]
-        return [_within(nodes, p.reached) for p in plans]
+            return [nodes, field_grid.within(nodes, self.near)]
+        return [field_grid.within(nodes, p.reached) for p in plans]
 
     def boxes(self, k: int) -> tuple[np.ndarray, np.ndarray]:
         """Field ``k``'s (start, order)."""
@@ -345,7 +153,7 @@ class ContactPhase:
         blocks = {"sum": self.sum_all, "new": self.new_all, "x": self.x_all,
                   "normal": self.normal, "ext": self.ext}[which]
         slots = self.grids[0].gsum_block.shape[0]
-        views = [_views(blocks[k, :slots], self.nodes) for k in range(self.K)]
+        views = [field_grid.node_major(blocks[k, :slots], self.nodes) for k in range(self.K)]
         if which == "x":
             return [v[:, :, 1:] for v in views]
         return [v if rows is None else v[:, :, :rows] for v in views]
@@ -368,8 +176,8 @@ class ContactPhase:
         slots = self.grids[0].gsum_block.shape[0]
         meet = np.ones(slots, bool) if self.meet is None else self.meet
         self.mask[:slots][~meet] = 0.0
-        contact_mask(_within(nodes, meet), self.sum_all, eps, self.mask)
-        mask = _views(self.mask[:slots], self.nodes)
+        contact_mask(field_grid.within(nodes, meet), self.sum_all, eps, self.mask)
+        mask = field_grid.node_major(self.mask[:slots], self.nodes)
         fill(plan, mask)
         active = mask[:, :, 0].any(axis=1)
         try:
@@ -390,15 +198,15 @@ class ContactPhase:
         slots = self.grids[0].gsum_block.shape[0]
         visit, filled = nodes, plan
         if marked:
-            visit, filled = _within(nodes, self.active), self.meeting
+            visit, filled = field_grid.within(nodes, self.active), self.meeting
         elif self.crack is not None and self.near is not None:
             # one body's crack faces meet only at nodes with a crack normal, each copy of which
             # lies in a slot near a crack
             self.mask[:slots][~self.near] = 0.0
-            visit, filled = _within(nodes, self.near), plan.among(self.near)
+            visit, filled = field_grid.within(nodes, self.near), plan.among(self.near)
         contact_normals(disc.dim, visit, disc.origin3, disc.h3, self.sum_all, self.x_all, eps,
                         self.normal_mode, self.normal, self.mask, marked)
-        mask = _views(self.mask[:slots], self.nodes)
+        mask = field_grid.node_major(self.mask[:slots], self.nodes)
         # the normals are read where fields meet only: every copy of such a node is in a slot
         # the (filled) mask marks, so the marked slots' pairs carry them all
         fill(filled, *self.node_views("normal"), *(() if marked else (mask,)))
@@ -428,7 +236,7 @@ class ContactPhase:
         fields meet (those of the slots :meth:`detect` marked this step)."""
         g = np.zeros(3)
         g[:disc.dim] = gravity[:disc.dim]
-        sums = contact_correct(disc.dim, _within(nodes, self.active), self.sum_all, self.new_all,
+        sums = contact_correct(disc.dim, field_grid.within(nodes, self.active), self.sum_all, self.new_all,
                                self.normal, self.ext, self.mu, dt, g, heavy, eps, momentum_only,
                                self.normal_mode, self.mask)
         if not momentum_only:
