@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from parmpm.core.jit import inline_kernel, kernel
+from parmpm.core.jit import helper_kernel, kernel
 
 #: a cluster counts by its expansion beyond this many radii from the point
 BETA = 3.0
@@ -25,7 +25,7 @@ BETA = 3.0
 LEAF = 8
 
 
-@inline_kernel
+@helper_kernel
 def _solid_angle(c: np.ndarray, t: int, px: float, py: float, pz: float) -> float:
     """Triangle ``t``'s signed solid angle seen from p, by Van Oosterom & Strackee (1983, IEEE
     Trans. Biomed. Eng. 30, 125): tan(Ω/2) = a·(b×c) / (|a||b||c| + (a·b)|c| + (b·c)|a| + (c·a)|b|)."""

@@ -1,7 +1,7 @@
 """The patch-box arithmetic of :mod:`decomposition.boxes`, compiled for the kernels.
 
 ``decomposition`` stays free of numba and of ``parmpm``; here its plain scalar functions become
-``@inline_kernel`` helpers. The ones they call in turn are registered as numba overloads of the
+``@helper_kernel`` helpers. The ones they call in turn are registered as numba overloads of the
 plain functions, so numba compiles the very same source wherever it meets them. Kernels import
 from here (not from the particle store)::
 
@@ -10,14 +10,15 @@ from here (not from the particle store)::
 from numba.extending import overload
 
 from decomposition import boxes
-from parmpm.core.jit import JIT_OPTIONS, inline_kernel
+from parmpm.core.jit import JIT_OPTIONS, helper_kernel
 
-_OVERLOAD_OPTIONS = {k: v for k, v in JIT_OPTIONS.items() if k != "cache"}
+_OVERLOAD_OPTIONS = {**{k: v for k, v in JIT_OPTIONS.items() if k != "cache"}, "_nrt": False,
+                     "forceinline": True}
 
 
 def _jitable(fn):
-    """Let jitted code call the plain function ``fn`` (inlined into the caller's IR)."""
-    overload(fn, jit_options=_OVERLOAD_OPTIONS, inline="always", strict=False)(lambda *a: fn)
+    """Let jitted code call the plain function ``fn`` (inlined by LLVM into the caller)."""
+    overload(fn, jit_options=_OVERLOAD_OPTIONS, strict=False)(lambda *a: fn)
     return fn
 
 
@@ -25,16 +26,16 @@ for _fn in (boxes.patch_id, boxes.patch_of_cell, boxes.patch_of_coordinate):
     _jitable(_fn)
 
 #: patch index along one axis of grid coordinate ``u``, or -1 outside the grid
-patch_index = inline_kernel(boxes.patch_of_coordinate)
+patch_index = helper_kernel(boxes.patch_of_coordinate)
 #: flat patch id of a 1D / 2D / 3D position, or -1 outside the grid
-patch_id1 = inline_kernel(boxes.patch_of_point_1d)
-patch_id2 = inline_kernel(boxes.patch_of_point_2d)
-patch_id3 = inline_kernel(boxes.patch_of_point_3d)
+patch_id1 = helper_kernel(boxes.patch_of_point_1d)
+patch_id2 = helper_kernel(boxes.patch_of_point_2d)
+patch_id3 = helper_kernel(boxes.patch_of_point_3d)
 #: (first, last) patch along one axis whose ghost-inclusive box holds a global node
-patches_holding_node = inline_kernel(boxes.patches_holding_node)
+patches_holding_node = helper_kernel(boxes.patches_holding_node)
 
 
-@inline_kernel
+@helper_kernel
 def next_patch_2d(x0, x1, origin, inv_h, locate, p, sp):
     """:func:`patch_id2` of a particle of slot ``p`` (patch ``sp``) after its move. Almost every
     particle stays in its patch: a test of its grid coordinates against the patch's cells
@@ -51,7 +52,7 @@ def next_patch_2d(x0, x1, origin, inv_h, locate, p, sp):
     return patch_id2(x0, x1, origin, inv_h, locate.loc, locate.inv_ps)
 
 
-@inline_kernel
+@helper_kernel
 def next_patch_3d(x0, x1, x2, origin, inv_h, locate, p, sp):
     """:func:`next_patch_2d` in 3D."""
     inside = locate.inside

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-from parmpm.core.jit import helper_kernel, inline_kernel
+from parmpm.core.jit import helper_kernel
 from parmpm.shapes.cpdi import cell_node, cofactor_3d
 from parmpm.shapes.hat import hat_axis
 
@@ -98,7 +98,7 @@ def corner_shape(alpha, d, e0, e1, e2):
     return f0 * f1 * f2, 0.5 * s0 * f1 * f2, dn1, dn2
 
 
-@inline_kernel
+@helper_kernel
 def add_point_weights(sc, a, det, cof, shape):
     """One quadrature point's share of corner ``a``'s weight ``∫N_a`` and gradient weight
     ``∫∇N_a`` (``cof``: the columns of ``J``'s cofactor, ``det = det J``; ``shape``:
@@ -111,7 +111,7 @@ def add_point_weights(sc, a, det, cof, shape):
     sc[a, WG + 2] += k1z * g0 + k2z * g1 + k3z * g2
 
 
-@inline_kernel
+@helper_kernel
 def normalise_weights(sc, nc, vol):
     """Divide the ``nc`` corners' weights by the domain's volume, when it is positive."""
     if vol > 0.0:

@@ -5,7 +5,7 @@ gradient gathered from it with its contribution to the nodes' crack normals scat
 Both walk the particles as the generic transfers do (:func:`parmpm.transfer.generic.each_particle`,
 patch by patch in canonical order), so every node's sums are the same on any number of ranks.
 """
-from parmpm.core.jit import inline_kernel, kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, kernel, loop_kernel
 from parmpm.transfer.generic import each_particle, loop_scratch, zero_node_major
 
 
@@ -26,7 +26,7 @@ def _damage_sums_loop(how, boxes, order, fields, damage, out, err, scratch):
                   None)
 
 
-@inline_kernel
+@helper_kernel
 def _damage_one(i, p, n, d, how, boxes, fields, scratch, out, damage, acc):
     sums, dmax = out
     idx, w = scratch[7], scratch[8]
@@ -58,7 +58,7 @@ def _gradients_loop(how, boxes, order, fields, dnode, out, err, scratch):
                   0, None)
 
 
-@inline_kernel
+@helper_kernel
 def _gradient_one(i, p, n, d, how, boxes, fields, scratch, out, dnode, acc):
     grad, tsum = out
     idx, w, g = scratch[7], scratch[8], scratch[9]

@@ -47,7 +47,7 @@ import math
 
 import numpy as np
 
-from parmpm.core.jit import helper_kernel, inline_kernel, kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, kernel, loop_kernel
 from parmpm.grid.crack import field_node, to_fields
 from parmpm.materials.damage import damage_update
 from parmpm.materials.kinematics import det_d, flip_pic, update_F
@@ -134,7 +134,7 @@ def _frozen(d, rf):
     return False
 
 
-@inline_kernel
+@helper_kernel
 def each_particle(body, d, how, boxes, order, fields, err, scratch, out, args, acc, sides):
     """``acc = body(i, p, n, d, how, boxes, fields, scratch, out, args, acc)`` for every particle
     ``i`` of every patch slot ``p``, in canonical order, whose ``n`` support entries
@@ -187,7 +187,7 @@ def _p2g_loop(how, boxes, order, fields, bforce, dt, out, err, scratch, sides):
                   sides)
 
 
-@inline_kernel
+@helper_kernel
 def _p2g_one(i, p, n, d, how, boxes, fields, scratch, out, args, acc):
     """P2G of particle ``i``'s entries into ``out = (gm, gmv, gf)`` (module doc)."""
     bforce, dt = args
@@ -237,7 +237,7 @@ def _p2g_momentum_loop(how, boxes, order, fields, gmv, err, scratch, sides):
                   sides)
 
 
-@inline_kernel
+@helper_kernel
 def _p2g_momentum_one(i, p, n, d, how, boxes, fields, scratch, gmv, args, acc):
     """The momentum of particle ``i``'s entries into ``gmv`` (APIC's affine field under APIC and
     MLS)."""
@@ -271,7 +271,7 @@ def _g2p_loop(mode, how, boxes, order, dt, flip, fields, material, grid, err, sc
                          (mode, dt, flip, grid, sides), 0.0, sides)
 
 
-@inline_kernel
+@helper_kernel
 def _g2p_one(i, p, n, d, how, boxes, fields, scratch, material, args, vmax):
     """G2P of particle ``i`` from its entries and ``args = (mode, Δt, flip, (v, Δv))`` (module
     doc), updating ``fields`` and ``material``; returns the running largest ``c_p + |v_p|``."""
@@ -361,7 +361,7 @@ def _support_nodes_loop(how, boxes, order, fields, out, scratch):
                   None, 0, None)
 
 
-@inline_kernel
+@helper_kernel
 def _support_nodes_one(i, p, n, d, how, boxes, fields, scratch, out, args, acc):
     """The global ids of particle ``i``'s nodes of nonzero weight into ``nodes[i]``, their count
     into ``count[i]`` (``out = (nodes, count, err)``)."""

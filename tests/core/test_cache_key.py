@@ -24,7 +24,7 @@ REPO = Path(__file__).resolve().parents[2]
 TIMEOUT_S = 300
 
 CALLEE = """\
-from parmpm.core.jit import helper_kernel, inline_kernel, kernel
+from parmpm.core.jit import helper_kernel, kernel
 
 SCALE = {factor}
 
@@ -34,29 +34,19 @@ def plain(x):
     return x * {factor}
 
 
-@inline_kernel
-def inlined(x):
-    return x * {factor}
-
-
 @helper_kernel
 def forced(x):
     return x * {factor}
 """
 
 CALLER = """\
-from parmpm._probe_callee import SCALE, forced, inlined, plain
+from parmpm._probe_callee import SCALE, forced, plain
 from parmpm.core.jit import kernel, loop_kernel
 
 
 @kernel
 def call_plain(x):
     return plain(x)
-
-
-@kernel
-def call_inlined(x):
-    return inlined(x)
 
 
 @loop_kernel
@@ -80,9 +70,9 @@ from parmpm import _probe_caller as c
 
 out = np.zeros(1)
 c.call_forced(np.ones(1), out)
-kernels = (c.call_plain, c.call_inlined, c.call_forced, c.call_constant)
+kernels = (c.call_plain, c.call_forced, c.call_constant)
 print(json.dumps({"file": parmpm.__file__,
-                  "values": [c.call_plain(1.0), c.call_inlined(1.0), float(out[0]),
+                  "values": [c.call_plain(1.0), float(out[0]),
                              c.call_constant(1.0)],
                   "compiled": sum(sum(k.stats.cache_misses.values()) for k in kernels),
                   "loaded": sum(sum(k.stats.cache_hits.values()) for k in kernels)}))
@@ -134,20 +124,20 @@ def test_an_edited_callee_in_another_module_is_never_run_stale(tmp_path, locatio
         where = tmp_path / "user" / "numba"
 
     first = _probe(pkg, env)
-    assert first["values"] == [1.0] * 4 and first["compiled"] == 4
+    assert first["values"] == [1.0] * 3 and first["compiled"] == 3
     warm = _probe(pkg, env)
-    assert warm["values"] == [1.0] * 4
-    assert warm["compiled"] == 0 and warm["loaded"] == 4  # a warm run loads, never compiles
+    assert warm["values"] == [1.0] * 3
+    assert warm["compiled"] == 0 and warm["loaded"] == 3  # a warm run loads, never compiles
     files = _cached_files(where)
     assert any(f.startswith("_probe_caller.call_plain") for f in files), files
 
     for factor in (2.0, 3.0):  # only the callee module changes
         _write_callee(pkg, factor)
         edited = _probe(pkg, env)
-        assert edited["values"] == [factor] * 4, \
+        assert edited["values"] == [factor] * 3, \
             f"{location}: the callers ran the previous callee {edited['values']}"
         again = _probe(pkg, env)
-        assert again["values"] == [factor] * 4 and again["compiled"] == 0
+        assert again["values"] == [factor] * 3 and again["compiled"] == 0
         # the stale entries are overwritten, not piled up
         assert _cached_files(where) == files
 

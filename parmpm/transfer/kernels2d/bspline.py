@@ -14,14 +14,14 @@ need no extra argument and FLIP runs pay one branch per particle. MLS (:mod:`par
 shares this G2P with ``L_p = C_p`` in place of the gradient sums. The loops are
 :mod:`parmpm.transfer.kernels2d.loops`'.
 """
-from parmpm.core.jit import inline_kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, loop_kernel
 from parmpm.shapes.bspline import nearest_node, spline_weights
 from parmpm.transfer.kernels2d.hat import add_force, body_force, volume_stress
 from parmpm.transfer.kernels2d.loops import centre_support, each_particle, each_particle_g2p, stays
 from parmpm.transfer.sided import sided_node
 
 
-@inline_kernel
+@helper_kernel
 def spline_of(xi, base, jlo, jhi):
     """(local index of node ``c − 1``, ``t``) along one axis, or ``(-1, 0)`` when the three nodes
     leave the grid or the patch's box (usable cells ``jlo..jhi`` as for the hat: nodes
@@ -33,13 +33,13 @@ def spline_of(xi, base, jlo, jhi):
     return lo - base, t
 
 
-@inline_kernel
+@helper_kernel
 def support(i, frame, slot, lcr, fields):
     """Particle ``i``'s first node and offset per axis, ``(kx, ky, tx, ty)`` (``lcr`` unused)."""
     return centre_support(spline_of, i, frame, slot, fields)
 
 
-@inline_kernel
+@helper_kernel
 def scatter(i, g, frame, st, fields, args, side):
     """Mass, momentum (FLIP or APIC) and force of particle ``i`` into its 3×3 nodes."""
     v, mass, C = fields.v, fields.mass, fields.affine
@@ -78,7 +78,7 @@ def scatter(i, g, frame, st, fields, args, side):
             add_force(g, node, S, gx, gy, bfx, bfy, t, forced)
 
 
-@inline_kernel
+@helper_kernel
 def scatter_momentum(i, g, frame, st, fields, args, side):
     """Momentum (FLIP or APIC) of particle ``i`` into its 3×3 nodes."""
     v, mass, C = fields.v, fields.mass, fields.affine
@@ -109,7 +109,7 @@ def scatter_momentum(i, g, frame, st, fields, args, side):
             g[2, node] += mS * uy
 
 
-@inline_kernel
+@helper_kernel
 def spline_gather(step, i, g, frame, st, mls, side):
     """``v``, ``Δv`` (FLIP) or ``C`` (APIC) and ``Δt L`` at particle ``i`` from its 3×3 nodes;
     ``mls``: ``L_p = C_p`` (the affine matrix of the field G2P reads, ``Σ φ v_i ⊗ r D⁻¹``,
@@ -157,7 +157,7 @@ def spline_gather(step, i, g, frame, st, mls, side):
             (dt * l00, dt * l01, dt * l10, dt * l11), ())
 
 
-@inline_kernel
+@helper_kernel
 def gather(step, i, g, frame, st, shape, fields, side):
     """:func:`spline_gather` with ``L_p = Σ v_i ⊗ ∇φ``."""
     return spline_gather(step, i, g, frame, st, False, side)

@@ -11,12 +11,12 @@ import math
 
 import numpy as np
 
-from parmpm.core.jit import inline_kernel
+from parmpm.core.jit import helper_kernel
 from parmpm.shapes.hat import F_MIN, SNAP
 from parmpm.transfer.sided import sided_node
 
 
-@inline_kernel
+@helper_kernel
 def cell_of(xi, base, jlo, jhi):
     """(local cell, fraction) of one point along one axis, or ``(-1, 0)``. For ``ξ ≥ 0``
     truncation is the floor, and a usable floor is already the answer: one truncation and integer
@@ -39,7 +39,7 @@ def cell_of(xi, base, jlo, jhi):
     return j - base, f
 
 
-@inline_kernel
+@helper_kernel
 def hat_cell_of(xi, base, jlo, jhi):
     """:func:`cell_of` for standard MPM, whose fraction is at least ``F_MIN``: a particle exactly on
     a node still gives the cell's other node some mass (:mod:`parmpm.shapes.hat`)."""
@@ -47,7 +47,7 @@ def hat_cell_of(xi, base, jlo, jhi):
     return j, max(f, F_MIN)
 
 
-@inline_kernel
+@helper_kernel
 def cells_of4(c0, c1, c2, c3, base, jlo, jhi):
     """:func:`cell_of` for a CPDI particle's four corners along one axis: the local cells, the
     fractions and whether all four are usable. The common case (every corner at ``ξ ≥ 0`` with a
@@ -75,7 +75,7 @@ def usable_cells(base, nloc, nglob):
     return jlo.astype(np.int64), jhi.astype(np.int64)
 
 
-@inline_kernel
+@helper_kernel
 def note_patch(new_patch, i, pid, sp, moved, first_out):
     """Record particle ``i``'s next patch ``pid`` (``-1``: off the grid, it keeps its slot's
     patch ``sp``); returns the updated (moved count, first particle off the grid)."""
@@ -90,7 +90,7 @@ def note_patch(new_patch, i, pid, sp, moved, first_out):
     return moved, first_out
 
 
-@inline_kernel
+@helper_kernel
 def frame_2d(boxes):
     """The grid origin, ``1/Δx`` and the node-box row length of a rank's :class:`Boxes`
     (:mod:`parmpm.core.records`): ``(ox, oy, ihx, ihy, L0)``."""
@@ -98,14 +98,14 @@ def frame_2d(boxes):
     return origin[0], origin[1], inv_h[0], inv_h[1], boxes.nloc[0]
 
 
-@inline_kernel
+@helper_kernel
 def slot_2d(boxes, p):
     """Node-box origin and usable cells of slot ``p``: ``(bx, by, jlx, jly, jhx, jhy)``."""
     base, jlo, jhi = boxes.base, boxes.jlo, boxes.jhi
     return base[p, 0], base[p, 1], jlo[p, 0], jlo[p, 1], jhi[p, 0], jhi[p, 1]
 
 
-@inline_kernel
+@helper_kernel
 def cell_nodes(side, i, L0, jx, jy):
     """Row ``i``'s copies of the four nodes of local cell ``(jx, jy)`` (the nodes themselves
     without crack faces: :func:`parmpm.transfer.sided.sided_node`)."""

@@ -15,7 +15,7 @@ Every corner's cell is located (and checked against the patch's box) before anyt
 scattered, so a particle that reaches past the ghost layer contributes nothing and sets ``err``.
 The loops are :mod:`parmpm.transfer.kernels2d.loops`'.
 """
-from parmpm.core.jit import inline_kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, loop_kernel
 from parmpm.core.records import NO_SCALING
 from parmpm.materials.kinematics import det_2d
 from parmpm.shapes.cpdi import cofactor_2d
@@ -26,7 +26,7 @@ from parmpm.transfer.kernels2d.loops import NO_AFFINE, each_particle, each_parti
 from parmpm.transfer.update_order import G2P_MUSL_MOTION
 
 
-@inline_kernel
+@helper_kernel
 def domain(lcr, f00, f01, f10, f11, q00, q01, q10, q11):
     """``R = F·R0`` as (r1x, r1y, r2x, r2y), capped by :func:`parmpm.shapes.scaling.cap_2d`
     when domain scaling is on."""
@@ -39,7 +39,7 @@ def domain(lcr, f00, f01, f10, f11, q00, q01, q10, q11):
     return r1x, r1y, r2x, r2y
 
 
-@inline_kernel
+@helper_kernel
 def corner_gradients(r1x, r1y, r2x, r2y):
     """``g`` of corners (+,+) and (+,−) (their opposites have ``−g``) from the cofactor columns,
     and ``det R``: ``(gax, gay, gbx, gby, det)``."""
@@ -47,7 +47,7 @@ def corner_gradients(r1x, r1y, r2x, r2y):
     return c1x + c2x, c1y + c2y, c1x - c2x, c1y - c2y, det
 
 
-@inline_kernel
+@helper_kernel
 def corners(xx, xy, r1x, r1y, r2x, r2y, ihx, ihy, bx, by, jlx, jly, jhx, jhy):
     """Local cells and fractions of the four corners (grid coordinates ``xx, xy`` of the centre):
     ``(jx0..3, jy0..3, fx0..3, fy0..3, ok)``."""
@@ -60,7 +60,7 @@ def corners(xx, xy, r1x, r1y, r2x, r2y, ihx, ihy, bx, by, jlx, jly, jhx, jhy):
             okx and oky)
 
 
-@inline_kernel
+@helper_kernel
 def add5(g, n, s, a0, a1, a2, a3, a4):
     """``g[c, n] += a_c · s`` for the five rows (mass, momentum, force)."""
     g[0, n] += a0 * s
@@ -70,14 +70,14 @@ def add5(g, n, s, a0, a1, a2, a3, a4):
     g[4, n] += a4 * s
 
 
-@inline_kernel
+@helper_kernel
 def add_momentum(g, n, s, a1, a2):
     """``g[c, n] += a_c · s`` for the momentum rows 1 and 2."""
     g[1, n] += a1 * s
     g[2, n] += a2 * s
 
 
-@inline_kernel
+@helper_kernel
 def scatter5(g, side, i, L0, jx, jy, fx, fy, a0, a1, a2, a3, a4):
     """``g[c, node] += S_node(f) · a_c`` over the four nodes of local cell ``(jx, jy)``."""
     n0, n1, n2, n3 = cell_nodes(side, i, L0, jx, jy)
@@ -91,7 +91,7 @@ def scatter5(g, side, i, L0, jx, jy, fx, fy, a0, a1, a2, a3, a4):
     add5(g, n3, s3, a0, a1, a2, a3, a4)
 
 
-@inline_kernel
+@helper_kernel
 def scatter_mv(g, side, i, L0, jx, jy, fx, fy, a1, a2):
     """Rows 1 and 2 (momentum) of :func:`scatter5`."""
     n0, n1, n2, n3 = cell_nodes(side, i, L0, jx, jy)
@@ -105,7 +105,7 @@ def scatter_mv(g, side, i, L0, jx, jy, fx, fy, a1, a2):
     add_momentum(g, n3, s3, a1, a2)
 
 
-@inline_kernel
+@helper_kernel
 def gather4(g, side, i, L0, jx, jy, fx, fy):
     """Bilinear interpolation of rows 0..3 of ``g`` at fractions ``(fx, fy)`` of a local cell."""
     n0, n1, n2, n3 = cell_nodes(side, i, L0, jx, jy)
@@ -119,7 +119,7 @@ def gather4(g, side, i, L0, jx, jy, fx, fy):
             s0 * g[3, n0] + s1 * g[3, n1] + s2 * g[3, n2] + s3 * g[3, n3])
 
 
-@inline_kernel
+@helper_kernel
 def support(i, frame, slot, lcr, fields):
     """Particle ``i``'s domain ``(r1x, r1y, r2x, r2y)`` and its corners' local cells and fractions
     ``(jx0..3, jy0..3, fx0..3, fy0..3)``."""
@@ -135,7 +135,7 @@ def support(i, frame, slot, lcr, fields):
                                (fx0, fx1, fx2, fx3), (fy0, fy1, fy2, fy3))
 
 
-@inline_kernel
+@helper_kernel
 def scatter(i, g, frame, st, fields, args, side):
     """Mass, momentum and force of particle ``i``, corner by corner."""
     v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
@@ -156,7 +156,7 @@ def scatter(i, g, frame, st, fields, args, side):
     scatter5(g, side, i, L0, jx3, jy3, fx[3], fy[3], mq, mvx, mvy, bfx - tax, bfy - tay)
 
 
-@inline_kernel
+@helper_kernel
 def scatter_momentum(i, g, frame, st, fields, args, side):
     """Momentum of particle ``i``, corner by corner."""
     v, mass = fields.v, fields.mass
@@ -170,7 +170,7 @@ def scatter_momentum(i, g, frame, st, fields, args, side):
     scatter_mv(g, side, i, L0, jx3, jy3, fx[3], fy[3], mvx, mvy)
 
 
-@inline_kernel
+@helper_kernel
 def gather(step, i, g, frame, st, shape, fields, side):
     """``v_p = ¼ Σ v(x_α)``, ``Δv_p`` alike and ``Δt L`` (not in MUSL's motion pass, which stops
     before it) at particle ``i`` from its four corners."""

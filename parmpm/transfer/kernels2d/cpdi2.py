@@ -23,7 +23,7 @@ leave the patch's box as out of reach (``err = (i, −1)``). The loops are
 """
 import math
 
-from parmpm.core.jit import inline_kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, loop_kernel
 from parmpm.core.records import NO_SCALING
 from parmpm.materials.kinematics import det_2d
 from parmpm.transfer.kernels2d.cells import cells_of4
@@ -33,7 +33,7 @@ from parmpm.transfer.kernels2d.loops import NO_AFFINE, each_particle, each_parti
 from parmpm.transfer.update_order import G2P_MUSL_MOTION
 
 
-@inline_kernel
+@helper_kernel
 def capped(lcr, cx, cy):
     """One corner shrunk to length ``lcr`` if longer (the same bits when it is not)."""
     if lcr < NO_SCALING:
@@ -43,7 +43,7 @@ def capped(lcr, cx, cy):
     return cx, cy
 
 
-@inline_kernel
+@helper_kernel
 def quad(lcr, c, i):
     """Particle ``i``'s capped corners ``(x0, y0, …, x3, y3)``."""
     x0, y0 = capped(lcr, c[i, 0, 0], c[i, 0, 1])
@@ -53,7 +53,7 @@ def quad(lcr, c, i):
     return x0, y0, x1, y1, x2, y2, x3, y3
 
 
-@inline_kernel
+@helper_kernel
 def weights(x0, y0, x1, y1, x2, y2, x3, y3):
     """``(wf0..wf3, gx0, gy0, gx1, gy1, V)``: the corner weights, ``V·wg`` of corners 0 and 1
     (corners 3 and 2 have the opposite ``V·wg``) and the volume (module doc)."""
@@ -73,7 +73,7 @@ def weights(x0, y0, x1, y1, x2, y2, x3, y3):
     return wf0, wf1, wf2, wf3, g0x, g0y, g1x, g1y, 4.0 * j0
 
 
-@inline_kernel
+@helper_kernel
 def locate4(xx, xy, x0, y0, x1, y1, x2, y2, x3, y3, ihx, ihy, bx, by, jlx, jly, jhx, jhy):
     """Local cells and fractions of the four capped corners of a particle at grid coordinates
     ``(xx, xy)``: ``(jx0..3, jy0..3, fx0..3, fy0..3, ok)``."""
@@ -85,7 +85,7 @@ def locate4(xx, xy, x0, y0, x1, y1, x2, y2, x3, y3, ihx, ihy, bx, by, jlx, jly, 
             okx and oky)
 
 
-@inline_kernel
+@helper_kernel
 def support(i, frame, slot, lcr, fields):
     """Particle ``i``'s corner weights ``(wf0..3)``, ``V·wg`` of corners 0 and 1, ``V`` and its
     capped corners' local cells and fractions; code −2 when ``V ≤ 0`` (or NaN)."""
@@ -102,7 +102,7 @@ def support(i, frame, slot, lcr, fields):
                   (jy0, jy1, jy2, jy3), (fx0, fx1, fx2, fx3), (fy0, fy1, fy2, fy3))
 
 
-@inline_kernel
+@helper_kernel
 def scatter(i, g, frame, st, fields, args, side):
     """Mass, momentum and force of particle ``i``, corner by corner."""
     v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
@@ -128,7 +128,7 @@ def scatter(i, g, frame, st, fields, args, side):
     scatter5(g, side, i, L0, jx[3], jy[3], fx[3], fy[3], m * wf3, m * wf3 * vx, m * wf3 * vy, f3x, f3y)
 
 
-@inline_kernel
+@helper_kernel
 def scatter_momentum(i, g, frame, st, fields, args, side):
     """Momentum of particle ``i``, corner by corner."""
     v, mass = fields.v, fields.mass
@@ -141,7 +141,7 @@ def scatter_momentum(i, g, frame, st, fields, args, side):
     scatter_mv(g, side, i, L0, jx[3], jy[3], fx[3], fy[3], mvx * wf3, mvy * wf3)
 
 
-@inline_kernel
+@helper_kernel
 def gather(step, i, g, frame, st, shape, fields, side):
     """``v_p = Σ wf_α v(x_α)``, ``Δv_p`` alike and ``Δt L`` (not in MUSL's motion pass) at
     particle ``i``; the corners' velocities go on to :func:`follow`."""
@@ -168,7 +168,7 @@ def gather(step, i, g, frame, st, shape, fields, side):
             ((wf0, wf1, wf2, wf3), (u0x, u0y, u1x, u1y, u2x, u2y, u3x, u3y)))
 
 
-@inline_kernel
+@helper_kernel
 def follow(i, dt, extra, fields):
     """Move particle ``i``'s tracked corners with the grid unless its domain is frozen (MUSL: in
     the deformation pass, with the re-mapped field; module doc)."""

@@ -7,7 +7,7 @@ gathers ``v_p = Σ φ v_i``, ``Δv_p = Σ φ Δv_i`` and ``L_p = Σ v_i ⊗ ∇�
 (:mod:`parmpm.transfer.generic` has the full step). The loops are
 :mod:`parmpm.transfer.kernels2d.loops`'; this module supplies the stencil and its sums.
 """
-from parmpm.core.jit import inline_kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, loop_kernel
 from parmpm.materials.kinematics import det_2d
 from parmpm.transfer.kernels2d.cells import cell_nodes, hat_cell_of
 from parmpm.transfer.kernels2d.loops import (NO_AFFINE, centre_support, each_particle,
@@ -15,7 +15,7 @@ from parmpm.transfer.kernels2d.loops import (NO_AFFINE, centre_support, each_par
 from parmpm.transfer.sided import sided_node
 
 
-@inline_kernel
+@helper_kernel
 def add_force(g, node, S, gx, gy, bfx, bfy, t, forced):
     """P2G's force rows of one node: ``φ m b − V σ ∇φ`` (``t = V σ``, row by row), or ``− V σ ∇φ``
     alone when no body force acts (``forced`` False): the same sums without the ``0·φ`` terms,
@@ -29,13 +29,13 @@ def add_force(g, node, S, gx, gy, bfx, bfy, t, forced):
         g[4, node] -= t10 * gx + t11 * gy
 
 
-@inline_kernel
+@helper_kernel
 def support(i, frame, slot, lcr, fields):
     """Particle ``i``'s local cell and fractions ``(jx, jy, fx, fy)`` (``lcr`` unused)."""
     return centre_support(hat_cell_of, i, frame, slot, fields)
 
 
-@inline_kernel
+@helper_kernel
 def volume_stress(i, fields):
     """``t = V_p σ_p`` (row by row) with ``V_p = J_p V0_p``."""
     F, stress = fields.F, fields.stress
@@ -43,13 +43,13 @@ def volume_stress(i, fields):
     return V * stress[i, 0, 0], V * stress[i, 0, 1], V * stress[i, 1, 0], V * stress[i, 1, 1]
 
 
-@inline_kernel
+@helper_kernel
 def body_force(bforce, forced, i, m):
     """``m b_p`` of particle ``i`` (zeros when no body force acts)."""
     return (m * bforce[i, 0] if forced else 0.0), (m * bforce[i, 1] if forced else 0.0)
 
 
-@inline_kernel
+@helper_kernel
 def scatter(i, g, frame, st, fields, args, side):
     """Mass, momentum and force of particle ``i`` into its cell's four nodes."""
     v, mass = fields.v, fields.mass
@@ -74,7 +74,7 @@ def scatter(i, g, frame, st, fields, args, side):
         add_force(g, node, S, gx, gy, bfx, bfy, t, forced)
 
 
-@inline_kernel
+@helper_kernel
 def scatter_momentum(i, g, frame, st, fields, args, side):
     """Momentum of particle ``i`` into its cell's four nodes."""
     v, mass = fields.v, fields.mass
@@ -89,7 +89,7 @@ def scatter_momentum(i, g, frame, st, fields, args, side):
         g[2, node] += mvy * S
 
 
-@inline_kernel
+@helper_kernel
 def gather(step, i, g, frame, st, shape, fields, side):
     """``v``, ``Δv`` and ``Δt L`` at particle ``i`` from its cell's four nodes."""
     dt = step[1]

@@ -1,7 +1,7 @@
 """The end of a 2D G2P deformation update, as bookkeeping around the shared formulas: the F
 update (:func:`parmpm.materials.kinematics.update_F_2d`), the law (:func:`parmpm.materials.laws.
 stress_speed_2d`) and damage (:mod:`parmpm.materials.damage`) on the four entries of ``F``."""
-from parmpm.core.jit import inline_kernel, kernel
+from parmpm.core.jit import helper_kernel, kernel
 from parmpm.materials.kinematics import det_2d, update_F_2d
 from parmpm.materials import COL_DAMAGE
 from parmpm.materials.damage import damage_scalar, degrade_2d, max_stretch_2d
@@ -9,7 +9,7 @@ from parmpm.materials.laws import stress_speed_2d
 from parmpm.transfer.running_speed import running_speed
 
 
-@inline_kernel
+@helper_kernel
 def stress_damage_speed(params, row, damage, i, f00, f01, f10, f11):
     """:func:`stress_speed_2d`, with particle ``i``'s damage updated from ``F`` and its stress
     degraded when its material has a damage model; without one ``damage`` is not touched (so
@@ -22,7 +22,7 @@ def stress_damage_speed(params, row, damage, i, f00, f01, f10, f11):
     return s00, s01, s11, c
 
 
-@inline_kernel
+@helper_kernel
 def update_F_stress(vmax, i, l, f, v, F, stress, mat, params, damage, cfl):
     """Particle ``i``: ``F ← F + l F`` (``l = Δt L`` and ``f = F`` as 4-tuples of entries), its
     damage and (degraded) stress, and the running largest ``c_p + |v_p|`` (``inf`` once one is

@@ -13,7 +13,7 @@ them; the grid update does not). G2P is :func:`parmpm.transfer.kernels2d.bspline
 with ``L_p = C_p``, and the MUSL re-map is APIC's
 (:func:`~parmpm.transfer.kernels2d.bspline.p2g_momentum_bspline`).
 """
-from parmpm.core.jit import inline_kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, loop_kernel
 from parmpm.materials.kinematics import det_2d
 from parmpm.shapes.bspline import spline_weights
 from parmpm.transfer.kernels2d.bspline import spline_gather, support
@@ -22,7 +22,7 @@ from parmpm.transfer.kernels2d.loops import each_particle, each_particle_g2p, st
 from parmpm.transfer.sided import sided_node
 
 
-@inline_kernel
+@helper_kernel
 def scatter(i, g, frame, st, fields, args, side):
     """Mass and momentum with ``Δt f`` folded in (and the force rows when ``account``) of particle
     ``i`` into its 3×3 nodes."""
@@ -64,7 +64,7 @@ def scatter(i, g, frame, st, fields, args, side):
                 g[4, node] += S * (fyb + k10 * rx)
 
 
-@inline_kernel
+@helper_kernel
 def gather(step, i, g, frame, st, shape, fields, side):
     """:func:`~parmpm.transfer.kernels2d.bspline.spline_gather` with ``L_p = C_p``."""
     return spline_gather(step, i, g, frame, st, True, side)

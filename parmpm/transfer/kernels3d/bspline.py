@@ -7,7 +7,7 @@ The 3D counterpart of :mod:`parmpm.transfer.kernels2d.bspline` (same per-axis we
 when the particles carry the affine field. MLS (:mod:`parmpm.transfer.kernels3d.mls`) shares this G2P with
 ``L_p = C_p`` in place of the gradient sums. The loops are :mod:`parmpm.transfer.kernels3d.loops`'.
 """
-from parmpm.core.jit import inline_kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, loop_kernel
 from parmpm.shapes.bspline import spline_weights
 from parmpm.transfer.kernels2d.bspline import spline_of
 from parmpm.transfer.kernels2d.loops import stays
@@ -15,20 +15,20 @@ from parmpm.transfer.kernels3d.hat import add_force, body_force, volume_stress
 from parmpm.transfer.kernels3d.loops import centre_support, each_particle, each_particle_g2p
 
 
-@inline_kernel
+@helper_kernel
 def pick(k, a, b, c):
     """``(a, b, c)[k]`` for a loop index ``k`` in 0..2 (tuples cannot be indexed by it)."""
     return a if k == 0 else (b if k == 1 else c)
 
 
-@inline_kernel
+@helper_kernel
 def support(i, frame, slot, lcr, fields):
     """Particle ``i``'s first node and offset per axis, ``(kx, ky, kz, tx, ty, tz)`` (``lcr``
     unused)."""
     return centre_support(spline_of, i, frame, slot, fields)
 
 
-@inline_kernel
+@helper_kernel
 def scatter(i, g, frame, st, fields, args):
     """Mass, momentum (FLIP or APIC) and force of particle ``i`` into its 3×3×3 nodes."""
     v, mass, C = fields.v, fields.mass, fields.affine
@@ -69,7 +69,7 @@ def scatter(i, g, frame, st, fields, args):
                 add_force(g, node, S, gx, gy, gz, bf, t, forced)
 
 
-@inline_kernel
+@helper_kernel
 def scatter_momentum(i, g, frame, st, fields, args):
     """Momentum (FLIP or APIC) of particle ``i`` into its 3×3×3 nodes."""
     v, mass, C = fields.v, fields.mass, fields.affine
@@ -101,7 +101,7 @@ def scatter_momentum(i, g, frame, st, fields, args):
                 g[3, row + a] += mS * uz
 
 
-@inline_kernel
+@helper_kernel
 def spline_gather(step, i, g, frame, st, mls):
     """``v``, ``Δv`` (FLIP) or ``C`` (APIC) and ``Δt L`` at particle ``i`` from its 3×3×3 nodes;
     ``mls``: ``L_p = C_p`` (the affine matrix of the field G2P reads, ``Σ φ v_i ⊗ r D⁻¹``,
@@ -172,7 +172,7 @@ def spline_gather(step, i, g, frame, st, mls):
              dt * l22), ())
 
 
-@inline_kernel
+@helper_kernel
 def gather(step, i, g, frame, st, shape, fields):
     """:func:`spline_gather` with ``L_p = Σ v_i ⊗ ∇φ``."""
     return spline_gather(step, i, g, frame, st, False)

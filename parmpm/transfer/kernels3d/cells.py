@@ -9,7 +9,7 @@ rare, and inlining :func:`cell_of` 24 times per kernel multiplies numba's compil
 """
 import numpy as np
 
-from parmpm.core.jit import inline_kernel, kernel
+from parmpm.core.jit import helper_kernel, kernel
 from parmpm.transfer.kernels2d.cells import cell_of
 
 
@@ -28,7 +28,7 @@ def cells_of8_slow(c0, c1, c2, c3, c4, c5, c6, c7, base, jlo, jhi):
             min(k0, k1, k2, k3, k4, k5, k6, k7) >= 0)
 
 
-@inline_kernel
+@helper_kernel
 def cells_of8(c0, c1, c2, c3, c4, c5, c6, c7, base, jlo, jhi):
     """:func:`cells_of8_slow`, with the common case (every floor usable) inline."""
     # floors as floats: the fractions from them, not from the cells converted back (latency)
@@ -45,7 +45,7 @@ def cells_of8(c0, c1, c2, c3, c4, c5, c6, c7, base, jlo, jhi):
     return cells_of8_slow(c0, c1, c2, c3, c4, c5, c6, c7, base, jlo, jhi)
 
 
-@inline_kernel
+@helper_kernel
 def frame_3d(boxes):
     """The grid origin, ``1/Δx`` and the node-box strides of a rank's :class:`Boxes`
     (:mod:`parmpm.core.records`): ``(ox, oy, oz, ihx, ihy, ihz, L0, L0·L1)``."""
@@ -54,7 +54,7 @@ def frame_3d(boxes):
             nloc[0] * nloc[1])
 
 
-@inline_kernel
+@helper_kernel
 def slot_3d(boxes, p):
     """Node-box origin and usable cells of slot ``p``: ``(bx, by, bz, jlx, …, jhz)``."""
     base, jlo, jhi = boxes.base, boxes.jlo, boxes.jhi

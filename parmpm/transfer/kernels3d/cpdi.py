@@ -20,7 +20,7 @@ Grid rows: ``gsum[s] = (m, mv_x, mv_y, mv_z, f_x, f_y, f_z)``, ``gnew[s] = (v_x,
 """
 import numpy as np
 
-from parmpm.core.jit import inline_kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, loop_kernel
 from parmpm.core.records import NO_SCALING
 from parmpm.materials.kinematics import det_3d
 from parmpm.shapes.cpdi import cofactor_3d
@@ -32,7 +32,7 @@ from parmpm.transfer.kernels3d.loops import ZERO9, each_particle, each_particle_
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
 
-@inline_kernel
+@helper_kernel
 def domain(lcr, f00, f01, f02, f10, f11, f12, f20, f21, f22,
            q00, q01, q02, q10, q11, q12, q20, q21, q22):
     """``R = F·R0`` as ``(R00, R01, R02, R10, …, R22)`` (column ``m`` is ``r_{m+1}``), capped by
@@ -52,7 +52,7 @@ def domain(lcr, f00, f01, f02, f10, f11, f12, f20, f21, f22,
     return R00, R01, R02, R10, R11, R12, R20, R21, R22
 
 
-@inline_kernel
+@helper_kernel
 def axis_corners(xk, a0, a1, a2, b, jl, jh):
     """Local cells and fractions along one axis of the eight corners ``xk + s1 a0 + s2 a1 + s3 a2``
     (grid units): ``(j0..7, f0..7, ok)``."""
@@ -62,7 +62,7 @@ def axis_corners(xk, a0, a1, a2, b, jl, jh):
                      b, jl, jh)
 
 
-@inline_kernel
+@helper_kernel
 def cell_nodes(L0, L01, jx, jy, jz, fx, fy, fz):
     """The eight ``(node, S_node(f))`` of local cell ``(jx, jy, jz)`` at fractions ``(fx, fy, fz)``,
     x fastest. Node indices are unsigned: they are never negative (the cell was checked), and
@@ -76,7 +76,7 @@ def cell_nodes(L0, L01, jx, jy, jz, fx, fy, fz):
             (n4, gx * w01), (n4 + one, fx * w01), (n6, gx * w11), (n6 + one, fx * w11))
 
 
-@inline_kernel
+@helper_kernel
 def scatter7(g, L0, L01, jx, jy, jz, fx, fy, fz, a0, a1, a2, a3, a4, a5, a6):
     """``g[c, node] += S_node(f) · a_c`` (rows 0..6) over the eight nodes of local cell
     ``(jx, jy, jz)``."""
@@ -90,7 +90,7 @@ def scatter7(g, L0, L01, jx, jy, jz, fx, fy, fz, a0, a1, a2, a3, a4, a5, a6):
         g[6, n] += a6 * s
 
 
-@inline_kernel
+@helper_kernel
 def scatter_mv(g, L0, L01, jx, jy, jz, fx, fy, fz, a1, a2, a3):
     """Rows 1..3 (momentum) of :func:`scatter7`."""
     for n, s in cell_nodes(L0, L01, jx, jy, jz, fx, fy, fz):
@@ -99,7 +99,7 @@ def scatter_mv(g, L0, L01, jx, jy, jz, fx, fy, fz, a1, a2, a3):
         g[3, n] += a3 * s
 
 
-@inline_kernel
+@helper_kernel
 def gather6(g, L0, L01, jx, jy, jz, fx, fy, fz):
     """Trilinear interpolation of rows 0..5 of ``g`` at fractions ``(fx, fy, fz)`` of a local
     cell."""
@@ -114,7 +114,7 @@ def gather6(g, L0, L01, jx, jy, jz, fx, fy, fz):
     return u0, u1, u2, u3, u4, u5
 
 
-@inline_kernel
+@helper_kernel
 def gather3(g, L0, L01, jx, jy, jz, fx, fy, fz):
     """Rows 0..2 (velocity) of :func:`gather6`."""
     u0 = u1 = u2 = 0.0
@@ -125,7 +125,7 @@ def gather3(g, L0, L01, jx, jy, jz, fx, fy, fz):
     return u0, u1, u2
 
 
-@inline_kernel
+@helper_kernel
 def corner_gradients(R00, R01, R02, R10, R11, R12, R20, R21, R22):
     """``g`` of the corners ``(+,+,+)``, ``(+,−,−)``, ``(−,+,−)``, ``(+,+,−)`` (the other four are
     their negatives) from the cofactor columns of :func:`parmpm.shapes.cpdi.cofactor_3d`, and
@@ -138,14 +138,14 @@ def corner_gradients(R00, R01, R02, R10, R11, R12, R20, R21, R22):
             c1x + c2x - c3x, c1y + c2y - c3y, c1z + c2z - c3z, det)
 
 
-@inline_kernel
+@helper_kernel
 def sigma_dot(q, s00, s01, s02, s10, s11, s12, s20, s21, s22, gx, gy, gz):
     """``q σ g``."""
     return (q * (s00 * gx + s01 * gy + s02 * gz), q * (s10 * gx + s11 * gy + s12 * gz),
             q * (s20 * gx + s21 * gy + s22 * gz))
 
 
-@inline_kernel
+@helper_kernel
 def support(i, frame, slot, lcr, fields):
     """Particle ``i``'s domain ``R`` (row by row) and its eight corners' local cells and fractions
     per axis: ``(R, jx, jy, jz, fx, fy, fz)``, tuples of 9 and 8."""
@@ -170,7 +170,7 @@ def support(i, frame, slot, lcr, fields):
         (fy0, fy1, fy2, fy3, fy4, fy5, fy6, fy7), (fz0, fz1, fz2, fz3, fz4, fz5, fz6, fz7))
 
 
-@inline_kernel
+@helper_kernel
 def scatter(i, g, frame, st, fields, args):
     """Mass, momentum and force of particle ``i``, corner by corner."""
     v, F, mass, vol0, stress = fields.v, fields.F, fields.mass, fields.vol0, fields.stress
@@ -211,7 +211,7 @@ def scatter(i, g, frame, st, fields, args):
              bfx - tAx, bfy - tAy, bfz - tAz)
 
 
-@inline_kernel
+@helper_kernel
 def scatter_momentum(i, g, frame, st, fields, args):
     """Momentum of particle ``i``, corner by corner."""
     v, mass = fields.v, fields.mass
@@ -229,7 +229,7 @@ def scatter_momentum(i, g, frame, st, fields, args):
     scatter_mv(g, L0, L01, jx[7], jy[7], jz[7], fx[7], fy[7], fz[7], mvx, mvy, mvz)
 
 
-@inline_kernel
+@helper_kernel
 def gather(step, i, g, frame, st, shape, fields):
     """``v_p = ⅛ Σ v(x_α)``, ``Δv_p`` alike (the deformation pass reads ``v`` alone) and ``Δt L``
     (not in MUSL's motion pass) at particle ``i`` from its eight corners."""

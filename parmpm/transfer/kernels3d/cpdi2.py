@@ -17,7 +17,7 @@ run without reference counting.
 """
 import numpy as np
 
-from parmpm.core.jit import inline_kernel, kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, kernel, loop_kernel
 from parmpm.shapes.cpdi2 import (GAUSS, SCRATCH_SHAPE, WF, WG, add_point_weights, cap_corners,
                                   corner_shape, normalise_weights)
 from parmpm.transfer.kernels2d.cells import cell_of
@@ -26,7 +26,7 @@ from parmpm.transfer.kernels3d.hat import body_force, volume_stress
 from parmpm.transfer.kernels3d.loops import ZERO9, each_particle, each_particle_g2p
 
 
-@inline_kernel
+@helper_kernel
 def _scratch(lcr):
     """The loops' ``shape``: ``lcr`` and the scratch (capped corners and weights ``sc``, the
     corners' ``cells`` and fractions ``fr``, their velocities ``u``: G2P)."""
@@ -49,7 +49,7 @@ def _shape_table() -> np.ndarray:
 SHAPES = _shape_table()
 
 
-@inline_kernel
+@helper_kernel
 def coefficients(sc, k):
     """Component ``k`` of the trilinear map ``x(ξ) = A0 + A1 ξ + A2 η + A3 ζ + A12 ξη + A23 ηζ
     + A13 ξζ + A123 ξηζ`` of the corners in ``sc`` (bit order): ``(A1, A2, A3, A12, A23, A13,
@@ -65,7 +65,7 @@ def coefficients(sc, k):
             0.125 * ((c1 - c0) + (c2 - c3) + (c4 - c5) + (c7 - c6)))
 
 
-@inline_kernel
+@helper_kernel
 def hex_weights(sc):
     """:func:`parmpm.shapes.cpdi2.domain_weights` for a hexahedron, with ``J`` from the map's
     coefficients (3 × 4 terms per Gauss point instead of a sum over the eight corners): fills
@@ -105,7 +105,7 @@ def hex_weights(sc):
     return vol
 
 
-@inline_kernel
+@helper_kernel
 def support(i, frame, slot, shape, fields):
     """Particle ``i``'s capped corners and weights into the scratch ``sc`` and its corners' local
     cells and fractions into ``cells``, ``fr`` (the stencil is the scratch, ``shape``); code −2
@@ -130,7 +130,7 @@ def support(i, frame, slot, shape, fields):
     return (0 if ok else -1), shape
 
 
-@inline_kernel
+@helper_kernel
 def scatter(i, g, frame, st, fields, args):
     """Mass, momentum and force of particle ``i``, corner by corner."""
     v, mass = fields.v, fields.mass
@@ -151,7 +151,7 @@ def scatter(i, g, frame, st, fields, args):
                  bfz * wf - (t20 * gx + t21 * gy + t22 * gz))
 
 
-@inline_kernel
+@helper_kernel
 def scatter_momentum(i, g, frame, st, fields, args):
     """Momentum of particle ``i``, corner by corner."""
     v, mass = fields.v, fields.mass
@@ -164,7 +164,7 @@ def scatter_momentum(i, g, frame, st, fields, args):
                    fr[a, 2], mw * v[i, 0], mw * v[i, 1], mw * v[i, 2])
 
 
-@inline_kernel
+@helper_kernel
 def gather(step, i, g, frame, st, shape, fields):
     """``v_p = Σ wf_α v(x_α)``, ``Δv_p`` alike and ``Δt L`` at particle ``i``; the corners'
     velocities (scratch ``u`` of ``shape``) go on to :func:`follow`."""
@@ -199,7 +199,7 @@ def gather(step, i, g, frame, st, shape, fields):
              dt * l22), (u, vx, vy, vz))
 
 
-@inline_kernel
+@helper_kernel
 def follow(i, dt, extra, fields):
     """Move particle ``i``'s tracked corners with the grid, ``c_α += Δt (v(x_α) − v_p)``, unless
     its domain is frozen."""

@@ -10,7 +10,7 @@ The loops are :mod:`parmpm.transfer.kernels3d.loops`'.
 """
 import numpy as np
 
-from parmpm.core.jit import inline_kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, loop_kernel
 from parmpm.materials.kinematics import det_3d
 from parmpm.transfer.kernels2d.cells import hat_cell_of
 from parmpm.transfer.kernels2d.loops import stays
@@ -18,7 +18,7 @@ from parmpm.transfer.kernels3d.loops import ZERO9, centre_support, each_particle
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
 
-@inline_kernel
+@helper_kernel
 def nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz):
     """The eight nodes of the cell whose first node is ``n0`` (x fastest): ``(node, φ, ∇φ)``;
     unsigned node indices as in :func:`parmpm.transfer.kernels3d.cpdi.cell_nodes`."""
@@ -39,7 +39,7 @@ def nodes8(n0, L0, L01, fx, fy, fz, ihx, ihy, ihz):
             (n6 + one, fx * w11, ihx * w11, ihy * x11, ihz * v11))
 
 
-@inline_kernel
+@helper_kernel
 def add_force(g, node, S, gx, gy, gz, bf, t, forced):
     """P2G's force rows of one node: ``φ m b − t ∇φ`` with ``bf = m b`` and ``t = V σ`` (row by
     row), or ``− t ∇φ`` alone when no body force acts (``forced`` False): the same sums without
@@ -56,7 +56,7 @@ def add_force(g, node, S, gx, gy, gz, bf, t, forced):
         g[6, node] -= t20 * gx + t21 * gy + t22 * gz
 
 
-@inline_kernel
+@helper_kernel
 def scatter_node(g, e, a, t, forced):
     """P2G into one node ``e = (node, φ, ∇φ)`` of ``a = (m, m v, m b)`` and ``t = V σ`` (row by
     row): ``φ m``, ``φ m v`` and :func:`add_force`."""
@@ -69,13 +69,13 @@ def scatter_node(g, e, a, t, forced):
     add_force(g, node, S, gx, gy, gz, (bfx, bfy, bfz), t, forced)
 
 
-@inline_kernel
+@helper_kernel
 def support(i, frame, slot, lcr, fields):
     """Particle ``i``'s local cell and fractions ``(jx, jy, jz, fx, fy, fz)`` (``lcr`` unused)."""
     return centre_support(hat_cell_of, i, frame, slot, fields)
 
 
-@inline_kernel
+@helper_kernel
 def volume_stress(i, fields):
     """``t = V_p σ_p`` (row by row) with ``V_p = J_p V0_p``."""
     F, stress = fields.F, fields.stress
@@ -86,14 +86,14 @@ def volume_stress(i, fields):
             V * stress[i, 2, 0], V * stress[i, 2, 1], V * stress[i, 2, 2])
 
 
-@inline_kernel
+@helper_kernel
 def body_force(bforce, forced, i, m):
     """``m b_p`` of particle ``i`` (zeros when no body force acts)."""
     return ((m * bforce[i, 0] if forced else 0.0), (m * bforce[i, 1] if forced else 0.0),
             (m * bforce[i, 2] if forced else 0.0))
 
 
-@inline_kernel
+@helper_kernel
 def scatter(i, g, frame, st, fields, args):
     """Mass, momentum and force of particle ``i`` into its cell's eight nodes."""
     v, mass = fields.v, fields.mass
@@ -116,7 +116,7 @@ def scatter(i, g, frame, st, fields, args):
     scatter_node(g, e7, a, t, forced)
 
 
-@inline_kernel
+@helper_kernel
 def scatter_momentum(i, g, frame, st, fields, args):
     """Momentum of particle ``i`` into its cell's eight nodes."""
     v, mass = fields.v, fields.mass
@@ -131,7 +131,7 @@ def scatter_momentum(i, g, frame, st, fields, args):
         g[3, node] += mvz * S
 
 
-@inline_kernel
+@helper_kernel
 def gather(step, i, g, frame, st, shape, fields):
     """``v``, ``Δv`` (not in MUSL's deformation pass, which reads neither) and ``Δt L`` at
     particle ``i`` from its cell's eight nodes."""

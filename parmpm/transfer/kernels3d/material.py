@@ -1,7 +1,7 @@
 """The end of a 3D G2P deformation update, as bookkeeping around the shared formulas: the F
 update (:func:`parmpm.materials.kinematics.update_F_3d`), the law (:func:`parmpm.materials.laws.
 stress_speed_3d`) and damage (:mod:`parmpm.materials.damage`) on the nine entries of ``F``."""
-from parmpm.core.jit import inline_kernel, kernel
+from parmpm.core.jit import helper_kernel, kernel
 from parmpm.materials.kinematics import det_3d, update_F_3d
 from parmpm.materials import COL_DAMAGE
 from parmpm.materials.damage import damage_scalar, degrade_3d, max_stretch_3d
@@ -9,7 +9,7 @@ from parmpm.materials.laws import stress_speed_3d
 from parmpm.transfer.running_speed import running_speed
 
 
-@inline_kernel
+@helper_kernel
 def store_stress(stress, i, s00, s01, s02, s11, s12, s22):
     """Write the symmetric stress ``σ`` of particle ``i``."""
     stress[i, 0, 0], stress[i, 0, 1], stress[i, 0, 2] = s00, s01, s02
@@ -17,7 +17,7 @@ def store_stress(stress, i, s00, s01, s02, s11, s12, s22):
     stress[i, 2, 0], stress[i, 2, 1], stress[i, 2, 2] = s02, s12, s22
 
 
-@inline_kernel
+@helper_kernel
 def update_F_stress(vmax, i, l, f, v, F, stress, mat, params, damage, cfl):
     """Particle ``i``: ``F ← F + l F`` (``l = Δt L`` and ``f = F`` as 9-tuples of entries, row
     by row), its damage and (degraded) stress, and the running largest ``c_p + |v_p|`` (``inf``

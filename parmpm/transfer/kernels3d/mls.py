@@ -3,7 +3,7 @@
 ledger). G2P is :func:`parmpm.transfer.kernels3d.bspline.spline_gather`'s with ``L_p = C_p``; the MUSL
 re-map is APIC's.
 """
-from parmpm.core.jit import inline_kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, loop_kernel
 from parmpm.materials.kinematics import det_3d
 from parmpm.shapes.bspline import spline_weights
 from parmpm.transfer.kernels2d.loops import stays
@@ -12,7 +12,7 @@ from parmpm.transfer.kernels3d.hat import body_force
 from parmpm.transfer.kernels3d.loops import each_particle, each_particle_g2p
 
 
-@inline_kernel
+@helper_kernel
 def scatter(i, g, frame, st, fields, args):
     """Mass and momentum with ``Δt f`` folded in (and the force rows when ``account``) of particle
     ``i`` into its 3×3×3 nodes."""
@@ -66,7 +66,7 @@ def scatter(i, g, frame, st, fields, args):
                     g[6, node] += S * (bfz + k20 * rx + k21 * ry + k22 * rz)
 
 
-@inline_kernel
+@helper_kernel
 def gather(step, i, g, frame, st, shape, fields):
     """:func:`~parmpm.transfer.kernels3d.bspline.spline_gather` with ``L_p = C_p``."""
     return spline_gather(step, i, g, frame, st, True)
