@@ -192,16 +192,15 @@ loc, inv_ps = lay.locator()
 x = np.random.default_rng(0).uniform(-0.5, 3.5, (50, 2))
 got = ids(x, np.zeros(3), np.full(3, 4.0), loc, inv_ps)
 lines = "".join(ids.inspect_llvm().values()).splitlines()
-calls = any("call" in s and "patch_of" in s for s in lines)  # a call left to either helper
-inlined = any("patch_of_point_2d" in s for s in lines)  # its variables in the caller's body
+calls = any(" call " in s and "patch_of" in s for s in lines)  # a call left to either helper
 print(ids.stats.cache_hits.total(), len(patch_id2.signatures) + len(patch_id3.signatures),
-      calls, inlined, got.sum())
+      calls, got.sum())
 '''
 
 
 def test_compiled_helpers_inline_into_a_caller_that_caches(tmp_path):
-    """A ``@kernel`` calling patch_id2/3 compiles without compiling them on their own (numba
-    inlined their IR), and a second process loads it from the on-disk cache."""
+    """A ``@kernel`` calling patch_id2/3 leaves no call to them in its optimised code (LLVM
+    inlined them), and a second process loads it from the on-disk cache."""
     (tmp_path / "caller.py").write_text(textwrap.dedent(CALLER))
     env = dict(os.environ, PYTHONPATH=f"{tmp_path}{os.pathsep}{ROOT}",
                NUMBA_CACHE_DIR=str(tmp_path / "cache"))
@@ -211,7 +210,7 @@ def test_compiled_helpers_inline_into_a_caller_that_caches(tmp_path):
     for r in runs:
         assert r.returncode == 0, r.stderr[-2000:]
         out.append(r.stdout.split())
-    (hits0, compiled0, calls0, inlined0, sum0), (hits1, *_, sum1) = out
+    (hits0, compiled0, calls0, sum0), (hits1, *_, sum1) = out
     assert hits0 == "0" and hits1 == "1"
-    assert compiled0 == "0" and calls0 == "False" and inlined0 == "True"
+    assert int(compiled0) > 0 and calls0 == "False"  # typed apart, inlined by LLVM
     assert sum0 == sum1

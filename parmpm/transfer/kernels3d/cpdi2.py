@@ -26,10 +26,11 @@ from parmpm.transfer.kernels3d.hat import body_force, volume_stress
 from parmpm.transfer.kernels3d.loops import ZERO9, each_particle, each_particle_g2p
 
 
-@helper_kernel
+@kernel
 def _scratch(lcr):
     """The loops' ``shape``: ``lcr`` and the scratch (capped corners and weights ``sc``, the
-    corners' ``cells`` and fractions ``fr``, their velocities ``u``: G2P)."""
+    corners' ``cells`` and fractions ``fr``, their velocities ``u``: G2P). It allocates, so it is
+    a ``@kernel`` (called once per transfer), not a helper."""
     return (lcr, np.zeros(SCRATCH_SHAPE), np.zeros((8, 3), np.int64), np.zeros((8, 3)),
             np.zeros((8, 6)))
 
