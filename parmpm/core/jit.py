@@ -23,7 +23,13 @@ prune — 55–70 % of a generic 1D P2G's time. They may index, slice and write 
 given but never allocate or return one (allocating fails to compile, so the contract is checked):
 
 * ``@loop_kernel``: a particle loop; its scratch comes from a ``@kernel`` wrapper;
-* ``@helper_kernel``: a per-particle helper, inlined by LLVM (``forceinline``) into its caller.
+* ``@helper_kernel``: a per-particle helper, inlined by LLVM (``forceinline``) into its caller;
+* ``@hook_helper_kernel``: a helper that takes other helpers as arguments (a particle loop's
+  ``support``/``scatter``/``gather`` hooks). It is not cached on disk: numba's cache index keys
+  it by its argument types, a helper's type among them, and an index read in another process
+  holds types whose helpers are gone (a run failed saving one, ``ReferenceError: underlying
+  object has vanished``; an index written by the tests names their modules). Its callers cache
+  the inlined code, so it is compiled only where a new kernel is.
 
 Every one of them is cached on disk keyed to the whole source of the package
 (:mod:`parmpm.core.cache_key`): numba's own key is the kernel's file alone, and a kernel's machine code
@@ -40,3 +46,4 @@ JIT_OPTIONS = dict(cache=True, fastmath=False, nogil=True, error_model="numpy")
 kernel = njit(**JIT_OPTIONS)
 loop_kernel = njit(_nrt=False, **JIT_OPTIONS)
 helper_kernel = njit(_nrt=False, forceinline=True, **JIT_OPTIONS)
+hook_helper_kernel = njit(_nrt=False, forceinline=True, **{**JIT_OPTIONS, "cache": False})

@@ -47,7 +47,7 @@ import math
 
 import numpy as np
 
-from parmpm.core.jit import helper_kernel, kernel, loop_kernel
+from parmpm.core.jit import helper_kernel, hook_helper_kernel, kernel, loop_kernel
 from parmpm.grid.crack import field_node, to_fields
 from parmpm.materials.damage import damage_update
 from parmpm.materials.kinematics import det_d, flip_pic, update_F
@@ -134,7 +134,7 @@ def _frozen(d, rf):
     return False
 
 
-@helper_kernel
+@hook_helper_kernel
 def each_particle(body, d, how, boxes, order, fields, err, scratch, out, args, acc, sides):
     """``acc = body(i, p, n, d, how, boxes, fields, scratch, out, args, acc)`` for every particle
     ``i`` of every patch slot ``p``, in canonical order, whose ``n`` support entries

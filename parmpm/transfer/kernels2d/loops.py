@@ -32,7 +32,7 @@ out of such a tuple is the caller's, and drops a write into it that nothing read
 """
 import numpy as np
 
-from parmpm.core.jit import helper_kernel
+from parmpm.core.jit import helper_kernel, hook_helper_kernel
 from parmpm.grid.patch_index import next_patch_2d
 from parmpm.materials.kinematics import flip_pic
 from parmpm.transfer.kernels2d.cells import frame_2d, note_patch, slot_2d
@@ -53,7 +53,7 @@ def note_error(err, i, code):
         err[1] = code
 
 
-@helper_kernel
+@hook_helper_kernel
 def particle_at(support, order, kk, frame, slot, shape, fields, err):
     """The physical row ``i`` at canonical position ``kk``, and its ``support``: ``(i, code, st)``;
     a failure (``code < 0``) is noted in ``err``. Both loops' first step, in 2D and 3D."""
@@ -69,7 +69,7 @@ def stays(i, dt, extra, fields):
     """``follow`` of an interpolator whose particles carry nothing else along."""
 
 
-@helper_kernel
+@hook_helper_kernel
 def centre_support(axis, i, frame, slot, fields):
     """The ``support`` of an interpolator centred on particle ``i`` (standard MPM, B-splines):
     per axis, ``axis(ξ, base, jlo, jhi)`` gives the first local node (−1: out of the box) and the
@@ -82,7 +82,7 @@ def centre_support(axis, i, frame, slot, fields):
     return (-1 if jx < 0 or jy < 0 else 0), (jx, jy, fx, fy)
 
 
-@helper_kernel
+@hook_helper_kernel
 def each_particle(support, scatter, boxes, order, grid, err, shape, fields, args):
     """``scatter`` every particle of every patch slot into the slot's ``grid`` rows, skipping (and
     noting in ``err``) those whose ``support`` fails."""
@@ -98,7 +98,7 @@ def each_particle(support, scatter, boxes, order, grid, err, shape, fields, args
                 scatter(i, g, frame, st, fields, args, side)
 
 
-@helper_kernel
+@hook_helper_kernel
 def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, where, shape,
                       fields, material):
     """G2P of every particle in mode ``step[0]``; returns the largest ``c_p + |v_p|`` (when the

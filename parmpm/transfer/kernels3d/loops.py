@@ -9,7 +9,7 @@ tuples of 3 and 9 components, ``Δt L`` of 9 (row by row).
 """
 import numpy as np
 
-from parmpm.core.jit import helper_kernel
+from parmpm.core.jit import hook_helper_kernel
 from parmpm.grid.patch_index import next_patch_3d
 from parmpm.materials.kinematics import flip_pic
 from parmpm.transfer.kernels2d.cells import note_patch
@@ -23,7 +23,7 @@ from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_USL
 ZERO9 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@helper_kernel
+@hook_helper_kernel
 def centre_support(axis, i, frame, slot, fields):
     """:func:`parmpm.transfer.kernels2d.loops.centre_support` in 3D: ``(jx, jy, jz, fx, fy,
     fz)``."""
@@ -36,7 +36,7 @@ def centre_support(axis, i, frame, slot, fields):
     return (-1 if jx < 0 or jy < 0 or jz < 0 else 0), (jx, jy, jz, fx, fy, fz)
 
 
-@helper_kernel
+@hook_helper_kernel
 def each_particle(support, scatter, boxes, order, grid, err, shape, fields, args):
     """:func:`parmpm.transfer.kernels2d.loops.each_particle` in 3D."""
     start = boxes.start
@@ -50,7 +50,7 @@ def each_particle(support, scatter, boxes, order, grid, err, shape, fields, args
                 scatter(i, g, frame, st, fields, args)
 
 
-@helper_kernel
+@hook_helper_kernel
 def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, where, shape,
                       fields, material):
     """:func:`parmpm.transfer.kernels2d.loops.each_particle_g2p` in 3D."""
