@@ -31,7 +31,7 @@ given but never allocate or return one (allocating fails to compile, so the cont
   object has vanished``; an index written by the tests names their modules). Its callers cache
   the inlined code, so it is compiled only where a new kernel is.
 
-Every one of them is cached on disk keyed to the whole source of the package
+Every cached one is keyed to the whole source of the package
 (:mod:`parmpm.core.cache_key`): numba's own key is the kernel's file alone, and a kernel's machine code
 holds the helpers it calls from other modules.
 """
@@ -47,3 +47,8 @@ kernel = njit(**JIT_OPTIONS)
 loop_kernel = njit(_nrt=False, **JIT_OPTIONS)
 helper_kernel = njit(_nrt=False, forceinline=True, **JIT_OPTIONS)
 hook_helper_kernel = njit(_nrt=False, forceinline=True, **{**JIT_OPTIONS, "cache": False})
+
+# The flags of a ``helper_kernel`` for an ``@overload`` (a plain function jitted code may call):
+# numba caches an overload with the kernel that calls it, so it takes no ``cache`` of its own.
+HELPER_OVERLOAD_OPTIONS = {**{k: v for k, v in JIT_OPTIONS.items() if k != "cache"},
+                           "_nrt": False, "forceinline": True}

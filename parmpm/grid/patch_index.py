@@ -10,15 +10,12 @@ from here (not from the particle store)::
 from numba.extending import overload
 
 from decomposition import boxes
-from parmpm.core.jit import JIT_OPTIONS, helper_kernel
-
-_OVERLOAD_OPTIONS = {**{k: v for k, v in JIT_OPTIONS.items() if k != "cache"}, "_nrt": False,
-                     "forceinline": True}
+from parmpm.core.jit import HELPER_OVERLOAD_OPTIONS, helper_kernel
 
 
 def _jitable(fn):
     """Let jitted code call the plain function ``fn`` (inlined by LLVM into the caller)."""
-    overload(fn, jit_options=_OVERLOAD_OPTIONS, strict=False)(lambda *a: fn)
+    overload(fn, jit_options=HELPER_OVERLOAD_OPTIONS, strict=False)(lambda *a: fn)
     return fn
 
 

@@ -15,10 +15,7 @@ kernel and drops writes into it (a loop's ``args``).
 from numba import types
 from numba.extending import overload
 
-from parmpm.core.jit import JIT_OPTIONS
-
-_OPTIONS = {**{k: v for k, v in JIT_OPTIONS.items() if k != "cache"}, "_nrt": False,
-            "forceinline": True}
+from parmpm.core.jit import HELPER_OVERLOAD_OPTIONS
 
 
 def row(order, kk):
@@ -26,7 +23,7 @@ def row(order, kk):
     return kk if order is None else order[kk]
 
 
-@overload(row, jit_options=_OPTIONS)
+@overload(row, jit_options=HELPER_OVERLOAD_OPTIONS)
 def _row(order, kk):
     if isinstance(order, types.NoneType):
         return lambda order, kk: kk

@@ -16,7 +16,7 @@ import math
 from numba import types
 from numba.extending import overload
 
-from parmpm.transfer.rows import _OPTIONS
+from parmpm.core.jit import HELPER_OVERLOAD_OPTIONS
 
 
 def _finite_only(cfl, vmax, c, v2, check, J):
@@ -41,6 +41,6 @@ def running_speed(cfl, vmax, c, v2, check, J):
     return (_finite_only if cfl is None else _largest)(cfl, vmax, c, v2, check, J)
 
 
-@overload(running_speed, jit_options=_OPTIONS)
+@overload(running_speed, jit_options=HELPER_OVERLOAD_OPTIONS)
 def _running_speed(cfl, vmax, c, v2, check, J):
     return _finite_only if isinstance(cfl, types.NoneType) else _largest

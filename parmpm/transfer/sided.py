@@ -15,7 +15,7 @@ from numba import types
 from numba.extending import overload
 
 from parmpm.grid.crack import field_node
-from parmpm.transfer.rows import _OPTIONS
+from parmpm.core.jit import HELPER_OVERLOAD_OPTIONS
 
 
 def slot_side(sides, p):
@@ -32,14 +32,14 @@ def sided_node(side, i, node):
     return field_node(side[0], i, side[1], node)
 
 
-@overload(slot_side, jit_options=_OPTIONS)
+@overload(slot_side, jit_options=HELPER_OVERLOAD_OPTIONS)
 def _slot_side(sides, p):
     if isinstance(sides, types.NoneType):
         return lambda sides, p: None
     return lambda sides, p: (sides, p, sides.near[p])
 
 
-@overload(sided_node, jit_options=_OPTIONS)
+@overload(sided_node, jit_options=HELPER_OVERLOAD_OPTIONS)
 def _sided_node(side, i, node):
     if isinstance(side, types.NoneType):
         return lambda side, i, node: node
