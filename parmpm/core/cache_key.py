@@ -22,6 +22,11 @@ folders as before, a different freshness test. The locators are derived from the
 Files elsewhere (other packages' kernels) keep numba's own locators; ``NUMBA_CACHE_LOCATOR_CLASSES``
 (numba 0.6x) replaces numba's list, these locators with it: who sets it keys the cache numba's way.
 
+A source checkout's tests and scripts (``tests/``, ``run_scripts/`` beside ``pyproject.toml``)
+define kernels of their own that call the packages' helpers; numba's key would run them stale
+after an edit of those helpers (a test passed on the old code of the helper it tested). Theirs
+are keyed to the digest and to their own file's stamp (:func:`in_checkout`).
+
 Kernels already decorated when :func:`install` runs (``decomposition.halo``'s, if
 ``decomposition`` was imported before :mod:`parmpm.core.jit`) are re-keyed. A process that uses
 ``decomposition`` without ever importing :mod:`parmpm.core.jit` keeps numba's per-file stamp for those
@@ -38,6 +43,8 @@ import sys
 
 #: the packages whose kernels are keyed, and whose sources make the key
 PACKAGES = ("parmpm", "decomposition")
+#: the folders of a source checkout whose kernels are keyed too (with their own file's stamp)
+CHECKOUT_FOLDERS = ("tests", "run_scripts")
 #: a tag in the stamp: an index written by plain numba never matches it
 STAMP_TAG = "parmpm-sources"
 
@@ -78,27 +85,52 @@ def source_digest() -> str:
     return digest_of(package_roots())
 
 
-def in_packages(py_file: str) -> bool:
-    """Whether ``py_file`` is a source file of :data:`PACKAGES`."""
+@functools.lru_cache(maxsize=1)
+def checkout_roots() -> tuple[str, ...]:
+    """``tests/`` and ``run_scripts/`` of the source checkout the packages live in (the folder
+    above them holds ``pyproject.toml``); none for an installed copy."""
+    roots = set()
+    for root in package_roots():
+        top = os.path.dirname(root)
+        if os.path.isfile(os.path.join(top, "pyproject.toml")):
+            roots.update(os.path.join(top, name) for name in CHECKOUT_FOLDERS
+                         if os.path.isdir(os.path.join(top, name)))
+    return tuple(sorted(roots))
+
+
+def _under(py_file: str, roots) -> bool:
     try:
         path = os.path.realpath(py_file)
     except (OSError, ValueError):
         return False
-    return any(path.startswith(root + os.sep) for root in package_roots())
+    return any(path.startswith(root + os.sep) for root in roots)
+
+
+def in_packages(py_file: str) -> bool:
+    """Whether ``py_file`` is a source file of :data:`PACKAGES`."""
+    return _under(py_file, package_roots())
+
+
+def in_checkout(py_file: str) -> bool:
+    """Whether ``py_file`` is a test or script of the packages' source checkout."""
+    return _under(py_file, checkout_roots())
 
 
 class _SourceKeyed:
     """Mixin over one of numba's file-backed locators: same folder, the packages' digest as the
-    source stamp, and only for the packages' own files."""
+    source stamp, for the packages' own files and (with numba's stamp of the file beside it)
+    their checkout's tests and scripts."""
 
     parmpm_keyed = True
 
     def get_source_stamp(self):
-        return STAMP_TAG, source_digest()
+        if in_packages(self._py_file):
+            return STAMP_TAG, source_digest()
+        return STAMP_TAG, source_digest(), super().get_source_stamp()
 
     @classmethod
     def from_function(cls, py_func, py_file):
-        if not in_packages(py_file):
+        if not (in_packages(py_file) or in_checkout(py_file)):
             return None
         return super().from_function(py_func, py_file)
 

@@ -142,6 +142,65 @@ def test_an_edited_callee_in_another_module_is_never_run_stale(tmp_path, locatio
         assert _cached_files(where) == files
 
 
+CHECKOUT_TEST = """\
+import numba
+
+from parmpm._probe_callee import plain
+from parmpm.core.jit import kernel
+
+OWN = {own}
+
+
+@kernel
+def call_from_a_test(x):
+    return plain(x) + OWN
+
+
+@numba.njit(cache=True)
+def plain_numba_in_a_test(x):
+    return plain(x) + OWN
+"""
+
+CHECKOUT_PROBE = """\
+import json
+import sys
+
+sys.path.insert(0, "tests")
+import _probe_test as t
+
+kernels = (t.call_from_a_test, t.plain_numba_in_a_test)
+print(json.dumps({"values": [k(1.0) for k in kernels],
+                  "compiled": sum(sum(k.stats.cache_misses.values()) for k in kernels)}))
+"""
+
+
+def test_a_checkouts_test_kernels_are_never_run_stale(tmp_path):
+    """A kernel defined in a source checkout's ``tests/`` (beside ``pyproject.toml``) that calls a
+    package helper gives the new result after an edit of the helper, and after one of its own
+    file; a warm run loads it."""
+    top = _copy_packages(tmp_path / "checkout")
+    (top / "pyproject.toml").write_text("[project]\nname = 'probe'\n")
+    (top / "tests").mkdir()
+    _write_callee(top, 1.0)
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("NUMBA_CACHE_LOCATOR_CLASSES", "NUMBA_DISABLE_JIT")}
+    env.update(PYTHONPATH=str(top), PYTHONDONTWRITEBYTECODE="1",
+               NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+
+    def probe(own: float) -> dict:
+        (top / "tests" / "_probe_test.py").write_text(CHECKOUT_TEST.format(own=own))
+        proc = subprocess.run([sys.executable, "-c", CHECKOUT_PROBE], cwd=top, env=env,
+                              capture_output=True, text=True, timeout=TIMEOUT_S)
+        assert proc.returncode == 0, proc.stderr
+        return json.loads(proc.stdout.strip().splitlines()[-1])
+
+    assert probe(0.0) == {"values": [1.0, 1.0], "compiled": 2}
+    assert probe(0.0)["compiled"] == 0  # warm: loaded
+    _write_callee(top, 2.0)  # the package helper changes, the test file does not
+    assert probe(0.0)["values"] == [2.0, 2.0]
+    assert probe(5.0)["values"] == [7.0, 7.0]  # the test file changes
+
+
 # --- the key, in this process -------------------------------------------------------------------
 def test_the_digest_covers_every_module_and_only_the_sources(tmp_path):
     from parmpm.core.cache_key import digest_of
@@ -180,12 +239,24 @@ def test_every_cached_kernel_of_both_packages_is_keyed_to_the_digest():
     assert [k for k, keyed in kernels.items() if keyed is False] == []
 
     @numba.njit(cache=True)
-    def elsewhere(x):  # outside the packages: numba's own locators
+    def in_a_test(x):  # the checkout's tests: keyed, with this file's own stamp too
         return x
 
-    assert is_keyed(elsewhere) is False
+    assert is_keyed(in_a_test) is True
+    stamp = in_a_test._cache._cache_file._source_stamp
+    assert stamp[:2] == ("parmpm-sources", source_digest()) and len(stamp) == 3
     from decomposition.halo import _owner_rows
     assert _owner_rows._cache._cache_file._source_stamp == ("parmpm-sources", source_digest())
+
+
+def test_kernels_outside_the_packages_and_their_checkout_keep_numbas_key(tmp_path, monkeypatch):
+    (tmp_path / "elsewhere_probe.py").write_text(
+        "import numba\n\n\n@numba.njit(cache=True)\ndef elsewhere(x):\n    return x\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    import elsewhere_probe
+    from parmpm.core.cache_key import is_keyed
+
+    assert is_keyed(elsewhere_probe.elsewhere) is False
 
 
 def test_kernels_decorated_before_the_key_is_installed_are_re_keyed():
