@@ -3,7 +3,9 @@
 * :func:`cauchy_stress`, :func:`stored_energy`, :func:`wave_speed`: one particle, leading d×d
   block of 3×3 arrays (the generic kernels, the energy watch, the manufactured forcing);
 * :func:`stress_speed_2d`, :func:`stress_speed_3d`: scalar entries of ``F`` (the specialised
-  kernels), returning the stress components, the CFL speed and the law's pressure term ``p_v``.
+  kernels), returning the stress components, the squared CFL speed ``c²`` (its square root is
+  taken only where it can change the step's largest speed: :mod:`parmpm.transfer.running_speed`)
+  and the law's pressure term ``p_v``.
 
 CFL speed in the current configuration: a stretched body carries waves faster across a fixed
 grid. In 1D neo-Hookean the spatial speed is ``c² = λ² ∂P/∂λ / ρ0 = [μ(λ² + 1) + λ_L(1 − ln λ)]/ρ0``,
@@ -101,7 +103,7 @@ def wave_speed(d, params, F):
 
 @helper_kernel
 def stress_speed_2d(params, row, f00, f01, f10, f11):
-    """Plane-strain ``(σ_xx, σ_xy, σ_yy, c, (p_n, p_d))`` of material ``row`` from the entries of
+    """Plane-strain ``(σ_xx, σ_xy, σ_yy, c², (p_n, p_d))`` of material ``row`` from the entries of
     ``F`` (the pressure term as a pair: :func:`parmpm.materials.damage.pressure_term`)."""
     J = det_2d(f00, f01, f10, f11)
     b00, b01, b11 = left_cauchy_green_2d(f00, f01, f10, f11)
@@ -117,7 +119,7 @@ def stress_speed_2d(params, row, f00, f01, f10, f11):
 
 @helper_kernel
 def stress_speed_3d(params, row, f00, f01, f02, f10, f11, f12, f20, f21, f22):
-    """``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c, (p_n, p_d))`` of material ``row`` from the
+    """``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c², (p_n, p_d))`` of material ``row`` from the
     entries of ``F``."""
     J = det_3d(f00, f01, f02, f10, f11, f12, f20, f21, f22)
     b00, b01, b02, b11, b12, b22 = left_cauchy_green_3d(f00, f01, f02, f10, f11, f12, f20, f21,

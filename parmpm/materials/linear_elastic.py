@@ -38,30 +38,36 @@ def linear_elastic_energy(d, F, lam, mu):
 
 
 @helper_kernel
+def linear_elastic_speed2(c2, bmax):
+    """Squared CFL speed from ``c0²`` and the Gershgorin bound ``bmax`` of ``b``."""
+    return c2 * max(1.0, bmax)
+
+
+@helper_kernel
 def linear_elastic_speed(c2, bmax):
     """CFL speed from ``c0²`` and the Gershgorin bound ``bmax`` of ``b``."""
-    return math.sqrt(c2 * max(1.0, bmax))
+    return math.sqrt(linear_elastic_speed2(c2, bmax))
 
 
 @helper_kernel
 def linear_elastic_2d(lam, mu, c2, J, f00, f01, f10, f11, bmax):
-    """``(σ_xx, σ_xy, σ_yy, c, (p_v, 1))``: the pressure term as a pair
-    (:func:`parmpm.materials.damage.pressure_term`; ``x / 1`` is ``x``)."""
+    """``(σ_xx, σ_xy, σ_yy, c², (p_v, 1))``: the squared CFL speed, and the pressure term as a
+    pair (:func:`parmpm.materials.damage.pressure_term`; ``x / 1`` is ``x``)."""
     e00, e11 = f00 - 1.0, f11 - 1.0
     e01 = 0.5 * (f01 + f10)
     tr = e00 + e11
-    c = linear_elastic_speed(c2, bmax) if J > 0.0 else math.inf
-    return (2.0 * mu * e00 + lam * tr, 2.0 * mu * e01, 2.0 * mu * e11 + lam * tr, c,
+    cc = linear_elastic_speed2(c2, bmax) if J > 0.0 else math.inf
+    return (2.0 * mu * e00 + lam * tr, 2.0 * mu * e01, 2.0 * mu * e11 + lam * tr, cc,
             (lam * tr, 1.0))
 
 
 @helper_kernel
 def linear_elastic_3d(lam, mu, c2, J, f00, f01, f02, f10, f11, f12, f20, f21, f22, bmax):
-    """``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c, (p_v, 1))`` (as :func:`linear_elastic_2d`)."""
+    """``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c², (p_v, 1))`` (as :func:`linear_elastic_2d`)."""
     e00, e11, e22 = f00 - 1.0, f11 - 1.0, f22 - 1.0
     tr = e00 + e11 + e22
-    c = linear_elastic_speed(c2, bmax) if J > 0.0 else math.inf
+    cc = linear_elastic_speed2(c2, bmax) if J > 0.0 else math.inf
     m2 = 2.0 * mu
     return (m2 * e00 + lam * tr, m2 * (0.5 * (f01 + f10)), m2 * (0.5 * (f02 + f20)),
-            m2 * e11 + lam * tr, m2 * (0.5 * (f12 + f21)), m2 * e22 + lam * tr, c,
+            m2 * e11 + lam * tr, m2 * (0.5 * (f12 + f21)), m2 * e22 + lam * tr, cc,
             (lam * tr, 1.0))

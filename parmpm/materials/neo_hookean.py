@@ -61,28 +61,29 @@ def neo_hookean_pressure(lam, J):
 
 
 @helper_kernel
-def _p_c(lam, mu, inv_rho, J, bmax):
-    """``λ ln J`` and the CFL speed (−∞ and ∞ for ``J ≤ 0``), ``ln J`` taken once."""
+def _p_c2(lam, mu, inv_rho, J, bmax):
+    """``λ ln J`` and the squared CFL speed ``c²`` (−∞ and ∞ for ``J ≤ 0``), ``ln J`` taken
+    once."""
     if J > 0.0:
         lnJ = math.log(J)
-        return lam * lnJ, math.sqrt(neo_hookean_rho_c2(lam, mu, bmax, lnJ) * inv_rho)
+        return lam * lnJ, neo_hookean_rho_c2(lam, mu, bmax, lnJ) * inv_rho
     return -math.inf, math.inf
 
 
 @helper_kernel
 def neo_hookean_2d(lam, mu, inv_rho, J, b00, b01, b11, bmax):
-    """``(σ_xx, σ_xy, σ_yy, c, (p, J))`` from ``J`` and ``b``: the pressure term ``p_v = p / J``
-    as a pair (:func:`parmpm.materials.damage.pressure_term`)."""
-    p, c = _p_c(lam, mu, inv_rho, J, bmax)
+    """``(σ_xx, σ_xy, σ_yy, c², (p, J))`` from ``J`` and ``b``: the squared CFL speed, and the
+    pressure term ``p_v = p / J`` as a pair (:func:`parmpm.materials.damage.pressure_term`)."""
+    p, c2 = _p_c2(lam, mu, inv_rho, J, bmax)
     iJ = 1.0 / J
-    return (mu * (b00 - 1.0) + p) * iJ, mu * b01 * iJ, (mu * (b11 - 1.0) + p) * iJ, c, (p, J)
+    return (mu * (b00 - 1.0) + p) * iJ, mu * b01 * iJ, (mu * (b11 - 1.0) + p) * iJ, c2, (p, J)
 
 
 @helper_kernel
 def neo_hookean_3d(lam, mu, inv_rho, J, b00, b01, b02, b11, b12, b22, bmax):
-    """``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c, (p, J))`` from ``J`` and ``b`` (the pressure
-    term as in :func:`neo_hookean_2d`)."""
-    p, c = _p_c(lam, mu, inv_rho, J, bmax)
+    """``(σ_xx, σ_xy, σ_xz, σ_yy, σ_yz, σ_zz, c², (p, J))`` from ``J`` and ``b`` (``c²`` and the
+    pressure term as in :func:`neo_hookean_2d`)."""
+    p, c2 = _p_c2(lam, mu, inv_rho, J, bmax)
     iJ = 1.0 / J
     return ((mu * (b00 - 1.0) + p) * iJ, mu * b01 * iJ, mu * b02 * iJ,
-            (mu * (b11 - 1.0) + p) * iJ, mu * b12 * iJ, (mu * (b22 - 1.0) + p) * iJ, c, (p, J))
+            (mu * (b11 - 1.0) + p) * iJ, mu * b12 * iJ, (mu * (b22 - 1.0) + p) * iJ, c2, (p, J))

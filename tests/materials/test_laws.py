@@ -23,7 +23,8 @@ import pytest
 
 from parmpm.materials import (COL_C2, COL_DENSITY, COL_INV_DENSITY, COL_LAM, COL_LAW, COL_MU,
                               MODELS, N_PARAMS, lame)
-from parmpm.materials.laws import cauchy_stress, stored_energy, stress_speed_2d, stress_speed_3d
+from parmpm.materials.laws import (cauchy_stress, stored_energy, stress_speed_2d, stress_speed_3d,
+                                   wave_speed)
 
 E, NU, RHO = 2.0e6, 0.3, 1200.0
 LAM, MU = lame(E, NU)
@@ -49,14 +50,19 @@ def generic(model: str, d: int, F: np.ndarray) -> np.ndarray:
 
 def specialised(model: str, d: int, F: np.ndarray) -> np.ndarray:
     """The specialised kernels' stress, as a symmetric d×d matrix."""
+    F3 = np.eye(3)
+    F3[:d, :d] = F[:d, :d]
     if d == 2:
-        sxx, sxy, syy, c, _ = stress_speed_2d(params(model), 0, F[0, 0], F[0, 1], F[1, 0],
-                                              F[1, 1])
-        assert c > 0.0
-        return np.array([[sxx, sxy], [sxy, syy]])
-    sxx, sxy, sxz, syy, syz, szz, c, _ = stress_speed_3d(params(model), 0, *F[:3, :3].ravel())
-    assert c > 0.0
-    return np.array([[sxx, sxy, sxz], [sxy, syy, syz], [sxz, syz, szz]])
+        sxx, sxy, syy, c2, _ = stress_speed_2d(params(model), 0, F[0, 0], F[0, 1], F[1, 0],
+                                               F[1, 1])
+        out = np.array([[sxx, sxy], [sxy, syy]])
+    else:
+        sxx, sxy, sxz, syy, syz, szz, c2, _ = stress_speed_3d(params(model), 0,
+                                                              *F[:3, :3].ravel())
+        out = np.array([[sxx, sxy, sxz], [sxy, syy, syz], [sxz, syz, szz]])
+    # the squared CFL speed: the generic kernels' wave speed, squared
+    assert math.sqrt(c2) == pytest.approx(wave_speed(d, params(model)[0], F3), rel=1e-14)
+    return out
 
 
 FORMS = [("generic", 1), ("generic", 2), ("generic", 3), ("specialised", 2), ("specialised", 3)]

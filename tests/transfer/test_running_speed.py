@@ -8,9 +8,13 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as hst
 
+from parmpm.core.jit import kernel
 from parmpm.materials.passes import max_speed
 from parmpm.step.speed_watch import SPEED_EVERY
+from parmpm.transfer.running_speed import NO_SPEED, running_speed
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_USL
 from test_specialised_kernels import deformed_stepper, restore, snapshot
 
@@ -110,3 +114,46 @@ def test_the_speed_pass_is_the_dimension_generic_one(dim, model, tmp_path):
     P.F[P.n // 3] = np.diag([-1.0] + [1.0] * (dim - 1))
     assert (pass_2d if dim == 2 else pass_3d)(P.v, P.F, P.mat, st.params) == math.inf
     assert max_speed(dim, P.v, P.F, P.mat, st.params) == math.inf
+
+
+@kernel
+def _running_max(c2, v2):
+    run = NO_SPEED
+    for i in range(c2.size):
+        run = running_speed(True, run, c2[i], v2[i], 0.0, 1.0)
+    return run[0]
+
+
+def _largest_by_hand(c2, v2) -> float:
+    """Every particle's ``√c² + √v²``, the largest (``inf`` once one is NaN): the definition."""
+    vmax = 0.0
+    for a, b in zip(c2.tolist(), v2.tolist()):
+        s = math.sqrt(a) + math.sqrt(b) if a >= 0 and b >= 0 else math.nan
+        vmax = math.inf if s != s else max(vmax, s)
+    return vmax
+
+
+# a few values, so that particles tie and dominate each other in every way
+_SQUARES = hst.sampled_from([0.0, 1e-300, 0.25, 1.0, np.nextafter(1.0, 2.0), 2.0, 1296.0,
+                            np.nextafter(1296.0, 0.0), 1e300, math.inf, math.nan])
+
+
+@settings(max_examples=300, deadline=None)
+@given(hst.lists(hst.tuples(_SQUARES, _SQUARES), min_size=1, max_size=40))
+def test_the_running_speed_skips_only_particles_that_cannot_raise_it(pairs):
+    """The skip of a particle whose ``c²`` and ``v²`` are both at most those of the particle that
+    set the maximum (no square root taken) leaves the result bit for bit the largest
+    ``√c² + √v²`` over every particle, ``inf`` once one is NaN."""
+    c2 = np.array([p[0] for p in pairs])
+    v2 = np.array([p[1] for p in pairs])
+    assert _running_max(c2, v2) == _largest_by_hand(c2, v2)
+
+
+def test_the_running_speed_on_many_near_equal_particles():
+    """Particles alike to the last bits (a block in uniform motion, the benchmark's), and the
+    same with a spread: the largest speed bit for bit."""
+    rng = np.random.default_rng(11)
+    for spread in (1e-15, 1e-3, 1.0):
+        c2 = 1296.0 * (1.0 + spread * rng.random(10_000))
+        v2 = 1.25 * (1.0 + spread * rng.random(10_000))
+        assert _running_max(c2, v2) == _largest_by_hand(c2, v2)

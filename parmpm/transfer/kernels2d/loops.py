@@ -38,6 +38,7 @@ from parmpm.materials.kinematics import flip_pic
 from parmpm.transfer.kernels2d.cells import frame_2d, note_patch, slot_2d
 from parmpm.transfer.kernels2d.material import update_F_stress
 from parmpm.transfer.rows import row
+from parmpm.transfer.running_speed import NO_SPEED
 from parmpm.transfer.sided import slot_side
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_MUSL_MOTION
 
@@ -109,7 +110,7 @@ def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, wh
     x, v, F, stress, dx, C = fields.x, fields.v, fields.F, fields.stress, fields.dx, fields.affine
     mat, params, damage, cfl = material
     start, slot_patch, new_patch = boxes.start, where.slot_patch, where.new_patch
-    vmax = 0.0
+    run = NO_SPEED  # (the largest c_p + |v_p|, what it needs: running_speed)
     moved = 0
     first_out = -1
     frame = frame_2d(boxes)
@@ -146,6 +147,6 @@ def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, wh
             follow(i, dt, extra, fields)
             pid = next_patch_2d(x[i, 0], x[i, 1], boxes.origin, boxes.inv_h, where, p, sp)
             moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
-            vmax = update_F_stress(vmax, i, dtl, (F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]),
-                                   v, F, stress, mat, params, damage, cfl)
-    return vmax, moved, first_out
+            run = update_F_stress(run, i, dtl, (F[i, 0, 0], F[i, 0, 1], F[i, 1, 0], F[i, 1, 1]),
+                                  v, F, stress, mat, params, damage, cfl)
+    return run[0], moved, first_out

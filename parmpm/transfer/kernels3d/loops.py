@@ -16,6 +16,7 @@ from parmpm.transfer.kernels2d.cells import note_patch
 from parmpm.transfer.kernels2d.loops import particle_at
 from parmpm.transfer.kernels3d.cells import frame_3d, slot_3d
 from parmpm.transfer.kernels3d.material import update_F_stress
+from parmpm.transfer.running_speed import NO_SPEED
 from parmpm.transfer.update_order import G2P_MUSL_DEFORM, G2P_USL
 
 #: a 3×3 matrix of zeros, row by row: the affine field of a gather whose transfer is not APIC
@@ -58,7 +59,7 @@ def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, wh
     x, v, F, stress, dx, C = fields.x, fields.v, fields.F, fields.stress, fields.dx, fields.affine
     mat, params, damage, cfl = material
     start, slot_patch, new_patch = boxes.start, where.slot_patch, where.new_patch
-    vmax = 0.0
+    run = NO_SPEED  # (the largest c_p + |v_p|, what it needs: running_speed)
     moved = 0
     first_out = -1
     frame = frame_3d(boxes)
@@ -94,8 +95,8 @@ def each_particle_g2p(support, gather, follow, step, boxes, order, grid, err, wh
             pid = next_patch_3d(x[i, 0], x[i, 1], x[i, 2], boxes.origin, boxes.inv_h, where, p,
                                 sp)
             moved, first_out = note_patch(new_patch, np.int64(i), pid, sp, moved, first_out)
-            vmax = update_F_stress(vmax, i, dtl,
-                                   (F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
-                                    F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]),
-                                   v, F, stress, mat, params, damage, cfl)
-    return vmax, moved, first_out
+            run = update_F_stress(run, i, dtl,
+                                  (F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
+                                   F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2]),
+                                  v, F, stress, mat, params, damage, cfl)
+    return run[0], moved, first_out

@@ -1,12 +1,14 @@
 """The end of a 3D G2P deformation update, as bookkeeping around the shared formulas: the F
 update (:func:`parmpm.materials.kinematics.update_F_3d`), the law (:func:`parmpm.materials.laws.
 stress_speed_3d`) and damage (:mod:`parmpm.materials.damage`) on the nine entries of ``F``."""
+import math
+
 from parmpm.core.jit import helper_kernel, kernel
 from parmpm.materials.kinematics import det_3d, update_F_3d
 from parmpm.materials import COL_DAMAGE
 from parmpm.materials.damage import damage_scalar, degrade_3d, max_stretch_3d
 from parmpm.materials.laws import stress_speed_3d
-from parmpm.transfer.running_speed import running_speed
+from parmpm.transfer.running_speed import NO_SPEED, running_speed
 
 
 @helper_kernel
@@ -18,10 +20,10 @@ def store_stress(stress, i, s00, s01, s02, s11, s12, s22):
 
 
 @helper_kernel
-def update_F_stress(vmax, i, l, f, v, F, stress, mat, params, damage, cfl):
+def update_F_stress(run, i, l, f, v, F, stress, mat, params, damage, cfl):
     """Particle ``i``: ``F ← F + l F`` (``l = Δt L`` and ``f = F`` as 9-tuples of entries, row
-    by row), its damage and (degraded) stress, and the running largest ``c_p + |v_p|`` (``inf``
-    once one is NaN; with ``cfl`` None only the finiteness:
+    by row), its damage and (degraded) stress, and the running largest ``c_p + |v_p|`` (``run``,
+    whose first entry is it: ``inf`` once one is NaN; with ``cfl`` None only the finiteness:
     :mod:`parmpm.transfer.running_speed`)."""
     n00, n01, n02, n10, n11, n12, n20, n21, n22 = update_F_3d(
         l[0], l[1], l[2], l[3], l[4], l[5], l[6], l[7], l[8],
@@ -30,8 +32,8 @@ def update_F_stress(vmax, i, l, f, v, F, stress, mat, params, damage, cfl):
     F[i, 1, 0], F[i, 1, 1], F[i, 1, 2] = n10, n11, n12
     F[i, 2, 0], F[i, 2, 1], F[i, 2, 2] = n20, n21, n22
     row = mat[i]
-    s00, s01, s02, s11, s12, s22, c, pv = stress_speed_3d(params, row, n00, n01, n02, n10, n11,
-                                                          n12, n20, n21, n22)
+    s00, s01, s02, s11, s12, s22, c2, pv = stress_speed_3d(params, row, n00, n01, n02, n10, n11,
+                                                           n12, n20, n21, n22)
     if params[row, COL_DAMAGE] != 0.0:  # damage: touch nothing else without a model
         D = damage_scalar(params, row, damage[i],
                           max_stretch_3d(n00, n01, n02, n10, n11, n12, n20, n21, n22))
@@ -39,7 +41,7 @@ def update_F_stress(vmax, i, l, f, v, F, stress, mat, params, damage, cfl):
         s00, s01, s02, s11, s12, s22 = degrade_3d(D, pv, s00, s01, s02, s11, s12, s22)
     store_stress(stress, i, s00, s01, s02, s11, s12, s22)
     vx, vy, vz = v[i, 0], v[i, 1], v[i, 2]
-    return running_speed(cfl, vmax, c, vx * vx + vy * vy + vz * vz,
+    return running_speed(cfl, run, c2, vx * vx + vy * vy + vz * vz,
                          s00 + s01 + s02 + s11 + s12 + s22 + vx + vy + vz,
                          det_3d(n00, n01, n02, n10, n11, n12, n20, n21, n22))
 
@@ -50,11 +52,11 @@ def stress_pass(F, mat, params, stress):
     ``parmpm bench``'s "stress" line, which G2P's fused loop cannot time separately."""
     vmax = 0.0
     for i in range(F.shape[0]):
-        s00, s01, s02, s11, s12, s22, c, _ = stress_speed_3d(
+        s00, s01, s02, s11, s12, s22, c2, _ = stress_speed_3d(
             params, mat[i], F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0], F[i, 1, 1],
             F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2])
         store_stress(stress, i, s00, s01, s02, s11, s12, s22)
-        vmax = max(vmax, c)
+        vmax = max(vmax, math.sqrt(c2))
     return vmax
 
 
@@ -62,10 +64,10 @@ def stress_pass(F, mat, params, stress):
 def speed_pass(v, F, mat, params):
     """The largest ``c_p + |v_p|`` of every particle on its own, by G2P's formula: what a run at a
     fixed step measures every few steps (:mod:`parmpm.step.speed_watch`)."""
-    vmax = 0.0
+    run = NO_SPEED
     for i in range(F.shape[0]):
-        c = stress_speed_3d(params, mat[i], F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0],
-                            F[i, 1, 1], F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2])[6]
-        vmax = running_speed(True, vmax, c,
-                             v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2], 0.0, 1.0)
-    return vmax
+        c2 = stress_speed_3d(params, mat[i], F[i, 0, 0], F[i, 0, 1], F[i, 0, 2], F[i, 1, 0],
+                             F[i, 1, 1], F[i, 1, 2], F[i, 2, 0], F[i, 2, 1], F[i, 2, 2])[6]
+        run = running_speed(True, run, c2,
+                            v[i, 0] * v[i, 0] + v[i, 1] * v[i, 1] + v[i, 2] * v[i, 2], 0.0, 1.0)
+    return run[0]
