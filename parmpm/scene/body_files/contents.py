@@ -14,6 +14,7 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+from parmpm.core.extremes import column_min_max
 
 from parmpm.core.errors import SceneError
 from parmpm.core.log import get_logger
@@ -44,7 +45,8 @@ def _mesh_file(stamp: tuple, dim: int, groups: tuple | None):
     for b in mesh.blocks:
         used[b.cells.ravel()] = True
     nodes = mesh.points[used]
-    return mesh, (nodes.min(axis=0).tolist(), nodes.max(axis=0).tolist())
+    lo, hi = column_min_max(nodes)
+    return mesh, (lo.tolist(), hi.tolist())
 
 
 def volume_mesh(body, dim: int):
@@ -121,7 +123,8 @@ def _particles(stamp: tuple, dim: int, step: int | None) -> tuple[Listed, tuple,
 
     p = read_particle_file(stamp[0], dim, step=step)
     listed = Listed(p.x, p.reference_volume(), p.velocity, p.material, p.F)
-    return listed, (p.x.min(axis=0).tolist(), p.x.max(axis=0).tolist()), p.repeats
+    lo, hi = column_min_max(p.x)
+    return listed, (lo.tolist(), hi.tolist()), p.repeats
 
 
 def _attached(body, needs: str) -> None:

@@ -14,6 +14,7 @@ from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
+from parmpm.core.extremes import column_min_max
 
 from parmpm.core.errors import SceneError
 from parmpm.scene import recorded_files
@@ -251,7 +252,8 @@ def _check_volumes(key: str, path: str, data, dim: int) -> None:
     a volume in the wrong unit, or 1e300, which a run would take as it is (issue 41)."""
     vol = np.asarray(data.vol, float)
     width = float(np.median(vol)) ** (1.0 / dim) if vol.size else 0.0
-    box = float(np.prod(np.ptp(np.asarray(data.x, float).reshape(-1, dim), axis=0) + width))
+    lo, hi = column_min_max(np.asarray(data.x, float).reshape(-1, dim))
+    box = float(np.prod(hi - lo + width))
     total = float(math.fsum(vol))
     if total > VOLUME_SLACK * box:
         unit = {1: "m", 2: "m²", 3: "m³"}[dim]
