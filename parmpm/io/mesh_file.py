@@ -26,6 +26,7 @@ from typing import NamedTuple
 import numpy as np
 
 from parmpm.core.errors import SceneError
+from parmpm.core.hash_mix import splitmix64_finish
 
 #: the cell types a body is made of, by the scene's dimension
 VOLUME_CELLS = {2: ("triangle", "quad"), 3: ("tetra", "hexahedron")}
@@ -248,9 +249,7 @@ def _may_repeat(cells: np.ndarray) -> bool:
     a rare collision) sends the rows to the exact comparison, which costs seconds per million."""
     with np.errstate(over="ignore"):
         z = cells.astype(np.uint64) + np.uint64(0x9E3779B97F4A7C15)
-        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        h = np.sort((z ^ (z >> np.uint64(31))).sum(axis=1))
+        h = np.sort(splitmix64_finish(z).sum(axis=1))
     return bool(np.any(h[1:] == h[:-1]))
 
 

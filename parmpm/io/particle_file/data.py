@@ -10,9 +10,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from parmpm.core.extremes import column_min_max
 
 from parmpm.core.errors import SceneError
+from parmpm.core.extremes import column_min_max
+from parmpm.core.hash_mix import splitmix64_finish_kernel
 from parmpm.core.jit import kernel
 
 #: the most particles one file may hold: global ids and row counts are int64, but MPI counts
@@ -166,9 +167,7 @@ def _repeated(x, bits, vol, table):
         for a in range(dim):
             b = np.uint64(0) if x[i, a] == 0.0 else bits[i, a]  # -0.0 is 0.0
             h = (h ^ b) * np.uint64(0x9E3779B97F4A7C15)
-        h = (h ^ (h >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        h = (h ^ (h >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        slot = (h ^ (h >> np.uint64(31))) & mask
+        slot = splitmix64_finish_kernel(h) & mask
         while True:
             probed += 1
             j = np.int64(table[slot]) - 1

@@ -14,9 +14,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from parmpm.core.extremes import column_min_max
 
 from parmpm.core.errors import SceneError
+from parmpm.core.extremes import column_min_max
 from parmpm.core.log import get_logger
 from parmpm.scene import recorded_files
 from parmpm.scene.recorded_files import stamp as _stamp  # the readers' cache key

@@ -14,9 +14,9 @@ from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
-from parmpm.core.extremes import column_min_max
 
 from parmpm.core.errors import SceneError
+from parmpm.core.extremes import column_min_max
 from parmpm.scene import recorded_files
 from parmpm.scene.body_files.contents import (_groups_of, _mesh, _mesh_file, _particles, _stamp,
                                               _warn_once, bounds, count, element_checks_deferred,
