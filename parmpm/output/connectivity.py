@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from parmpm.core.hash_mix import splitmix64_finish_kernel
 from parmpm.core.jit import kernel
 from parmpm.grid.patch_index import patches_holding_node
 
@@ -24,20 +25,35 @@ def _find(parent, i):
 
 
 @kernel
-def local_components(nodes, count, n_nodes):
+def local_components(nodes, count, bound):
     """(number of components, component label 0..k-1 of every particle) for particles linked
-    through shared nodes; ``nodes[p, :count[p]]`` are compact node ids < ``n_nodes``."""
+    through shared nodes; ``nodes[p, :count[p]]`` are node ids >= 0 (global flat ids: any size),
+    of which at most ``bound`` are distinct. A component's label is its place in the order of
+    its first particle, whatever the ids.
+
+    Each node's first particle is found in an open-addressing table keyed by the node id
+    (splitmix64's finish spreads a lattice's ids over the slots), sized to twice ``bound``: memory
+    follows the particles, not the grid, without the sort that renumbering the ids took (``np.unique``
+    of N·K ids: 2/3 of a small 2D scene's step, 2026-12-01)."""
     n = nodes.shape[0]
+    size = 2
+    while size < 2 * bound:
+        size *= 2
+    mask = np.uint64(size - 1)
+    keys = np.full(size, -1, np.int64)
+    first = np.empty(size, np.int64)
     parent = np.arange(n)
-    first = np.full(n_nodes, -1, np.int64)
     for p in range(n):
         for k in range(count[p]):
             node = nodes[p, k]
-            q = first[node]
-            if q < 0:
-                first[node] = p
+            slot = splitmix64_finish_kernel(np.uint64(node)) & mask
+            while keys[slot] != node and keys[slot] >= 0:
+                slot = (slot + np.uint64(1)) & mask
+            if keys[slot] < 0:
+                keys[slot] = node
+                first[slot] = p
                 continue
-            a, b = _find(parent, p), _find(parent, q)
+            a, b = _find(parent, p), _find(parent, first[slot])
             if a != b:
                 if a < b:
                     parent[b] = a
@@ -99,15 +115,6 @@ def merge_count(node, label, n_labels):
                 parent[max(a, b)] = min(a, b)
                 unions += 1
     return unions
-
-
-def compact_nodes(nodes: np.ndarray, count: np.ndarray) -> tuple[np.ndarray, int]:
-    """Node ids renumbered 0..k-1 (memory follows the particles, not the grid)."""
-    valid = np.arange(nodes.shape[1])[None, :] < count[:, None]
-    uniq, inverse = np.unique(nodes[valid], return_inverse=True)
-    compact = np.zeros_like(nodes)
-    compact[valid] = inverse.ravel()
-    return compact, max(int(uniq.size), 1)
 
 
 def global_components(parts) -> int:

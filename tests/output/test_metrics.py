@@ -98,6 +98,56 @@ def test_count_components_wrapper():
     assert count_components(np.array(nodes2, np.int32), np.array(nn2, np.int32), (nx + 1) * 5) == 2
     with pytest.raises(ValueError):
         count_components(np.zeros((2, 2), np.int64), np.array([3, 1]), 4)
+    with pytest.raises(ValueError, match="negative"):
+        count_components(np.array([[0, -1], [1, 2]]), np.array([2, 2]), 4)
+    # a negative id in the padding is not read
+    assert count_components(np.array([[0, -1], [1, 2]]), np.array([1, 2]), 4) == 2
+
+
+def _bfs_labels(nodes, nnodes):
+    """Reference labels: breadth-first search from each unlabelled particle in index order, so
+    a piece's label is its place in the order of its first particle."""
+    n = nodes.shape[0]
+    by_node = {}
+    for p in range(n):
+        for k in range(nnodes[p]):
+            by_node.setdefault(int(nodes[p, k]), []).append(p)
+    label = np.full(n, -1, np.int64)
+    k = 0
+    for s in range(n):
+        if label[s] >= 0:
+            continue
+        label[s] = k
+        stack = [s]
+        while stack:
+            p = stack.pop()
+            for e in range(nnodes[p]):
+                for q in by_node[int(nodes[p, e])]:
+                    if label[q] < 0:
+                        label[q] = k
+                        stack.append(q)
+        k += 1
+    return k, label
+
+
+@pytest.mark.parametrize("ids", ["small", "lattice", "huge"])
+def test_labels_are_the_pieces_in_order_of_their_first_particle(ids):
+    """The labels (which ``shared_pairs`` sends to the other ranks) against breadth-first search,
+    with the table sized to exactly the distinct ids: ids in a small range, ids on a lattice's
+    stride (the low bits alike: global ids of a 3D grid's column), and ids near 2^62."""
+    rng = np.random.default_rng(11)
+    for trial in range(30):
+        n, K = int(rng.integers(1, 80)), int(rng.integers(1, 9))
+        raw = rng.integers(0, 3 * n, size=(n, K))
+        nodes = {"small": raw, "lattice": raw * 4096 + 7, "huge": 2**62 - 1 - raw * 2**40}[ids]
+        nodes = nodes.astype(np.int64)
+        nn = rng.integers(0, K + 1, size=n).astype(np.int64)
+        valid = np.arange(K)[None, :] < nn[:, None]
+        distinct = max(1, np.unique(nodes[valid]).size)
+        k, label = local_components(nodes, nn, distinct)
+        k_ref, label_ref = _bfs_labels(nodes, nn)
+        assert k == k_ref
+        np.testing.assert_array_equal(label, label_ref)
 
 
 # --------------------------------------------------------------------------------------------

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from parmpm.output.connectivity import compact_nodes, local_components
+from parmpm.output.connectivity import local_components
 
 
 def count_components(particle_nodes, particle_nnodes, n_nodes) -> int:
@@ -17,8 +17,8 @@ def count_components(particle_nodes, particle_nnodes, n_nodes) -> int:
 
     ``particle_nodes`` is an int array (N, K) of global flat node ids each particle touches with
     nonzero weight, of which the first ``particle_nnodes[p]`` are valid; ``n_nodes`` bounds the
-    ids. When ``n_nodes`` is much larger than the number of entries (a big 3D grid), the ids are
-    first compressed with ``np.unique`` so memory follows the particles, not the grid.
+    ids. Memory follows the particles, not the grid: the kernel's table holds at most
+    ``min(n_nodes, entries)`` ids.
     """
     particle_nodes = np.ascontiguousarray(particle_nodes, dtype=np.int64)
     particle_nnodes = np.ascontiguousarray(particle_nnodes, dtype=np.int64)
@@ -29,10 +29,11 @@ def count_components(particle_nodes, particle_nnodes, n_nodes) -> int:
         return 0
     if np.any(particle_nnodes > particle_nodes.shape[1]) or np.any(particle_nnodes < 0):
         raise ValueError("particle_nnodes out of range [0, K]")
-    n_nodes = int(n_nodes)
-    if n_nodes > 4 * particle_nodes.size + 1024:
-        particle_nodes, n_nodes = compact_nodes(particle_nodes, particle_nnodes)
-    return int(local_components(particle_nodes, particle_nnodes, max(n_nodes, 1))[0])
+    valid = np.arange(particle_nodes.shape[1])[None, :] < particle_nnodes[:, None]
+    if np.any(particle_nodes[valid] < 0):
+        raise ValueError("particle_nodes holds a negative node id")
+    bound = max(1, min(int(n_nodes), int(particle_nnodes.sum())))
+    return int(local_components(particle_nodes, particle_nnodes, bound)[0])
 
 
 __all__ = ["count_components"]
