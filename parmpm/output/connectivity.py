@@ -24,6 +24,10 @@ def _find(parent, i):
     return i
 
 
+#: entries of :func:`local_components`' cache of recent lookups (a power of two: 16 KiB)
+RECENT = 1024
+
+
 @kernel
 def local_components(nodes, count, bound):
     """(number of components, component label 0..k-1 of every particle) for particles linked
@@ -34,7 +38,11 @@ def local_components(nodes, count, bound):
     Each node's first particle is found in an open-addressing table keyed by the node id
     (splitmix64's finish spreads a lattice's ids over the slots), sized to twice ``bound``: memory
     follows the particles, not the grid, without the sort that renumbering the ids took (``np.unique``
-    of N·K ids: 2/3 of a small 2D scene's step, 2026-12-01)."""
+    of N·K ids: 2/3 of a small 2D scene's step, 2026-12-01). Neighbouring particles share most of
+    their nodes, so a small direct-mapped copy of recent lookups (keyed by the id's low bits,
+    which a row of nodes spreads over its entries) answers most of them without the table's
+    scattered slots; and a particle's own root is carried through its nodes, not looked up
+    again at each (together 1.5x on 90,000 particles of the default scene, 2026-12-01)."""
     n = nodes.shape[0]
     size = 2
     while size < 2 * bound:
@@ -42,23 +50,34 @@ def local_components(nodes, count, bound):
     mask = np.uint64(size - 1)
     keys = np.full(size, -1, np.int64)
     first = np.empty(size, np.int64)
+    recent = np.full((RECENT, 2), -1, np.int64)  # (node, its first particle)
     parent = np.arange(n)
     for p in range(n):
+        rp = p  # p's root: nothing joined p before its own nodes
         for k in range(count[p]):
             node = nodes[p, k]
-            slot = splitmix64_finish_kernel(np.uint64(node)) & mask
-            while keys[slot] != node and keys[slot] >= 0:
-                slot = (slot + np.uint64(1)) & mask
-            if keys[slot] < 0:
-                keys[slot] = node
-                first[slot] = p
+            r = node & (RECENT - 1)
+            if recent[r, 0] == node:
+                q = recent[r, 1]
+            else:
+                slot = splitmix64_finish_kernel(np.uint64(node)) & mask
+                while keys[slot] != node and keys[slot] >= 0:
+                    slot = (slot + np.uint64(1)) & mask
+                if keys[slot] < 0:
+                    keys[slot] = node
+                    first[slot] = p
+                q = first[slot]
+                recent[r, 0] = node
+                recent[r, 1] = q
+            if q == p:
                 continue
-            a, b = _find(parent, p), _find(parent, first[slot])
-            if a != b:
-                if a < b:
-                    parent[b] = a
+            rq = _find(parent, q)
+            if rq != rp:  # the smaller root stays: every root is its set's first particle
+                if rq < rp:
+                    parent[rp] = rq
+                    rp = rq
                 else:
-                    parent[a] = b
+                    parent[rq] = rp
     label = np.full(n, -1, np.int64)
     root_label = np.full(n, -1, np.int64)
     k = 0

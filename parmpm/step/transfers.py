@@ -13,11 +13,13 @@ from collections import namedtuple
 import numpy as np
 
 from parmpm.core.records import AXES, Boxes, Fields, Locate, Material, Method
-from parmpm.shapes import KINDS
+from parmpm.shapes import CPDI, KINDS
 from parmpm.transfer.affine import AFFINE_TRANSFERS, inertia_diagonal
-from parmpm.transfer.generic import g2p, p2g, p2g_momentum
+from parmpm.transfer.generic import g2p, p2g, p2g_momentum, support_nodes
 from parmpm.transfer.kernels2d import KERNELS_2D, MLS_KERNELS_2D
+from parmpm.transfer.kernels2d.support_nodes import support_nodes_cpdi as support_nodes_cpdi_2d
 from parmpm.transfer.kernels3d import KERNELS_3D, MLS_KERNELS_3D
+from parmpm.transfer.kernels3d.support_nodes import support_nodes_cpdi as support_nodes_cpdi_3d
 
 #: one interpolator's specialised kernels, by name
 Kernels = namedtuple("Kernels", ("p2g", "p2g_momentum", "g2p"))
@@ -27,6 +29,8 @@ SPECIALISED = {dim: {code: Kernels(*triple) for code, triple in table.items()}
                for dim, table in ((2, KERNELS_2D), (3, KERNELS_3D))}
 #: dimension → the MLS transfers' Kernels (bspline; its P2G takes the step)
 SPECIALISED_MLS = {2: Kernels(*MLS_KERNELS_2D), 3: Kernels(*MLS_KERNELS_3D)}
+#: dimension → the specialised CPDI walk of the separation count's nodes
+SUPPORT_NODES = {2: support_nodes_cpdi_2d, 3: support_nodes_cpdi_3d}
 
 
 class Transfers:
@@ -119,6 +123,17 @@ class Transfers:
             self.kernels.p2g_momentum(how.lcr, boxes, boxes.order, fields, grid.gsum_block, err)
         else:
             p2g_momentum(how, boxes, fields, grid.gmv, err, self.sides)
+
+    def support_nodes(self, nodes: np.ndarray, count: np.ndarray, err: np.ndarray) -> None:
+        """Every particle's nodes of nonzero weight, each once (the separation count's input:
+        :func:`parmpm.transfer.generic.support_nodes`, whose arrays the 2D and 3D CPDI walks of
+        the step's own corners reproduce where the specialised kernels run)."""
+        how, boxes, fields = self.records()
+        walk = SUPPORT_NODES.get(self.disc.dim) if self.disc.method == CPDI else None
+        if self.kernels is not None and walk is not None:
+            walk(how.lcr, boxes, boxes.order, fields, nodes, count, err)
+        else:
+            support_nodes(how, boxes, fields, nodes, count, err)
 
     def _no_affine(self, affine: np.ndarray) -> np.ndarray:
         """Zero affine matrices shaped like ``affine`` (kept: a fresh one each step would be

@@ -1,6 +1,7 @@
 """What counting the pieces of material costs beside the step it follows: the default scene (the
-2D hanging bar, cpdi, ``l_cr = 2dx``), whose metrics count the connected pieces after every step
-(``metrics.stop_on_separation``), at several cell sizes, one rank.
+2D hanging bar, cpdi, ``l_cr = 2dx``) or its 3D twin (``--scene hanging_bar_3d``), whose metrics
+count the connected pieces after every step (``metrics.stop_on_separation``), at several cell
+sizes, one rank.
 
 For each cell size it sets the scene up, steps it ``--warm`` times (compiling), then times
 ``--steps`` steps, each followed by a count (:func:`parmpm.driver.measures.components`: the
@@ -9,6 +10,7 @@ them), as a run whose metrics sample every step does; ``--repeat`` times, and pr
 mean milliseconds of each and their ratio.
 
     python run_scripts/benchmarks/separation_cost.py --cells 0.05 0.02 0.01 --steps 10 --repeat 3
+    python run_scripts/benchmarks/separation_cost.py --scene hanging_bar_3d --cells 0.2 0.1 0.0667
 """
 from __future__ import annotations
 
@@ -23,21 +25,23 @@ from parmpm.driver import measures
 from parmpm.driver.set_up import set_up
 from parmpm.scene.load import load_scene
 
-#: the default scene's grid: 2 m x 3.2 m from (-0.5, -3.0), the bar 1 m x 1 m below y = 0
-SPAN = (2.0, 3.2)
+#: each scene's grid span (m) and its coarsest cell: the 2D bar's grid is 2 m x 3.2 m from
+#: (-0.5, -3.0), the 3D bar's 1.8 m x 3.2 m x 1.8 m from (-0.4, -3.0, -0.4); the bar is the unit
+#: square (cube) below y = 0 in both
+SPANS = {"hanging_bar": ((2.0, 3.2), 0.1), "hanging_bar_3d": ((1.8, 3.2, 1.8), 0.2)}
 
 
-def scene(cell: float):
-    """The default scene at ``cell`` (m), outputs off."""
-    cells = [round(SPAN[0] / cell), round(SPAN[1] / cell)]
-    return load_scene("hanging_bar", [f"grid.cell_size={cell}", f"grid.cells={cells}",
-                                      "output.snapshots=false", "output.figure=false",
-                                      "output.history.enabled=false"])
+def scene(cell: float, name: str = "hanging_bar"):
+    """The scene ``name`` at ``cell`` (m), outputs off."""
+    cells = [round(span / cell) for span in SPANS[name][0]]
+    return load_scene(name, [f"grid.cell_size={cell}", f"grid.cells={cells}",
+                             "output.snapshots=false", "output.figure=false",
+                             "output.history.enabled=false"])
 
 
-def measure(cell: float, warm: int, steps: int, repeat: int) -> dict:
+def measure(cell: float, warm: int, steps: int, repeat: int, name: str = "hanging_bar") -> dict:
     """Best ms per step and per count at ``cell``, the particle count and the pieces counted."""
-    s = set_up(scene(cell), world())
+    s = set_up(scene(cell, name), world())
     g = np.array([0.0, -1000.0, 0.0])
     dt = 0.4 * cell / 40.0  # about the scene's CFL step (cfl 0.4, c ~ 36 m/s)
     t = 0.0
@@ -64,20 +68,22 @@ def measure(cell: float, warm: int, steps: int, repeat: int) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scene", choices=sorted(SPANS), default="hanging_bar")
     ap.add_argument("--cells", type=float, nargs="+", default=[0.05, 0.02, 0.01])
     ap.add_argument("--warm", type=int, default=3)
     ap.add_argument("--steps", type=int, default=10)
     ap.add_argument("--repeat", type=int, default=3)
     a = ap.parse_args()
-    bad = [c for c in a.cells if not 0.0 < c <= 0.1]
+    coarsest = SPANS[a.scene][1]
+    bad = [c for c in a.cells if not 0.0 < c <= coarsest]
     if min(a.warm, a.steps, a.repeat) < 1 or bad:
         raise SystemExit("separation_cost: --warm, --steps and --repeat must be at least 1 and "
-                         f"every --cells in (0, 0.1] m (got {a.warm}, {a.steps}, {a.repeat}, "
-                         f"{a.cells})")
+                         f"every --cells in (0, {coarsest:g}] m for {a.scene} (got {a.warm}, "
+                         f"{a.steps}, {a.repeat}, {a.cells})")
     print("cell (m)  particles  step (ms)  count (ms)  count/step  pieces")
     for cell in a.cells:
         try:
-            r = measure(cell, a.warm, a.steps, a.repeat)
+            r = measure(cell, a.warm, a.steps, a.repeat, a.scene)
         except ParmpmError as exc:
             raise SystemExit(f"separation_cost: {exc}") from None
         print(f"{cell:8g}  {r['particles']:9d}  {r['step']:9.3f}  {r['count']:10.3f}  "
