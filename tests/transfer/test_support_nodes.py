@@ -73,8 +73,6 @@ def test_corners_on_grid_lines_drop_the_zero_weight_nodes(dim, tmp_path):
     nodes, count, err = _same_walks(st)
     # the kernels' arithmetic, in numpy: the low corners' grid coordinate along x
     low = (P.x[:, 0] - o[0]) * ih[0] - 0.5 * h[0] * ih[0]
-    for _ in range(dim - 1):
-        low = low - 0.0 * ih[0]
     assert np.any(low == np.trunc(low)), "no corner landed exactly on a grid line"
     assert err[0] == -1 and count.min() >= 2 ** dim
     # a domain one cell wide whose corners sit on nodes touches 2^d nodes, not 3^d
@@ -112,7 +110,8 @@ def test_py_func_walk_matches(dim, tmp_path):
 
 
 @pytest.mark.parametrize("dim", DIMS)
-def test_measures_count_uses_the_walk(dim, tmp_path):
-    """``measures.components`` on a rank's state counts one piece for the intact bar."""
+def test_measures_counts_one_piece_of_an_intact_body(dim, tmp_path):
+    """``measures.components`` on a rank's state (through ``Transfers.support_nodes``, the walk
+    where the specialised kernels run) counts one piece for the intact body."""
     sim, _, _ = deformed_stepper(dim, "cpdi", LCR[dim], tmp=tmp_path)
     assert measures.components(sim.state) == 1
